@@ -1,0 +1,126 @@
+// GENERATED from src/layout.rs by `NOISEFREE_BLESS=1 cargo test --test layout`.
+// Do not edit: change src/layout.rs instead. tests/layout.rs checks that this file
+// is current and that the device lays every struct out exactly as Rust does.
+#ifndef NOISEFREE_LAYOUT_CL
+#define NOISEFREE_LAYOUT_CL
+
+#define MATERIAL_DIFFUSE 0u // Lambertian, Alg. 5
+#define MATERIAL_SPECULAR 1u // perfect mirror, eq. 4.7
+#define MATERIAL_GLASS 2u // Schlick Fresnel + Snell, eqs. 4.8-4.10
+#define MATERIAL_METAL 3u // normalised Phong lobe around the mirror direction
+#define MATERIAL_EMITTER 4u // a light surface: emits, reflects nothing
+#define LIGHT_SPHERE 0u
+#define LIGHT_TRIANGLE 1u
+#define LEAF_COUNT_SHIFT 28u // BvhNode.leaf = first | count << LEAF_COUNT_SHIFT
+#define LEAF_FIRST_MASK 0xfffffffu
+#define SKY_DEPTH 1e9f // depth of a camera ray that escapes (§6.3.4)
+
+// Everything a launch of the megakernel reads once: camera, environment, counts (§4.2.2).
+typedef struct __attribute__((aligned(16))) {
+    float4 camera_origin; // Camera position (xyz).
+    float4 camera_forward; // Unit view direction, target - origin.
+    float4 camera_right; // Unit right vector of the image plane.
+    float4 camera_up; // Unit up vector of the image plane.
+    float4 env_radiance; // Environment radiance multiplier (colour * gain), rgb.
+    float4 env_uv; // Environment texture transform: uv scale (xy), uv shift (zw).
+    uint image_width;
+    uint image_height;
+    float tan_half_fov; // tan(vertical fov / 2).
+    float lens_radius; // Thin-lens radius, 0 for a pinhole (Fig. 4.8).
+    float focal_distance; // Distance from the lens to the plane in focus.
+    uint node_count;
+    uint sphere_count;
+    uint light_count;
+    int env_texture; // Texture index of the environment light, -1 for a constant colour.
+    uint rr_depth; // Path depth from which Russian roulette runs (eq. 2.9).
+    uint max_vertices; // Hard cap on path vertices, a guard against runaway paths (see kernels/pathtrace.cl).
+    uint seed;
+} SceneParams;
+
+// A flattened BVH node (§4.2.2 "BVH construction", Fig. 4.6). Depth-first order, left child
+// directly after its parent; `skip` is the node to visit when the ray misses this subtree.
+typedef struct __attribute__((aligned(4))) {
+    float bounds_min[3];
+    uint skip; // Index of the next node after this node's subtree (the thesis's skip index).
+    float bounds_max[3];
+    uint leaf; // 0 for an inner node; for a leaf: first triangle | (triangle count << 28).
+} BvhNode;
+
+// Triangle vertices for intersection (Alg. 3), in leaf order.
+typedef struct __attribute__((aligned(16))) {
+    float4 v0;
+    float4 v1;
+    float4 v2;
+} TriangleGeom;
+
+// Per-triangle shading data, read only for the nearest hit.
+typedef struct __attribute__((aligned(16))) {
+    float4 n0;
+    float4 n1;
+    float4 n2;
+    float2 uv0;
+    float2 uv1;
+    float2 uv2;
+    uint material;
+    int light; // Index into the light list when the triangle is emissive, else -1.
+} TriangleShading;
+
+// An analytic sphere (kept in its own list, tested after the BVH).
+typedef struct __attribute__((aligned(16))) {
+    float center[3];
+    float radius;
+    uint material;
+    int light; // Index into the light list for sphere lights, else -1.
+    uint pad0;
+    uint pad1;
+} Sphere;
+
+// A material (§4.2.2 "Material", §4.3.3).
+typedef struct __attribute__((aligned(16))) {
+    float4 color; // diffuse/specular/metal colour; glass: reflection colour.
+    float4 color2; // glass: refraction colour.
+    float4 emission; // Emitted radiance (rgb); non-zero makes the surface a light.
+    uint kind; // MATERIAL_DIFFUSE, MATERIAL_SPECULAR, MATERIAL_GLASS, MATERIAL_METAL or MATERIAL_EMITTER.
+    int texture; // Texture index multiplying `color` (diffuse), -1 for none.
+    float exponent; // Phong exponent of the metal lobe.
+    float ior_outside;
+    float ior_inside;
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} Material;
+
+// Where a texture's texels start in the shared texel buffer, and its uv transform.
+typedef struct __attribute__((aligned(8))) {
+    uint offset;
+    uint width;
+    uint height;
+    uint pad;
+    float2 uv_scale;
+    float2 uv_shift;
+} TextureInfo;
+
+// A light for next-event estimation: a sphere light or one emissive triangle. It carries
+// its own geometry so that sampling needs no second lookup.
+typedef struct __attribute__((aligned(16))) {
+    uint kind; // LIGHT_SPHERE or LIGHT_TRIANGLE.
+    uint primitive; // Sphere index or triangle index (leaf order) of the light's surface.
+    float pmf; // Probability of choosing this light for a connection.
+    float area; // Surface area (triangles).
+    float4 emission; // Emitted radiance (rgb).
+    float4 p0; // Sphere: centre (xyz) and radius (w). Triangle: first vertex.
+    float4 p1;
+    float4 p2;
+} Light;
+
+// The FilterVector F of eq. 6.1: the per-pixel means, exactly 64 bytes (one float16, §6.2.1).
+typedef struct __attribute__((aligned(64))) {
+    float direct[3]; // Mean direct light: emission seen directly plus light reaching the first surface  straight from a light.
+    float indirect[3]; // Mean indirect light: everything else.
+    float depth; // Mean distance along the camera ray to the first hit; SKY_DEPTH when it escapes.
+    float normal[3]; // Mean shading normal at the first hit, facing the camera; 0 for sky.
+    float albedo[3]; // Mean albedo ("texture") at the first hit; 0 for sky.
+    float albedo2[3]; // Mean albedo of the first diffuse surface after the first bounce ("texture2"); 0 if none.
+} FilterVector;
+
+#endif

@@ -1,0 +1,86 @@
+// Explicit light connections ("direct light sampling v1.0", §2.4.2): at a diffuse hit, one
+// light is picked with probability proportional to its power, a point on it is sampled and a
+// shadow ray decides visibility.
+#ifndef NOISEFREE_LIGHTS_CL
+#define NOISEFREE_LIGHTS_CL
+
+#include "scene.cl"
+#include "sampling.cl"
+#include "rng.cl"
+
+#if HAS_LIGHTS
+
+// Shadow rays stop this fraction short of the light so the light's own surface never
+// occludes itself; relative, so it works at any scene scale.
+#define SHADOW_RAY_SHORTEN 0.9999f
+
+// Index of the light whose cdf interval holds u (cdf[i] = sum of pmf[0..=i]).
+inline uint select_light(const SceneRefs* s, float u) {
+    uint lo = 0u, hi = s->params->light_count - 1u;
+    while (lo < hi) {
+        uint mid = (lo + hi) >> 1;
+        if (u < s->light_cdf[mid]) hi = mid; else lo = mid + 1u;
+    }
+    return lo;
+}
+
+// Radiance arriving at p from one sampled light, divided by the sample's probability density
+// (solid angle, including the light choice) and multiplied by cos at p: the estimator of
+// integral L_e cos dw. The caller multiplies by the throughput and albedo / pi.
+inline float3 sample_direct_light(const SceneRefs* s, float3 p, float3 ng, float3 ns,
+                                  uint key, uint bounce, uint* ray_count) {
+    uint index = select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT));
+    __global const Light* light = s->lights + index;
+    float r1 = rng_uniform(key, bounce, DIM_LIGHT_U);
+    float r2 = rng_uniform(key, bounce, DIM_LIGHT_V);
+    float3 dir;
+    float dist;
+    float inv_pdf;   // 1 / (pdf in solid angle), without the light choice
+#if HAS_SPHERE_LIGHTS
+    if (light->kind == LIGHT_SPHERE) {
+        // Uniform directions in the cone the sphere subtends (solid-angle sampling).
+        float3 c = light->p0.xyz;
+        float r = light->p0.w;
+        float3 to_c = c - p;
+        float d2 = dot(to_c, to_c);
+        float r2s = r * r;
+        if (d2 <= r2s) return (float3)(0.0f);        // inside the light: it emits outwards only
+        float dc = sqrt(d2);
+        float sin2_max = r2s / d2;
+        float cos_max = sqrt(fmax(0.0f, 1.0f - sin2_max));
+        float one_minus_cos_max = sin2_max / (1.0f + cos_max);   // exact for tiny cones
+        dir = sample_cone(r1, r2, to_c / dc, one_minus_cos_max);
+        float t = ray_sphere(p, dir, c, r, 0.0f, INFINITY);
+        dist = (t > 0.0f) ? t : dc;                 // a grazing sample may miss by rounding
+        inv_pdf = TWO_PI_F * one_minus_cos_max;
+    } else
+#endif
+    {
+#if HAS_TRIANGLE_LIGHTS
+        // Uniform point on the triangle, converted to solid angle: pdf = d^2 / (cos_l area).
+        float2 b = sample_triangle(r1, r2);
+        float3 v0 = light->p0.xyz, v1 = light->p1.xyz, v2 = light->p2.xyz;
+        float3 q = v0 + b.x * (v1 - v0) + b.y * (v2 - v0);
+        float3 to_q = q - p;
+        float d2 = dot(to_q, to_q);
+        if (!(d2 > 0.0f)) return (float3)(0.0f);
+        dist = sqrt(d2);
+        dir = to_q / dist;
+        float3 nl = normalize(cross(v1 - v0, v2 - v0));
+        float cos_l = fabs(dot(nl, dir));            // emissive triangles emit on both sides
+        if (cos_l <= 0.0f) return (float3)(0.0f);
+        inv_pdf = cos_l * light->area / d2;
+#else
+        return (float3)(0.0f);
+#endif
+    }
+    float cos_s = dot(ns, dir);
+    if (cos_s <= 0.0f || dot(ng, dir) <= 0.0f) return (float3)(0.0f);
+    float3 origin = offset_ray_origin(p, ng);
+    if (occluded(s, origin, dir, dist * SHADOW_RAY_SHORTEN, ray_count)) return (float3)(0.0f);
+    return light->emission.xyz * (cos_s * inv_pdf / light->pmf);
+}
+
+#endif
+
+#endif

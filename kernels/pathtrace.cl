@@ -1,0 +1,128 @@
+// The megakernel path tracer (thesis §4.3, Algorithm 1, Fig. 4.7): one work-item per pixel,
+// the whole path of each sample in one kernel, samples folded into the pixel's FilterVector.
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "layout.cl"
+#include "features.cl"
+#include "rng.cl"
+#include "scene.cl"
+#include "camera.cl"
+#include "materials.cl"
+#include "lights.cl"
+#include "film.cl"
+
+inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
+
+// Adds light carried by the path. A path that reaches a light from vertex `bounce` (0 = the
+// camera) is "direct" when it left at most from the first visible surface (bounce <= 1):
+// emission seen directly, or light reaching the first surface straight from a light.
+inline void add_light(PathSample* ps, uint bounce, float3 value) {
+    if (bounce <= 1u) ps->direct += value; else ps->indirect += value;
+}
+
+// Algorithm 1 for one sample. `bounce` counts the surfaces the path has left.
+inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count) {
+    __constant const SceneParams* params = s->params;
+    PathSample ps = path_sample_empty();
+    float3 o, d;
+    camera_ray(params, x, y, key, &o, &d);
+    float3 throughput = (float3)(1.0f);       // "weight" in Alg. 1
+    bool count_emission = true;               // no light connection was made at the last vertex
+#if OUTPUT_FEATURES
+    bool want_albedo2 = true;
+#endif
+    for (uint bounce = 0u; bounce < params->max_vertices; ++bounce) {
+#if HAS_RUSSIAN_ROULETTE
+        // Alg. 1 lines 5-11, eq. 2.9: from rr_depth on, the path survives with probability
+        // 1/m and its weight is multiplied by m. We take 1/m = max component of the weight,
+        // capped at 0.95 so every path ends, so dim paths are cut and bright ones kept.
+        if (bounce >= params->rr_depth) {
+            float survive = fmin(0.95f, max3(throughput));
+            if (!(rng_uniform(key, bounce, DIM_RUSSIAN_ROULETTE) < survive)) break;
+            throughput /= survive;
+        }
+#else
+        if (bounce >= params->rr_depth) break;  // without Russian roulette: a fixed depth
+#endif
+        Hit hit = intersect_closest(s, o, d, INFINITY, ray_count);
+        if (hit.kind == HIT_NONE) {           // Alg. 1 lines 12-16: SampleSky
+#if HAS_ENV
+            add_light(&ps, bounce, throughput * environment_radiance(s, d));
+#endif
+            break;
+        }
+        Surface sf = surface_at(s, &hit, o, d);
+        __global const Material* m = s->materials + sf.material;
+        if (m->kind == MATERIAL_EMITTER) {    // an implicit connection ends the path
+            if (count_emission) add_light(&ps, bounce, throughput * m->emission.xyz);
+#if OUTPUT_FEATURES
+            if (bounce == 0u) {
+                ps.depth = hit.t;
+                ps.normal = sf.ns;
+                ps.albedo = surface_albedo(s, &sf);
+            }
+#endif
+            break;
+        }
+        float3 albedo = surface_albedo(s, &sf);
+#if OUTPUT_FEATURES
+        if (bounce == 0u) {
+            ps.depth = hit.t;
+            ps.normal = sf.ns;
+            ps.albedo = albedo;
+        } else if (want_albedo2 && m->kind == MATERIAL_DIFFUSE) {
+            ps.albedo2 = albedo;              // texture2: first diffuse surface after bounce 0
+            want_albedo2 = false;
+        }
+#endif
+#if HAS_LIGHTS && NEXT_EVENT_ESTIMATION
+        if (m->kind == MATERIAL_DIFFUSE) {    // Alg. 1 line 18: SampleLights, diffuse only
+            float3 li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, ray_count);
+            add_light(&ps, bounce + 1u, throughput * albedo * INV_PI_F * li);
+        }
+#endif
+        Scatter sc = scatter(s, &sf, d, albedo, key, bounce);   // Alg. 1 line 17: SampleBRDF
+#if OUTPUT_FEATURES
+        if (bounce == 0u && !sc.absorbed) ps.direction = sc.direction;
+#endif
+        if (sc.absorbed) break;
+        throughput *= sc.weight;
+#if NEXT_EVENT_ESTIMATION
+        count_emission = sc.specular;
+#endif
+        o = offset_ray_origin(sf.p, sc.offset_normal);
+        d = sc.direction;
+    }
+    return ps;
+}
+
+__kernel void render(__constant const SceneParams* params,
+                     __global const BvhNode* nodes,
+                     __global const TriangleGeom* tri_geom,
+                     __global const TriangleShading* tri_shading,
+                     __global const Sphere* spheres,
+                     __global const Material* materials,
+                     __global const TextureInfo* textures,
+                     __global const float4* texels,
+                     __global const Light* lights,
+                     __global const float* light_cdf,
+                     __global float16* filter_vectors,
+                     __global uint* ray_counts,
+                     uint sample_base,
+                     uint sample_count) {
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= params->image_width || y >= params->image_height) return;
+    uint pixel = y * params->image_width + x;
+    SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
+                   textures, texels, lights, light_cdf};
+    float16 mean = filter_vectors[pixel];
+    uint rays = 0u;
+    for (uint k = 0u; k < sample_count; ++k) {
+        uint sample = sample_base + k;
+        uint key = rng_sample_key(params->seed, pixel, sample);
+        PathSample ps = trace_path(&s, x, y, key, &rays);
+        film_accumulate(&mean, &ps, sample + 1u);
+    }
+    filter_vectors[pixel] = mean;
+    ray_counts[pixel] = rays;
+}

@@ -1,0 +1,67 @@
+// Small kernels that expose single device functions to the tests, so each can be compared
+// with its Rust reference (src/reference/). Not used for rendering.
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "layout.cl"
+#include "features.cl"
+#include "rng.cl"
+#include "scene.cl"
+#include "camera.cl"
+
+// rng_uniform for each (pixel, sample, bounce, dim) quadruple.
+__kernel void probe_rng(__global const uint4* counters, uint seed, __global float* out, uint n) {
+    uint i = get_global_id(0);
+    if (i >= n) return;
+    uint4 c = counters[i];
+    out[i] = rng_uniform(rng_sample_key(seed, c.x, c.y), c.z, c.w);
+}
+
+// Nearest hit (t, prim, kind) or any-hit for each ray (origin.xyz, t_max in origin.w).
+__kernel void probe_intersect(__constant const SceneParams* params,
+                              __global const BvhNode* nodes,
+                              __global const TriangleGeom* tri_geom,
+                              __global const Sphere* spheres,
+                              __global const float4* origins,
+                              __global const float4* directions,
+                              __global float* out_t,
+                              __global int* out_prim,
+                              __global int* out_occluded,
+                              uint n) {
+    uint i = get_global_id(0);
+    if (i >= n) return;
+    SceneRefs s = {params, nodes, tri_geom, 0, spheres, 0, 0, 0, 0, 0};
+    float3 o = origins[i].xyz, d = directions[i].xyz;
+    float t_max = origins[i].w;
+    uint rays = 0u;
+    Hit hit = intersect_closest(&s, o, d, t_max, &rays);
+    out_t[i] = hit.kind == HIT_NONE ? -1.0f : hit.t;
+    out_prim[i] = hit.kind == HIT_NONE ? -1 : (hit.kind == HIT_SPHERE ? -2 - (int)hit.prim : (int)hit.prim);
+    out_occluded[i] = occluded(&s, o, d, t_max, &rays) ? 1 : 0;
+}
+
+// Camera rays for every pixel of one sample.
+__kernel void probe_camera(__constant const SceneParams* params, uint sample,
+                           __global float4* out_origin, __global float4* out_dir) {
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= params->image_width || y >= params->image_height) return;
+    uint pixel = y * params->image_width + x;
+    float3 o, d;
+    camera_ray(params, x, y, rng_sample_key(params->seed, pixel, sample), &o, &d);
+    out_origin[pixel] = (float4)(o, 0.0f);
+    out_dir[pixel] = (float4)(d, 0.0f);
+}
+
+// sizeof and field offsets of every shared struct, measured on the device (tests/layout.rs).
+// The host appends LAYOUT_PROBE_BODY, generated from src/layout.rs, as a -D option.
+__kernel void probe_layout(__global uint* out,
+                           __global SceneParams* a, __global BvhNode* b, __global TriangleGeom* c,
+                           __global TriangleShading* d, __global Sphere* e, __global Material* f,
+                           __global TextureInfo* g, __global Light* h, __global FilterVector* i) {
+    if (get_global_id(0) != 0) return;
+    uint k = 0;
+#define SIZE(p) out[k++] = (uint)sizeof(*(p));
+#define OFFSET(p, field) out[k++] = (uint)((__global char*)&((p)->field) - (__global char*)(p));
+    LAYOUT_PROBE_BODY
+#undef SIZE
+#undef OFFSET
+}

@@ -1,0 +1,143 @@
+// The scene as the kernels see it, and ray-scene queries: the thesis's stackless skip-index
+// BVH traversal (Algorithm 4, Fig. 4.11) plus the analytic spheres.
+#ifndef NOISEFREE_SCENE_CL
+#define NOISEFREE_SCENE_CL
+
+#include "layout.cl"
+#include "features.cl"
+#include "geometry.cl"
+
+// Pointers to the scene buffers, bundled so functions take one argument.
+typedef struct {
+    __constant const SceneParams* params;
+    __global const BvhNode* nodes;
+    __global const TriangleGeom* tri_geom;
+    __global const TriangleShading* tri_shading;
+    __global const Sphere* spheres;
+    __global const Material* materials;
+    __global const TextureInfo* textures;
+    __global const float4* texels;
+    __global const Light* lights;
+    __global const float* light_cdf;
+} SceneRefs;
+
+#define HIT_NONE 0
+#define HIT_TRIANGLE 1
+#define HIT_SPHERE 2
+
+typedef struct {
+    float t;
+    float u, v;      // barycentrics of a triangle hit (eq. 4.4)
+    uint prim;       // triangle (leaf order) or sphere index
+    int kind;        // HIT_NONE, HIT_TRIANGLE or HIT_SPHERE
+} Hit;
+
+inline float3 node_min(__global const BvhNode* n) {
+    return (float3)(n->bounds_min[0], n->bounds_min[1], n->bounds_min[2]);
+}
+inline float3 node_max(__global const BvhNode* n) {
+    return (float3)(n->bounds_max[0], n->bounds_max[1], n->bounds_max[2]);
+}
+
+// Nearest hit along o + t d, t in (0, t_max).
+//
+// Algorithm 4 as printed keeps the *last* triangle it hits and never shortens the far plane,
+// so it returns whichever intersected triangle comes last in node order, not the nearest one.
+// Here a hit is kept only when it is nearer than the best so far, and the far plane passed to
+// the box test (Alg. 2) is clipped to it, which also prunes boxes behind the nearest hit.
+// A leaf holds several triangles (obvhs leaves); Alg. 4 line 9 tests one.
+inline Hit intersect_closest(const SceneRefs* s, float3 o, float3 d, float t_max, uint* ray_count) {
+    Hit hit;
+    hit.t = t_max;
+    hit.u = 0.0f;
+    hit.v = 0.0f;
+    hit.prim = 0u;
+    hit.kind = HIT_NONE;
+    *ray_count += 1u;
+#if HAS_TRIANGLES
+    float3 inv_d = safe_inverse(d);
+    uint node_count = s->params->node_count;
+    uint current = 0u;
+    while (current < node_count) {                       // Alg. 4 line 6 (stopNode = n)
+        __global const BvhNode* node = s->nodes + current;
+        if (ray_aabb(o, inv_d, 0.0f, hit.t, node_min(node), node_max(node))) {
+            uint leaf = node->leaf;
+            if (leaf != 0u) {
+                uint first = leaf & LEAF_FIRST_MASK;
+                uint count = leaf >> LEAF_COUNT_SHIFT;
+                for (uint k = first; k < first + count; ++k) {
+                    __global const TriangleGeom* tri = s->tri_geom + k;
+                    float u, v;
+                    float t = ray_triangle(o, d, tri->v0.xyz, tri->v1.xyz, tri->v2.xyz, &u, &v);
+                    if (t > 0.0f && t < hit.t) {
+                        hit.t = t;
+                        hit.u = u;
+                        hit.v = v;
+                        hit.prim = k;
+                        hit.kind = HIT_TRIANGLE;
+                    }
+                }
+                current = node->skip;   // == current + 1 for a leaf
+            } else {
+                current += 1u;          // descend: the left child follows its parent
+            }
+        } else {
+            current = node->skip;       // Alg. 4 line 21: skip the whole subtree
+        }
+    }
+#endif
+#if HAS_SPHERES
+    for (uint i = 0u; i < s->params->sphere_count; ++i) {
+        __global const Sphere* sp = s->spheres + i;
+        float3 c = (float3)(sp->center[0], sp->center[1], sp->center[2]);
+        float t = ray_sphere(o, d, c, sp->radius, 0.0f, hit.t);
+        if (t > 0.0f) {
+            hit.t = t;
+            hit.prim = i;
+            hit.kind = HIT_SPHERE;
+        }
+    }
+#endif
+    return hit;
+}
+
+// Any-hit query for shadow rays: true as soon as anything lies in (0, t_max).
+inline bool occluded(const SceneRefs* s, float3 o, float3 d, float t_max, uint* ray_count) {
+    *ray_count += 1u;
+#if HAS_TRIANGLES
+    float3 inv_d = safe_inverse(d);
+    uint node_count = s->params->node_count;
+    uint current = 0u;
+    while (current < node_count) {
+        __global const BvhNode* node = s->nodes + current;
+        if (ray_aabb(o, inv_d, 0.0f, t_max, node_min(node), node_max(node))) {
+            uint leaf = node->leaf;
+            if (leaf != 0u) {
+                uint first = leaf & LEAF_FIRST_MASK;
+                uint count = leaf >> LEAF_COUNT_SHIFT;
+                for (uint k = first; k < first + count; ++k) {
+                    __global const TriangleGeom* tri = s->tri_geom + k;
+                    float u, v;
+                    float t = ray_triangle(o, d, tri->v0.xyz, tri->v1.xyz, tri->v2.xyz, &u, &v);
+                    if (t > 0.0f && t < t_max) return true;
+                }
+                current = node->skip;
+            } else {
+                current += 1u;
+            }
+        } else {
+            current = node->skip;
+        }
+    }
+#endif
+#if HAS_SPHERES
+    for (uint i = 0u; i < s->params->sphere_count; ++i) {
+        __global const Sphere* sp = s->spheres + i;
+        float3 c = (float3)(sp->center[0], sp->center[1], sp->center[2]);
+        if (ray_sphere(o, d, c, sp->radius, 0.0f, t_max) > 0.0f) return true;
+    }
+#endif
+    return false;
+}
+
+#endif

@@ -1,0 +1,40 @@
+//! Procedural assets made by the project's own code: meshes named by `[[mesh]] generator = ...`
+//! in scene files. Deterministic for a seed.
+
+use glam::{Vec2, Vec3};
+
+use crate::scene::mesh::MeshPart;
+
+/// Names accepted by `[[mesh]] generator`.
+pub const MESH_GENERATORS: &[&str] = &["quad"];
+
+/// The mesh a generator makes, or None for an unknown name.
+pub fn generate_mesh(name: &str, seed: u64) -> Option<Vec<MeshPart>> {
+    let _ = seed;
+    match name {
+        "quad" => Some(vec![quad()]),
+        _ => None,
+    }
+}
+
+/// The unit square in the xz plane, facing +y, uv over [0,1]^2.
+fn quad() -> MeshPart {
+    MeshPart {
+        name: "quad".into(),
+        positions: vec![
+            Vec3::new(-0.5, 0.0, -0.5),
+            Vec3::new(0.5, 0.0, -0.5),
+            Vec3::new(0.5, 0.0, 0.5),
+            Vec3::new(-0.5, 0.0, 0.5),
+        ],
+        normals: vec![Vec3::Y; 4],
+        uvs: vec![
+            Vec2::new(0.0, 1.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.0, 0.0),
+        ],
+        indices: vec![[0, 2, 1], [0, 3, 2]],
+        material: None,
+    }
+}

@@ -1,0 +1,340 @@
+//! The command line: `noisefree devices`, `noisefree render`.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::gpu::{self, Gpu};
+use crate::output::{self, RgbImage};
+use crate::render::{RenderOptions, Renderer};
+use crate::scene;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "noisefree",
+    version,
+    about = "Physically based OpenCL path tracing with real-time denoising filters"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// List OpenCL platforms and devices.
+    Devices,
+    /// Render a scene file to a PNG (and a linear EXR).
+    Render(RenderArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct RenderArgs {
+    /// The scene description (.toml).
+    pub scene: PathBuf,
+    /// Samples per pixel (overrides [render] spp).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    #[arg(long)]
+    pub seed: Option<u32>,
+    /// Depth at which Russian roulette starts (overrides [render] max_depth).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Tone-mapped sRGB PNG [default: out/<scene>.png].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Linear float OpenEXR [default: out/<scene>.exr].
+    #[arg(long)]
+    pub exr: Option<PathBuf>,
+    /// Do not write the EXR.
+    #[arg(long)]
+    pub no_exr: bool,
+    /// Stop after this many seconds even if fewer than spp samples are done.
+    #[arg(long, value_name = "SECONDS")]
+    pub time_limit: Option<f64>,
+    /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
+    #[arg(long)]
+    pub device: Option<usize>,
+    /// PNG exposure in stops (the image is multiplied by 2^EV before tone mapping).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Build the generic kernel with every effect compiled in, for comparison.
+    #[arg(long)]
+    pub all_features: bool,
+    /// Print the effects compiled into the kernel and why.
+    #[arg(long)]
+    pub explain: bool,
+    /// Work-group size, e.g. 8x8 [default: chosen by the driver].
+    #[arg(long, value_parser = parse_size)]
+    pub local_size: Option<[usize; 2]>,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+fn parse_size(s: &str) -> std::result::Result<[usize; 2], String> {
+    let (a, b) = s
+        .split_once('x')
+        .ok_or_else(|| format!("expected WxH, e.g. 8x8, got {s:?}"))?;
+    let a: usize = a
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad width in {s:?}"))?;
+    let b: usize = b
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad height in {s:?}"))?;
+    if a == 0 || b == 0 {
+        return Err("work-group sizes must be positive".into());
+    }
+    Ok([a, b])
+}
+
+/// Runs the command line; returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Devices => devices(),
+        Command::Render(args) => render(&args).map(|_| ()),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            1
+        }
+    }
+}
+
+fn devices() -> Result<()> {
+    let list = gpu::list_devices()?;
+    let mut platform = String::new();
+    for d in list {
+        if d.platform != platform {
+            println!("platform: {}", d.platform);
+            platform = d.platform.clone();
+        }
+        println!(
+            "  [{}] {} ({}) — {} compute units, {} local memory, max work-group {}, {} global memory, {}, driver {}",
+            d.index,
+            d.name,
+            d.kind,
+            d.compute_units,
+            gpu::human_bytes(d.local_mem_bytes),
+            d.max_work_group_size,
+            gpu::human_bytes(d.global_mem_bytes),
+            d.version,
+            d.driver
+        );
+    }
+    Ok(())
+}
+
+/// What a finished render reports.
+#[derive(Clone, Debug)]
+pub struct RenderSummary {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub seconds: f64,
+    pub kernel_seconds: f64,
+    pub rays: u64,
+}
+
+impl RenderSummary {
+    pub fn mrays_per_second(&self) -> f64 {
+        self.rays as f64 / self.kernel_seconds.max(1e-9) / 1e6
+    }
+    pub fn spp_per_second(&self) -> f64 {
+        self.spp as f64 / self.kernel_seconds.max(1e-9)
+    }
+}
+
+fn default_output(scene: &Path, ext: &str) -> PathBuf {
+    let stem = scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "render".into());
+    PathBuf::from("out").join(format!("{stem}.{ext}"))
+}
+
+/// Renders progressively until `spp` samples or the time limit, showing progress.
+pub fn progressive(
+    renderer: &mut Renderer,
+    spp: u32,
+    time_limit: Option<f64>,
+    quiet: bool,
+) -> Result<()> {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(spp as u64)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} spp  {msg}  ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let limit = time_limit.map(Duration::from_secs_f64);
+    // Launch sizes grow towards ~0.5 s per launch: responsive progress, few launches, and well
+    // under GPU watchdog limits. The image does not depend on the batching (tests/determinism).
+    let mut batch = 1u32;
+    while renderer.samples_done() < spp {
+        if let Some(limit) = limit
+            && start.elapsed() >= limit
+        {
+            break;
+        }
+        let count = batch.min(spp - renderer.samples_done());
+        let stats = renderer.render_samples(count)?;
+        let per_sample = stats.kernel_time.as_secs_f64() / count as f64;
+        let mut next = (0.5 / per_sample.max(1e-6)) as u32;
+        if let Some(limit) = limit {
+            let left = limit.saturating_sub(start.elapsed()).as_secs_f64();
+            next = next.min((left / per_sample.max(1e-6)) as u32);
+        }
+        batch = next.clamp(1, batch.saturating_mul(4).max(1));
+        bar.set_position(renderer.samples_done() as u64);
+        let secs = renderer.kernel_time_total.as_secs_f64().max(1e-9);
+        bar.set_message(format!(
+            "{:.2} spp/s  {:.1} Mrays/s",
+            renderer.samples_done() as f64 / secs,
+            renderer.rays_total as f64 / secs / 1e6
+        ));
+    }
+    bar.finish_and_clear();
+    Ok(())
+}
+
+pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
+    let start = Instant::now();
+    let scene = scene::load_scene(&args.scene)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    let mut options = RenderOptions::for_scene(&scene);
+    if let Some(w) = args.width {
+        options.frame.width = w;
+    }
+    if let Some(h) = args.height {
+        options.frame.height = h;
+    }
+    if let Some(s) = args.seed {
+        options.frame.seed = s;
+    }
+    if let Some(d) = args.max_depth {
+        options.frame.max_depth = d;
+    }
+    if options.frame.width == 0 || options.frame.height == 0 {
+        bail!(
+            "the image must be at least 1x1 pixels (got {}x{})",
+            options.frame.width,
+            options.frame.height
+        );
+    }
+    let spp = args.spp.unwrap_or(scene.render.spp);
+    if spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    if let Some(t) = args.time_limit
+        && !(t > 0.0 && t.is_finite())
+    {
+        bail!("--time-limit must be a positive number of seconds");
+    }
+    options.all_features = args.all_features;
+    options.local_size = args.local_size;
+
+    // Outputs: explicit paths must be writable now, before minutes of rendering.
+    let png_path = args
+        .out
+        .clone()
+        .unwrap_or_else(|| default_output(&args.scene, "png"));
+    let exr_path = if args.no_exr {
+        None
+    } else {
+        Some(
+            args.exr
+                .clone()
+                .unwrap_or_else(|| default_output(&args.scene, "exr")),
+        )
+    };
+    for (given, path) in [
+        (args.out.is_some(), Some(&png_path)),
+        (args.exr.is_some(), exr_path.as_ref()),
+    ] {
+        if let Some(path) = path {
+            if !given && let Some(dir) = path.parent() {
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("creating {}", dir.display()))?;
+            }
+            output::check_output_path(path)?;
+        }
+    }
+
+    let gpu = Gpu::open(args.device)?;
+    let compile_start = Instant::now();
+    let mut renderer = Renderer::new(gpu.clone(), &scene, &options)?;
+    if !args.quiet {
+        eprintln!(
+            "device: {} | {} triangles, {} BVH nodes (built in {:.2} s), {} spheres, {} lights | kernels ready in {:.2} s",
+            gpu.summary.name,
+            renderer.arrays.tri_geom.len(),
+            renderer.arrays.nodes.len(),
+            renderer.arrays.bvh_stats.build_time.as_secs_f64(),
+            renderer.arrays.spheres.len(),
+            renderer.arrays.lights.len(),
+            compile_start.elapsed().as_secs_f64()
+        );
+    }
+    if args.explain {
+        println!("kernel features for {}:", args.scene.display());
+        for f in &renderer.features.features {
+            println!(
+                "  {:<24} {:<3}  {}",
+                f.define,
+                if f.on { "on" } else { "off" },
+                f.why
+            );
+        }
+        println!("  camera: {}", renderer.arrays.focus_note);
+    }
+    progressive(&mut renderer, spp, args.time_limit, args.quiet)?;
+    let film = renderer.read_film()?;
+    let image = RgbImage::beauty(renderer.width(), renderer.height(), &film);
+    output::write_png(&png_path, &image, args.exposure)?;
+    if let Some(p) = &exr_path {
+        output::write_exr(p, &image)?;
+    }
+    let summary = RenderSummary {
+        width: renderer.width(),
+        height: renderer.height(),
+        spp: renderer.samples_done(),
+        seconds: start.elapsed().as_secs_f64(),
+        kernel_seconds: renderer.kernel_time_total.as_secs_f64(),
+        rays: renderer.rays_total,
+    };
+    println!(
+        "{}x{} {} spp in {:.2} s (kernel {:.2} s): {:.2} spp/s, {:.2} Mrays/s -> {}{}",
+        summary.width,
+        summary.height,
+        summary.spp,
+        summary.seconds,
+        summary.kernel_seconds,
+        summary.spp_per_second(),
+        summary.mrays_per_second(),
+        png_path.display(),
+        exr_path
+            .map(|p| format!(", {}", p.display()))
+            .unwrap_or_default()
+    );
+    Ok(summary)
+}

@@ -1,0 +1,82 @@
+//! The OpenCL sources under `kernels/`, embedded in the binary, and the small preprocessor that
+//! resolves their `#include "file.cl"` lines (OpenCL compilers are given one string, and
+//! include paths are not portable between drivers).
+
+use anyhow::{Result, bail};
+
+/// Every kernel source file, by name.
+pub const SOURCES: &[(&str, &str)] = &[
+    ("layout.cl", include_str!("../kernels/layout.cl")),
+    ("features.cl", include_str!("../kernels/features.cl")),
+    ("rng.cl", include_str!("../kernels/rng.cl")),
+    ("geometry.cl", include_str!("../kernels/geometry.cl")),
+    ("scene.cl", include_str!("../kernels/scene.cl")),
+    ("sampling.cl", include_str!("../kernels/sampling.cl")),
+    ("textures.cl", include_str!("../kernels/textures.cl")),
+    ("camera.cl", include_str!("../kernels/camera.cl")),
+    ("materials.cl", include_str!("../kernels/materials.cl")),
+    ("lights.cl", include_str!("../kernels/lights.cl")),
+    ("film.cl", include_str!("../kernels/film.cl")),
+    ("pathtrace.cl", include_str!("../kernels/pathtrace.cl")),
+    ("probes.cl", include_str!("../kernels/probes.cl")),
+];
+
+pub fn source(name: &str) -> Option<&'static str> {
+    SOURCES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+}
+
+/// The complete program text for `main`: `prelude` first, then the file with every include
+/// expanded once (later includes of the same file are dropped, like `#pragma once`).
+/// `#line` directives keep the compiler's messages pointing at the original files and lines.
+pub fn assemble(main: &str, prelude: &str) -> Result<String> {
+    let mut out = String::new();
+    out.push_str(prelude);
+    let mut seen = Vec::new();
+    expand(main, &mut out, &mut seen, 0)?;
+    Ok(out)
+}
+
+fn expand(name: &str, out: &mut String, seen: &mut Vec<String>, depth: usize) -> Result<()> {
+    if depth > 32 {
+        bail!("kernel include nesting deeper than 32 at {name}");
+    }
+    if seen.iter().any(|s| s == name) {
+        return Ok(());
+    }
+    seen.push(name.to_string());
+    let Some(text) = source(name) else {
+        bail!("kernel source {name:?} is not embedded (add it to src/kernels.rs)");
+    };
+    out.push_str(&format!("#line 1 \"{name}\"\n"));
+    for (i, line) in text.lines().enumerate() {
+        let trimmed = line.trim_start();
+        if let Some(rest) = trimmed.strip_prefix("#include") {
+            let inc = rest.trim().trim_matches('"');
+            expand(inc, out, seen, depth + 1)?;
+            out.push_str(&format!("#line {} \"{name}\"\n", i + 2));
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_include_resolves_and_each_file_appears_once() {
+        let text = assemble("pathtrace.cl", "").unwrap();
+        let count = text.matches("#line 1 \"scene.cl\"").count();
+        assert_eq!(count, 1);
+        assert!(text.contains("__kernel void render"));
+        assert!(!text.contains("#include"));
+    }
+
+    #[test]
+    fn unknown_include_is_an_error() {
+        assert!(assemble("nonexistent.cl", "").is_err());
+    }
+}

@@ -1,0 +1,424 @@
+//! The one source of truth for every struct shared by the host and the OpenCL kernels.
+//!
+//! Each struct is declared once, in Rust, with the [`device_structs!`] macro. The macro emits
+//! the `#[repr(C)]` Rust struct and, at run time, the OpenCL C declaration that mirrors it.
+//! `kernels/layout.cl` is that generated text, committed so a reader of the kernels sees the
+//! structs; `tests/layout.rs` checks that the committed file equals the generated text and asks
+//! the device for `sizeof` and every field offset, comparing them with Rust's.
+//!
+//! OpenCL vector types are 16-byte (`float4`), 8-byte (`float2`) or 64-byte (`float16`) aligned,
+//! so they are mirrored by the aligned wrappers [`Float2`], [`Float4`] and [`Float16`]. `float3`
+//! is never used in a shared struct: it is 16 bytes in OpenCL and 12 in Rust.
+
+use std::fmt::Write as _;
+
+/// OpenCL `float2`: 8 bytes, 8-byte aligned.
+#[repr(C, align(8))]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Float2(pub [f32; 2]);
+
+/// OpenCL `float4`: 16 bytes, 16-byte aligned.
+#[repr(C, align(16))]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Float4(pub [f32; 4]);
+
+/// OpenCL `float16`: 64 bytes, 64-byte aligned (one cache line on the thesis's GPU, §6.2.1).
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Float16(pub [f32; 16]);
+
+// SAFETY: plain f32 arrays with the alignment OpenCL gives its vector types.
+unsafe impl ocl::OclPrm for Float2 {}
+unsafe impl ocl::OclPrm for Float4 {}
+unsafe impl ocl::OclPrm for Float16 {}
+
+impl Float4 {
+    pub fn new(x: f32, y: f32, z: f32, w: f32) -> Self {
+        Float4([x, y, z, w])
+    }
+    pub fn from_vec3(v: glam::Vec3, w: f32) -> Self {
+        Float4([v.x, v.y, v.z, w])
+    }
+    pub fn xyz(&self) -> glam::Vec3 {
+        glam::Vec3::new(self.0[0], self.0[1], self.0[2])
+    }
+}
+
+impl Float2 {
+    pub fn from_vec2(v: glam::Vec2) -> Self {
+        Float2([v.x, v.y])
+    }
+}
+
+/// How a Rust field type is spelled in OpenCL C.
+pub trait ClType {
+    /// The declaration of a field `name` of this type, e.g. `float4 origin` or `float n[3]`.
+    fn cl_field(name: &str) -> String;
+}
+
+macro_rules! scalar_cl_type {
+    ($($t:ty => $cl:literal),* $(,)?) => {$(
+        impl ClType for $t {
+            fn cl_field(name: &str) -> String { format!("{} {}", $cl, name) }
+        }
+        impl<const N: usize> ClType for [$t; N] {
+            fn cl_field(name: &str) -> String { format!("{} {}[{}]", $cl, name, N) }
+        }
+    )*};
+}
+scalar_cl_type!(f32 => "float", u32 => "uint", i32 => "int", Float2 => "float2", Float4 => "float4");
+
+impl ClType for Float16 {
+    fn cl_field(name: &str) -> String {
+        format!("float16 {name}")
+    }
+}
+
+/// Field name, byte offset and byte size, as Rust lays them out.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FieldLayout {
+    pub name: &'static str,
+    pub offset: usize,
+    pub size: usize,
+}
+
+/// A struct shared with the kernels.
+pub trait DeviceStruct: Sized {
+    const NAME: &'static str;
+    /// The OpenCL C `typedef struct` that mirrors this struct.
+    fn cl_declaration() -> String;
+    /// Rust's field offsets and sizes, in declaration order.
+    fn fields() -> Vec<FieldLayout>;
+    fn size() -> usize {
+        std::mem::size_of::<Self>()
+    }
+    fn align() -> usize {
+        std::mem::align_of::<Self>()
+    }
+}
+
+fn field_size<T, F>(_: fn(&T) -> &F) -> usize {
+    std::mem::size_of::<F>()
+}
+
+/// Declares structs shared with OpenCL. Each becomes a `#[repr(C)]` Rust struct with `OclPrm`
+/// and [`DeviceStruct`] implemented; alignment above the natural one is carried into OpenCL
+/// with `__attribute__((aligned(N)))`.
+macro_rules! device_structs {
+    ($(
+        $(#[doc = $doc:literal])*
+        #[align($align:literal)]
+        pub struct $name:ident { $( $(#[doc = $fdoc:literal])* pub $field:ident : $ty:ty ),* $(,)? }
+    )*) => {$(
+        $(#[doc = $doc])*
+        #[repr(C, align($align))]
+        #[derive(Clone, Copy, Debug, Default, PartialEq)]
+        pub struct $name { $( $(#[doc = $fdoc])* pub $field: $ty ),* }
+
+        // SAFETY: plain-old-data made of f32/u32/i32 and their aligned arrays, no padding
+        // that the device could read as uninitialised (Default zeroes every field).
+        unsafe impl ocl::OclPrm for $name {}
+
+        impl DeviceStruct for $name {
+            const NAME: &'static str = stringify!($name);
+            fn cl_declaration() -> String {
+                let mut s = String::new();
+                let docs: &[&str] = &[$($doc),*];
+                for line in docs {
+                    let _ = writeln!(s, "//{}", line);
+                }
+                let _ = writeln!(s, "typedef struct __attribute__((aligned({}))) {{", $align);
+                $(
+                    let _ = writeln!(s, "    {};{}", <$ty as ClType>::cl_field(stringify!($field)),
+                        { let d: &[&str] = &[$($fdoc),*]; if d.is_empty() { String::new() } else { format!(" //{}", d.join(" ")) } });
+                )*
+                let _ = writeln!(s, "}} {};", stringify!($name));
+                s
+            }
+            fn fields() -> Vec<FieldLayout> {
+                vec![$( FieldLayout {
+                    name: stringify!($field),
+                    offset: std::mem::offset_of!($name, $field),
+                    size: field_size(|s: &$name| &s.$field),
+                } ),*]
+            }
+        }
+    )*};
+}
+
+device_structs! {
+    /// Everything a launch of the megakernel reads once: camera, environment, counts (§4.2.2).
+    #[align(16)]
+    pub struct SceneParams {
+        /// Camera position (xyz).
+        pub camera_origin: Float4,
+        /// Unit view direction, target - origin.
+        pub camera_forward: Float4,
+        /// Unit right vector of the image plane.
+        pub camera_right: Float4,
+        /// Unit up vector of the image plane.
+        pub camera_up: Float4,
+        /// Environment radiance multiplier (colour * gain), rgb.
+        pub env_radiance: Float4,
+        /// Environment texture transform: uv scale (xy), uv shift (zw).
+        pub env_uv: Float4,
+        pub image_width: u32,
+        pub image_height: u32,
+        /// tan(vertical fov / 2).
+        pub tan_half_fov: f32,
+        /// Thin-lens radius, 0 for a pinhole (Fig. 4.8).
+        pub lens_radius: f32,
+        /// Distance from the lens to the plane in focus.
+        pub focal_distance: f32,
+        pub node_count: u32,
+        pub sphere_count: u32,
+        pub light_count: u32,
+        /// Texture index of the environment light, -1 for a constant colour.
+        pub env_texture: i32,
+        /// Path depth from which Russian roulette runs (eq. 2.9).
+        pub rr_depth: u32,
+        /// Hard cap on path vertices, a guard against runaway paths (see kernels/pathtrace.cl).
+        pub max_vertices: u32,
+        pub seed: u32,
+    }
+
+    /// A flattened BVH node (§4.2.2 "BVH construction", Fig. 4.6). Depth-first order, left child
+    /// directly after its parent; `skip` is the node to visit when the ray misses this subtree.
+    #[align(4)]
+    pub struct BvhNode {
+        pub bounds_min: [f32; 3],
+        /// Index of the next node after this node's subtree (the thesis's skip index).
+        pub skip: u32,
+        pub bounds_max: [f32; 3],
+        /// 0 for an inner node; for a leaf: first triangle | (triangle count << 28).
+        pub leaf: u32,
+    }
+
+    /// Triangle vertices for intersection (Alg. 3), in leaf order.
+    #[align(16)]
+    pub struct TriangleGeom {
+        pub v0: Float4,
+        pub v1: Float4,
+        pub v2: Float4,
+    }
+
+    /// Per-triangle shading data, read only for the nearest hit.
+    #[align(16)]
+    pub struct TriangleShading {
+        pub n0: Float4,
+        pub n1: Float4,
+        pub n2: Float4,
+        pub uv0: Float2,
+        pub uv1: Float2,
+        pub uv2: Float2,
+        pub material: u32,
+        /// Index into the light list when the triangle is emissive, else -1.
+        pub light: i32,
+    }
+
+    /// An analytic sphere (kept in its own list, tested after the BVH).
+    #[align(16)]
+    pub struct Sphere {
+        pub center: [f32; 3],
+        pub radius: f32,
+        pub material: u32,
+        /// Index into the light list for sphere lights, else -1.
+        pub light: i32,
+        pub pad0: u32,
+        pub pad1: u32,
+    }
+
+    /// A material (§4.2.2 "Material", §4.3.3).
+    #[align(16)]
+    pub struct Material {
+        /// diffuse/specular/metal colour; glass: reflection colour.
+        pub color: Float4,
+        /// glass: refraction colour.
+        pub color2: Float4,
+        /// Emitted radiance (rgb); non-zero makes the surface a light.
+        pub emission: Float4,
+        /// MATERIAL_DIFFUSE, MATERIAL_SPECULAR, MATERIAL_GLASS, MATERIAL_METAL or MATERIAL_EMITTER.
+        pub kind: u32,
+        /// Texture index multiplying `color` (diffuse), -1 for none.
+        pub texture: i32,
+        /// Phong exponent of the metal lobe.
+        pub exponent: f32,
+        pub ior_outside: f32,
+        pub ior_inside: f32,
+        pub pad0: u32,
+        pub pad1: u32,
+        pub pad2: u32,
+    }
+
+    /// Where a texture's texels start in the shared texel buffer, and its uv transform.
+    #[align(8)]
+    pub struct TextureInfo {
+        pub offset: u32,
+        pub width: u32,
+        pub height: u32,
+        pub pad: u32,
+        pub uv_scale: Float2,
+        pub uv_shift: Float2,
+    }
+
+    /// A light for next-event estimation: a sphere light or one emissive triangle. It carries
+    /// its own geometry so that sampling needs no second lookup.
+    #[align(16)]
+    pub struct Light {
+        /// LIGHT_SPHERE or LIGHT_TRIANGLE.
+        pub kind: u32,
+        /// Sphere index or triangle index (leaf order) of the light's surface.
+        pub primitive: u32,
+        /// Probability of choosing this light for a connection.
+        pub pmf: f32,
+        /// Surface area (triangles).
+        pub area: f32,
+        /// Emitted radiance (rgb).
+        pub emission: Float4,
+        /// Sphere: centre (xyz) and radius (w). Triangle: first vertex.
+        pub p0: Float4,
+        pub p1: Float4,
+        pub p2: Float4,
+    }
+
+    /// The FilterVector F of eq. 6.1: the per-pixel means, exactly 64 bytes (one float16, §6.2.1).
+    #[align(64)]
+    pub struct FilterVector {
+        /// Mean direct light: emission seen directly plus light reaching the first surface
+        /// straight from a light.
+        pub direct: [f32; 3],
+        /// Mean indirect light: everything else.
+        pub indirect: [f32; 3],
+        /// Mean distance along the camera ray to the first hit; SKY_DEPTH when it escapes.
+        pub depth: f32,
+        /// Mean shading normal at the first hit, facing the camera; 0 for sky.
+        pub normal: [f32; 3],
+        /// Mean albedo ("texture") at the first hit; 0 for sky.
+        pub albedo: [f32; 3],
+        /// Mean albedo of the first diffuse surface after the first bounce ("texture2"); 0 if none.
+        pub albedo2: [f32; 3],
+    }
+}
+
+/// Every shared struct, for the generated header and the layout test.
+pub fn all_declarations() -> Vec<(&'static str, String, Vec<FieldLayout>, usize)> {
+    fn one<T: DeviceStruct>() -> (&'static str, String, Vec<FieldLayout>, usize) {
+        (T::NAME, T::cl_declaration(), T::fields(), T::size())
+    }
+    vec![
+        one::<SceneParams>(),
+        one::<BvhNode>(),
+        one::<TriangleGeom>(),
+        one::<TriangleShading>(),
+        one::<Sphere>(),
+        one::<Material>(),
+        one::<TextureInfo>(),
+        one::<Light>(),
+        one::<FilterVector>(),
+    ]
+}
+
+pub const MATERIAL_DIFFUSE: u32 = 0;
+pub const MATERIAL_SPECULAR: u32 = 1;
+pub const MATERIAL_GLASS: u32 = 2;
+pub const MATERIAL_METAL: u32 = 3;
+pub const MATERIAL_EMITTER: u32 = 4;
+pub const LIGHT_SPHERE: u32 = 0;
+pub const LIGHT_TRIANGLE: u32 = 1;
+pub const LEAF_COUNT_SHIFT: u32 = 28;
+pub const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
+/// Depth sentinel of a camera ray that escapes (§6.3.4). Finite, so that the squared
+/// differences of the Welford update and of the filter weights stay finite in float32.
+pub const SKY_DEPTH: f32 = 1.0e9;
+
+/// Constants shared by host and kernels, emitted as `#define`s: (name, OpenCL literal, comment).
+pub fn shared_constants() -> Vec<(&'static str, String, &'static str)> {
+    let u = |v: u32| format!("{v}u");
+    vec![
+        (
+            "MATERIAL_DIFFUSE",
+            u(MATERIAL_DIFFUSE),
+            "Lambertian, Alg. 5",
+        ),
+        (
+            "MATERIAL_SPECULAR",
+            u(MATERIAL_SPECULAR),
+            "perfect mirror, eq. 4.7",
+        ),
+        (
+            "MATERIAL_GLASS",
+            u(MATERIAL_GLASS),
+            "Schlick Fresnel + Snell, eqs. 4.8-4.10",
+        ),
+        (
+            "MATERIAL_METAL",
+            u(MATERIAL_METAL),
+            "normalised Phong lobe around the mirror direction",
+        ),
+        (
+            "MATERIAL_EMITTER",
+            u(MATERIAL_EMITTER),
+            "a light surface: emits, reflects nothing",
+        ),
+        ("LIGHT_SPHERE", u(LIGHT_SPHERE), ""),
+        ("LIGHT_TRIANGLE", u(LIGHT_TRIANGLE), ""),
+        (
+            "LEAF_COUNT_SHIFT",
+            u(LEAF_COUNT_SHIFT),
+            "BvhNode.leaf = first | count << LEAF_COUNT_SHIFT",
+        ),
+        ("LEAF_FIRST_MASK", format!("{LEAF_FIRST_MASK:#x}u"), ""),
+        (
+            "SKY_DEPTH",
+            format!("{SKY_DEPTH:e}f"),
+            "depth of a camera ray that escapes (§6.3.4)",
+        ),
+    ]
+}
+
+/// The OpenCL header text for `kernels/layout.cl`.
+pub fn generated_cl_header() -> String {
+    let mut s = String::new();
+    s.push_str(
+        "// GENERATED from src/layout.rs by `NOISEFREE_BLESS=1 cargo test --test layout`.\n",
+    );
+    s.push_str(
+        "// Do not edit: change src/layout.rs instead. tests/layout.rs checks that this file\n",
+    );
+    s.push_str("// is current and that the device lays every struct out exactly as Rust does.\n");
+    s.push_str("#ifndef NOISEFREE_LAYOUT_CL\n#define NOISEFREE_LAYOUT_CL\n\n");
+    for (name, value, doc) in shared_constants() {
+        if doc.is_empty() {
+            let _ = writeln!(s, "#define {name} {value}");
+        } else {
+            let _ = writeln!(s, "#define {name} {value} // {doc}");
+        }
+    }
+    for (_, decl, _, _) in all_declarations() {
+        s.push('\n');
+        s.push_str(&decl);
+    }
+    s.push_str("\n#endif\n");
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn filter_vector_is_one_float16() {
+        assert_eq!(std::mem::size_of::<FilterVector>(), 64);
+        assert_eq!(std::mem::align_of::<FilterVector>(), 64);
+    }
+
+    #[test]
+    fn sky_depth_literal_round_trips() {
+        let lit = shared_constants()
+            .into_iter()
+            .find(|c| c.0 == "SKY_DEPTH")
+            .unwrap()
+            .1;
+        assert_eq!(lit.trim_end_matches('f').parse::<f32>().unwrap(), SKY_DEPTH);
+    }
+}

@@ -1,0 +1,18 @@
+//! noisefree: a physically based OpenCL path tracer with per-pixel feature statistics and
+//! real-time denoising filters, after M. van de Vlasakker, *Physically Accurate Noise Free
+//! Real-time Rendering*, MSc thesis, Utrecht University, 2013.
+//!
+//! Modules follow the data: [`scene`] → [`bvh`] → [`render`] (device buffers and the
+//! megakernel in `kernels/`) → [`output`]. [`layout`] is the one definition of every struct
+//! shared with the kernels; [`reference`] holds plain Rust versions of the kernels for tests.
+
+pub mod assets;
+pub mod bvh;
+pub mod cli;
+pub mod gpu;
+pub mod kernels;
+pub mod layout;
+pub mod output;
+pub mod reference;
+pub mod render;
+pub mod scene;

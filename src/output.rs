@@ -1,0 +1,151 @@
+//! Images out: tone-mapped sRGB PNG for people, linear float OpenEXR for tools. Every file is
+//! written to a temporary name in the same folder and renamed into place, so a failed or
+//! interrupted write never destroys an existing image.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, Result, bail};
+
+use crate::layout::FilterVector;
+use crate::scene::texture::linear_to_srgb;
+
+/// A linear RGB image, rows top to bottom.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl RgbImage {
+    /// direct + indirect: the beauty image (eq. 6.21 without filtering).
+    pub fn beauty(width: u32, height: u32, film: &[FilterVector]) -> RgbImage {
+        let pixels = film
+            .iter()
+            .map(|f| std::array::from_fn(|c| f.direct[c] + f.indirect[c]))
+            .collect();
+        RgbImage {
+            width,
+            height,
+            pixels,
+        }
+    }
+
+    pub fn mean(&self) -> [f64; 3] {
+        let mut m = [0.0f64; 3];
+        for p in &self.pixels {
+            for c in 0..3 {
+                m[c] += p[c] as f64;
+            }
+        }
+        m.map(|v| v / self.pixels.len().max(1) as f64)
+    }
+}
+
+/// Checks that `path` can be written: its folder exists and it is not a folder itself.
+pub fn check_output_path(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        bail!(
+            "{} is a directory; give a file name for the output",
+            path.display()
+        );
+    }
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !parent.is_dir() {
+        bail!(
+            "cannot write {}: the folder {} does not exist",
+            path.display(),
+            parent.display()
+        );
+    }
+    Ok(())
+}
+
+/// Writes through `write` to a temporary file next to `path`, then renames it over `path`.
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    check_output_path(path)?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp: PathBuf = path.with_file_name(format!(".{name}.partial-{}.{ext}", std::process::id()));
+    let result = write(&tmp).and_then(|_| {
+        std::fs::rename(&tmp, path)
+            .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.with_context(|| format!("writing {}", path.display()))
+}
+
+/// Tone mapping for PNG: scale by 2^exposure, clamp to [0, 1], sRGB-encode.
+pub fn to_srgb8(img: &RgbImage, exposure: f32) -> Vec<u8> {
+    let scale = 2f32.powf(exposure);
+    img.pixels
+        .iter()
+        .flat_map(|p| {
+            p.map(|c| {
+                let v = if c.is_finite() {
+                    (c * scale).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (linear_to_srgb(v) * 255.0 + 0.5) as u8
+            })
+        })
+        .collect()
+}
+
+pub fn write_png(path: &Path, img: &RgbImage, exposure: f32) -> Result<()> {
+    let bytes = to_srgb8(img, exposure);
+    write_atomically(path, |tmp| {
+        image::save_buffer_with_format(
+            tmp,
+            &bytes,
+            img.width,
+            img.height,
+            image::ColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .context("encoding PNG")
+    })
+}
+
+/// A linear, single-layer float RGB OpenEXR.
+pub fn write_exr(path: &Path, img: &RgbImage) -> Result<()> {
+    let w = img.width as usize;
+    write_atomically(path, |tmp| {
+        exr::prelude::write_rgb_file(tmp, w, img.height as usize, |x, y| {
+            let p = img.pixels[y * w + x];
+            (p[0], p[1], p[2])
+        })
+        .map_err(|e| anyhow::anyhow!("encoding OpenEXR: {e}"))
+    })
+}
+
+/// Reads the RGB channels of an OpenEXR file (the first RGBA layer).
+pub fn read_exr_rgb(path: &Path) -> Result<RgbImage> {
+    use exr::prelude::*;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("{}: cannot read OpenEXR: {e}", path.display()))?;
+    let size = image.layer_data.size;
+    Ok(RgbImage {
+        width: size.width() as u32,
+        height: size.height() as u32,
+        pixels: image.layer_data.channel_data.pixels.1,
+    })
+}

@@ -1,0 +1,164 @@
+//! kernels/scene.cl in Rust: skip-index BVH traversal (Alg. 4, nearest hit) and any-hit, plus
+//! a brute-force search over every primitive to check them against.
+
+use glam::Vec3;
+
+use super::geometry::{ray_aabb, ray_sphere, ray_triangle, safe_inverse};
+use crate::layout::{LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
+use crate::render::arrays::SceneArrays;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Prim {
+    Triangle(u32),
+    Sphere(u32),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+    pub prim: Prim,
+}
+
+fn v3(a: &[f32; 3]) -> Vec3 {
+    Vec3::from_array(*a)
+}
+
+/// Nearest hit in (0, t_max).
+pub fn intersect_closest(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+    let mut best: Option<Hit> = None;
+    let mut t_best = t_max;
+    let inv_d = safe_inverse(d);
+    let n = s.params.node_count as usize;
+    let mut current = 0usize;
+    while current < n {
+        let node = &s.nodes[current];
+        if ray_aabb(
+            o,
+            inv_d,
+            0.0,
+            t_best,
+            v3(&node.bounds_min),
+            v3(&node.bounds_max),
+        ) {
+            if node.leaf != 0 {
+                let first = (node.leaf & LEAF_FIRST_MASK) as usize;
+                let count = (node.leaf >> LEAF_COUNT_SHIFT) as usize;
+                for k in first..first + count {
+                    let g = &s.tri_geom[k];
+                    if let Some((t, u, v)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
+                        && t > 0.0
+                        && t < t_best
+                    {
+                        t_best = t;
+                        best = Some(Hit {
+                            t,
+                            u,
+                            v,
+                            prim: Prim::Triangle(k as u32),
+                        });
+                    }
+                }
+                current = node.skip as usize;
+            } else {
+                current += 1;
+            }
+        } else {
+            current = node.skip as usize;
+        }
+    }
+    for (i, sp) in s
+        .spheres
+        .iter()
+        .enumerate()
+        .take(s.params.sphere_count as usize)
+    {
+        if let Some(t) = ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_best)
+            && t > 0.0
+        {
+            t_best = t;
+            best = Some(Hit {
+                t,
+                u: 0.0,
+                v: 0.0,
+                prim: Prim::Sphere(i as u32),
+            });
+        }
+    }
+    best
+}
+
+/// Any hit in (0, t_max).
+pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
+    let inv_d = safe_inverse(d);
+    let n = s.params.node_count as usize;
+    let mut current = 0usize;
+    while current < n {
+        let node = &s.nodes[current];
+        if ray_aabb(
+            o,
+            inv_d,
+            0.0,
+            t_max,
+            v3(&node.bounds_min),
+            v3(&node.bounds_max),
+        ) {
+            if node.leaf != 0 {
+                let first = (node.leaf & LEAF_FIRST_MASK) as usize;
+                let count = (node.leaf >> LEAF_COUNT_SHIFT) as usize;
+                for g in &s.tri_geom[first..first + count] {
+                    if let Some((t, _, _)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
+                        && t > 0.0
+                        && t < t_max
+                    {
+                        return true;
+                    }
+                }
+                current = node.skip as usize;
+            } else {
+                current += 1;
+            }
+        } else {
+            current = node.skip as usize;
+        }
+    }
+    s.spheres
+        .iter()
+        .take(s.params.sphere_count as usize)
+        .any(|sp| ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_max).is_some_and(|t| t > 0.0))
+}
+
+/// Every primitive, no BVH: the ground truth for traversal tests.
+pub fn brute_force_closest(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+    let mut best: Option<Hit> = None;
+    let mut t_best = t_max;
+    for (k, g) in s.tri_geom.iter().enumerate() {
+        if let Some((t, u, v)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
+            && t > 0.0
+            && t < t_best
+        {
+            t_best = t;
+            best = Some(Hit {
+                t,
+                u,
+                v,
+                prim: Prim::Triangle(k as u32),
+            });
+        }
+    }
+    for (i, sp) in s.spheres.iter().enumerate() {
+        if let Some(t) = ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_best)
+            && t > 0.0
+        {
+            t_best = t;
+            best = Some(Hit {
+                t,
+                u: 0.0,
+                v: 0.0,
+                prim: Prim::Sphere(i as u32),
+            });
+        }
+    }
+    best
+}

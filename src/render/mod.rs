@@ -1,0 +1,228 @@
+//! The renderer: uploads the scene arrays, builds the megakernel specialised to the scene, and
+//! adds samples progressively to the per-pixel FilterVector buffer (thesis §4.2.3, §4.3).
+
+pub mod arrays;
+pub mod features;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context as _, Result};
+use ocl::{Buffer, Event, Kernel};
+
+use crate::gpu::{Gpu, event_duration, round_up};
+use crate::layout::{
+    BvhNode, FilterVector, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
+    TriangleShading,
+};
+use crate::scene::Scene;
+pub use arrays::{FrameSettings, SceneArrays};
+pub use features::{FeatureSet, Outputs};
+
+/// How to render, besides the scene itself.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    pub frame: FrameSettings,
+    pub outputs: Outputs,
+    /// Build the generic kernel with every effect compiled in (for comparison).
+    pub all_features: bool,
+    /// Work-group size; None lets the driver choose. The image does not depend on it.
+    pub local_size: Option<[usize; 2]>,
+}
+
+impl RenderOptions {
+    pub fn for_scene(scene: &Scene) -> Self {
+        RenderOptions {
+            frame: FrameSettings::from_scene(scene),
+            outputs: Outputs::default(),
+            all_features: false,
+            local_size: None,
+        }
+    }
+}
+
+/// The scene's buffers on the device.
+struct DeviceScene {
+    params: Buffer<SceneParams>,
+    nodes: Buffer<BvhNode>,
+    tri_geom: Buffer<TriangleGeom>,
+    tri_shading: Buffer<TriangleShading>,
+    spheres: Buffer<Sphere>,
+    materials: Buffer<Material>,
+    textures: Buffer<TextureInfo>,
+    texels: Buffer<Float4>,
+    lights: Buffer<Light>,
+    light_cdf: Buffer<f32>,
+}
+
+impl DeviceScene {
+    fn upload(gpu: &Gpu, a: &SceneArrays) -> Result<DeviceScene> {
+        Ok(DeviceScene {
+            params: gpu.upload(std::slice::from_ref(&a.params))?,
+            nodes: gpu.upload(&a.nodes)?,
+            tri_geom: gpu.upload(&a.tri_geom)?,
+            tri_shading: gpu.upload(&a.tri_shading)?,
+            spheres: gpu.upload(&a.spheres)?,
+            materials: gpu.upload(&a.materials)?,
+            textures: gpu.upload(&a.textures)?,
+            texels: gpu.upload(&a.texels)?,
+            lights: gpu.upload(&a.lights)?,
+            light_cdf: gpu.upload(&a.light_cdf)?,
+        })
+    }
+}
+
+/// Kernel time and rays of one launch.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LaunchStats {
+    pub samples: u32,
+    pub kernel_time: Duration,
+    pub rays: u64,
+}
+
+pub struct Renderer {
+    pub gpu: Arc<Gpu>,
+    pub arrays: SceneArrays,
+    pub features: FeatureSet,
+    /// Running means per pixel (eq. 6.1, 6.5).
+    pub film: Buffer<FilterVector>,
+    ray_counts: Buffer<u32>,
+    kernel: Kernel,
+    _scene: DeviceScene,
+    samples_done: u32,
+    pub rays_total: u64,
+    pub kernel_time_total: Duration,
+}
+
+/// Bytes of device memory the per-pixel buffers of a w x h image take.
+pub fn film_bytes(width: u32, height: u32) -> u64 {
+    let px = width as u64 * height as u64;
+    px * (std::mem::size_of::<FilterVector>() as u64 + 4)
+}
+
+impl Renderer {
+    pub fn new(gpu: Arc<Gpu>, scene: &Scene, options: &RenderOptions) -> Result<Renderer> {
+        let frame = &options.frame;
+        // Refuse impossible sizes before building anything.
+        let pixels = frame.width as usize * frame.height as usize;
+        gpu.check_alloc(
+            pixels as u64 * std::mem::size_of::<FilterVector>() as u64,
+            "FilterVector film",
+        )?;
+        gpu.check_total(
+            film_bytes(frame.width, frame.height),
+            "the per-pixel buffers",
+        )?;
+
+        let arrays = SceneArrays::build(scene, frame)?;
+        let features = if options.all_features {
+            FeatureSet::all_features(scene, options.outputs)
+        } else {
+            FeatureSet::for_scene(scene, options.outputs)
+        };
+        let program = gpu.program("pathtrace.cl", &features.defines(), "")?;
+        let device_scene = DeviceScene::upload(&gpu, &arrays)?;
+        let film = gpu.zeroed::<FilterVector>(pixels, "FilterVector film")?;
+        let ray_counts = gpu.zeroed::<u32>(pixels, "ray count")?;
+
+        let (w, h) = (frame.width as usize, frame.height as usize);
+        let mut builder = Kernel::builder();
+        builder
+            .program(&program)
+            .name("render")
+            .queue(gpu.queue.clone());
+        match options.local_size {
+            Some(l) => {
+                builder
+                    .global_work_size([round_up(w, l[0]), round_up(h, l[1])])
+                    .local_work_size(l);
+            }
+            None => {
+                builder.global_work_size([w, h]);
+            }
+        }
+        let d = &device_scene;
+        builder
+            .arg(&d.params)
+            .arg(&d.nodes)
+            .arg(&d.tri_geom)
+            .arg(&d.tri_shading)
+            .arg(&d.spheres)
+            .arg(&d.materials)
+            .arg(&d.textures)
+            .arg(&d.texels)
+            .arg(&d.lights)
+            .arg(&d.light_cdf)
+            .arg(&film)
+            .arg(&ray_counts)
+            .arg(0u32)
+            .arg(0u32);
+        let kernel = builder.build().context("creating the render kernel")?;
+        Ok(Renderer {
+            gpu,
+            arrays,
+            features,
+            film,
+            ray_counts,
+            kernel,
+            _scene: device_scene,
+            samples_done: 0,
+            rays_total: 0,
+            kernel_time_total: Duration::ZERO,
+        })
+    }
+
+    pub fn width(&self) -> u32 {
+        self.arrays.params.image_width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.arrays.params.image_height
+    }
+
+    /// Samples per pixel accumulated so far.
+    pub fn samples_done(&self) -> u32 {
+        self.samples_done
+    }
+
+    /// Adds `count` samples per pixel in one launch and waits for it.
+    pub fn render_samples(&mut self, count: u32) -> Result<LaunchStats> {
+        if count == 0 {
+            return Ok(LaunchStats::default());
+        }
+        self.kernel.set_arg(12, self.samples_done)?;
+        self.kernel.set_arg(13, count)?;
+        let mut event = Event::empty();
+        // SAFETY: every buffer argument is alive (owned by self) and sized for the global range.
+        unsafe {
+            self.kernel
+                .cmd()
+                .enew(&mut event)
+                .enq()
+                .context("launching the render kernel")?;
+        }
+        let kernel_time = event_duration(&event)?;
+        let mut counts = vec![0u32; self.ray_counts.len()];
+        self.ray_counts.read(&mut counts).enq()?;
+        let rays: u64 = counts.iter().map(|&c| c as u64).sum();
+        self.samples_done += count;
+        self.rays_total += rays;
+        self.kernel_time_total += kernel_time;
+        Ok(LaunchStats {
+            samples: count,
+            kernel_time,
+            rays,
+        })
+    }
+
+    /// Reads the FilterVector means back to the host.
+    pub fn read_film(&self) -> Result<Vec<FilterVector>> {
+        let mut out = vec![FilterVector::default(); self.film.len()];
+        self.film
+            .read(&mut out)
+            .enq()
+            .context("reading the film from the device")?;
+        out.truncate(self.width() as usize * self.height() as usize);
+        Ok(out)
+    }
+}
