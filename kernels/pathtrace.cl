@@ -54,7 +54,8 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
         Surface sf = surface_at(s, &hit, o, d);
         __global const Material* m = s->materials + sf.material;
         if (m->kind == MATERIAL_EMITTER) {    // an implicit connection ends the path
-            if (count_emission) add_light(&ps, bounce, throughput * m->emission.xyz);
+            // Lights emit from their front (outside) only, matching sample_direct_light.
+            if (count_emission && sf.entering) add_light(&ps, bounce, throughput * m->emission.xyz);
 #if OUTPUT_FEATURES
             if (bounce == 0u) {
                 ps.depth = hit.t;

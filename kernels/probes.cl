@@ -52,7 +52,8 @@ __kernel void probe_camera(__constant const SceneParams* params, uint sample,
 }
 
 // sizeof and field offsets of every shared struct, measured on the device (tests/layout.rs).
-// The host appends LAYOUT_PROBE_BODY, generated from src/layout.rs, as a -D option.
+// The test prepends `#define LAYOUT_PROBE_BODY ...`, generated from src/layout.rs.
+#ifdef LAYOUT_PROBE_BODY
 __kernel void probe_layout(__global uint* out,
                            __global SceneParams* a, __global BvhNode* b, __global TriangleGeom* c,
                            __global TriangleShading* d, __global Sphere* e, __global Material* f,
@@ -65,3 +66,4 @@ __kernel void probe_layout(__global uint* out,
 #undef SIZE
 #undef OFFSET
 }
+#endif

@@ -12,6 +12,7 @@ pub mod cli;
 pub mod gpu;
 pub mod kernels;
 pub mod layout;
+pub mod metrics;
 pub mod output;
 pub mod reference;
 pub mod render;

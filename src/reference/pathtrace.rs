@@ -225,13 +225,14 @@ pub const SHADOW_RAY_SHORTEN: f32 = 0.9999;
 /// kernels/lights.cl sample_direct_light.
 pub fn sample_direct_light(
     s: &SceneArrays,
-    p: Vec3,
+    surface_p: Vec3,
     ng: Vec3,
     ns: Vec3,
     key: u32,
     bounce: u32,
     rays: &mut u32,
 ) -> Vec3 {
+    let p = offset_ray_origin(surface_p, ng);
     let light = &s.lights[select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT))];
     let r1 = rng_uniform(key, bounce, DIM_LIGHT_U);
     let r2 = rng_uniform(key, bounce, DIM_LIGHT_V);
@@ -264,7 +265,7 @@ pub fn sample_direct_light(
         dist = d2.sqrt();
         dir = to_q / dist;
         let nl = (v1 - v0).cross(v2 - v0).normalize();
-        let cos_l = nl.dot(dir).abs();
+        let cos_l = -nl.dot(dir);
         if cos_l <= 0.0 {
             return Vec3::ZERO;
         }
@@ -274,9 +275,8 @@ pub fn sample_direct_light(
     if cos_s <= 0.0 || ng.dot(dir) <= 0.0 {
         return Vec3::ZERO;
     }
-    let origin = offset_ray_origin(p, ng);
     *rays += 1;
-    if occluded(s, origin, dir, dist * SHADOW_RAY_SHORTEN) {
+    if occluded(s, p, dir, dist * SHADOW_RAY_SHORTEN) {
         return Vec3::ZERO;
     }
     light.emission.xyz() * (cos_s * inv_pdf / light.pmf)
@@ -364,7 +364,7 @@ pub fn trace_path(
         let sf = surface_at(s, &hit, o, d);
         let m = &s.materials[sf.material as usize];
         if m.kind == MATERIAL_EMITTER {
-            if count_emission {
+            if count_emission && sf.entering {
                 ps.add_light(bounce, throughput * m.emission.xyz());
             }
             if bounce == 0 {

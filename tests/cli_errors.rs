@@ -1,0 +1,242 @@
+//! Bad input gets a clear error: the file, the line and column (or the field), what was
+//! expected, a non-zero exit status, and no panic. Outputs that exist are left untouched.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn noisefree() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_noisefree"))
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("noisefree-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Renders `text` as a scene file and returns (exit code, stderr).
+fn render_text(dir: &Path, text: &str) -> (i32, String) {
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    let out = noisefree()
+        .args([
+            "render",
+            path.to_str().unwrap(),
+            "--out",
+            dir.join("x.png").to_str().unwrap(),
+            "--no-exr",
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+const GOOD: &str = r#"[render]
+width = 8
+height = 8
+spp = 1
+
+[camera]
+origin = [0, 0, 5]
+target = [0, 0, 0]
+
+[[material]]
+name = "white"
+type = "diffuse"
+color = [0.8, 0.8, 0.8]
+
+[[sphere]]
+center = [0, 0, 0]
+radius = 1
+material = "white"
+"#;
+
+#[test]
+fn each_bad_scene_names_file_position_and_problem() {
+    let dir = temp_dir("errors");
+    // (what to change, text that must appear in the message, line:col it must point at)
+    let cases: Vec<(String, &str, Option<&str>)> = vec![
+        (
+            GOOD.replace("material = \"white\"\n", "material = \"whte\"\n"),
+            "unknown material \"whte\"",
+            Some(":18:12:"),
+        ),
+        (
+            GOOD.replace("radius = 1", "radius = -2"),
+            "radius must be a positive number",
+            Some(":17:10:"),
+        ),
+        (
+            GOOD.replace("width = 8", "width = 0"),
+            "render.width must be between 1",
+            Some(":2:9:"),
+        ),
+        (
+            GOOD.replace("height = 8", "height = -3"),
+            "render.height must be between 1",
+            Some(":3:10:"),
+        ),
+        (
+            GOOD.replace("spp = 1", "spp = 0"),
+            "render.spp must be between 1",
+            Some(":4:7:"),
+        ),
+        (
+            format!("{GOOD}\n[[mesh]]\nfile = \"missing.obj\"\n"),
+            "missing.obj",
+            Some(":21:8:"),
+        ),
+        (
+            format!("{GOOD}\n[[texture]]\nname = \"t\"\nfile = \"nope.png\"\n"),
+            "nope.png",
+            Some(":22:8:"),
+        ),
+        (
+            GOOD.replace("color = [0.8, 0.8, 0.8]", "color = [0.8, 0.8]"),
+            "expected",
+            Some(":13:9:"),
+        ),
+        (
+            GOOD.replace("radius = 1", "radius = 1\nradiuss = 2"),
+            "unknown field `radiuss`",
+            Some(":18:1:"),
+        ),
+        (GOOD.replace("[camera]", "[camera"), "", Some(":6:")),
+        (
+            GOOD.replace("type = \"diffuse\"", "type = \"plastic\""),
+            "unknown material type \"plastic\"",
+            Some(":12:8:"),
+        ),
+        (
+            GOOD.replace("target = [0, 0, 0]", "target = [0, 0, 5]"),
+            "no view direction",
+            None,
+        ),
+        (
+            GOOD.replace("type = \"diffuse\"", "type = \"diffuse\"\nexponent = 3"),
+            "has no field `exponent`",
+            Some(":13:12:"),
+        ),
+    ];
+    for (text, needle, position) in cases {
+        let (code, stderr) = render_text(&dir, &text);
+        assert_ne!(code, 0, "expected a failure for:\n{text}");
+        assert!(
+            !stderr.contains("panicked"),
+            "a panic instead of an error: {stderr}"
+        );
+        assert!(
+            stderr.contains("scene.toml"),
+            "the message must name the file: {stderr}"
+        );
+        assert!(stderr.contains(needle), "expected {needle:?} in: {stderr}");
+        if let Some(pos) = position {
+            assert!(stderr.contains(pos), "expected position {pos} in: {stderr}");
+        }
+    }
+}
+
+#[test]
+fn missing_and_directory_scene_paths() {
+    let dir = temp_dir("paths");
+    let out = noisefree()
+        .args(["render", dir.join("absent.toml").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_ne!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("absent.toml: cannot open scene file"));
+    let out = noisefree()
+        .args(["render", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_ne!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is a directory"));
+}
+
+#[test]
+fn failed_render_leaves_existing_output_untouched() {
+    let dir = temp_dir("keep");
+    let png = dir.join("x.png");
+    std::fs::write(&png, b"precious").unwrap();
+    let (code, _) = render_text(&dir, &GOOD.replace("radius = 1", "radius = 0"));
+    assert_ne!(code, 0);
+    assert_eq!(std::fs::read(&png).unwrap(), b"precious");
+    // A good render replaces it with a real PNG, and leaves no temporary files behind.
+    let (code, stderr) = render_text(&dir, GOOD);
+    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+        .collect();
+    assert!(leftovers.is_empty());
+}
+
+#[test]
+fn output_in_a_missing_folder_is_refused_before_rendering() {
+    let dir = temp_dir("nofolder");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, GOOD).unwrap();
+    let out = noisefree()
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            dir.join("no/such/x.png").to_str().unwrap(),
+            "--no-exr",
+        ])
+        .output()
+        .unwrap();
+    assert_ne!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("does not exist"));
+}
+
+#[test]
+fn no_opencl_platform_says_how_to_install_pocl() {
+    let dir = temp_dir("noicd");
+    // The ICD loader reads vendor files from OCL_ICD_VENDORS; an empty folder means no platform.
+    let out = noisefree()
+        .arg("devices")
+        .env("OCL_ICD_VENDORS", &dir)
+        .output()
+        .unwrap();
+    assert_ne!(out.status.code(), Some(0));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("pocl-opencl-icd"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn devices_lists_the_device_and_bad_device_numbers_are_explained() {
+    let out = noisefree().arg("devices").output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("[0]") && text.contains("compute units") && text.contains("local memory"),
+        "{text}"
+    );
+    let dir = temp_dir("baddev");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, GOOD).unwrap();
+    let out = noisefree()
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            dir.join("x.png").to_str().unwrap(),
+            "--device",
+            "99",
+        ])
+        .output()
+        .unwrap();
+    assert_ne!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("device 99 does not exist"));
+}

@@ -1,0 +1,152 @@
+//! Random numbers come from a hash of (seed, pixel, sample, bounce, dimension): the same seed
+//! gives the same bytes whatever the work-group size or the number of samples per launch, and
+//! the device draws exactly the numbers of the Rust reference.
+
+mod common;
+
+use common::*;
+use noisefree::layout::Float4;
+use noisefree::reference::rng::{rng_sample_key, rng_uniform};
+use noisefree::reference::sampling::camera_ray;
+use noisefree::render::SceneArrays;
+
+fn test_scene() -> noisefree::scene::Scene {
+    scene_from_toml(&cornell(
+        "max_depth = 2",
+        r#"
+[[material]]
+name = "glass"
+type = "glass"
+
+[[sphere]]
+center = [0.3, 0.4, 0.0]
+radius = 0.4
+material = "glass"
+"#,
+    ))
+}
+
+#[test]
+fn same_seed_same_bytes_any_work_group_size_and_batching() {
+    let scene = test_scene();
+    let mut base = options(&scene, 37, 23, 9); // sizes that are no multiple of any group
+    base.outputs.features = true;
+    let reference = film_bytes(&render_film(&scene, &base, 12, 12));
+    for (local, batch) in [
+        (None, 1),
+        (Some([1, 1]), 5),
+        (Some([8, 8]), 12),
+        (Some([16, 4]), 3),
+        (Some([64, 1]), 7),
+    ] {
+        let mut o = base.clone();
+        o.local_size = local;
+        let bytes = film_bytes(&render_film(&scene, &o, 12, batch));
+        assert!(
+            bytes == reference,
+            "work-group {local:?}, {batch} samples per launch changed the image"
+        );
+    }
+    let mut other = base.clone();
+    other.frame.seed = 10;
+    assert!(
+        film_bytes(&render_film(&scene, &other, 12, 12)) != reference,
+        "a different seed must change the image"
+    );
+}
+
+#[test]
+fn device_random_numbers_equal_the_reference_bit_for_bit() {
+    let gpu = gpu();
+    let program = gpu.program("probes.cl", &generic_defines(), "").unwrap();
+    let mut rng = TestRng(3);
+    let counters: Vec<[u32; 4]> = (0..50_000)
+        .map(|i| {
+            [
+                rng.next_u32() % 4_000_000,
+                rng.next_u32() % 100_000,
+                rng.next_u32() % 300,
+                i % 11,
+            ]
+        })
+        .collect();
+    let seed = 0xdead_beef;
+    let buf = ocl::Buffer::<ocl::prm::Uint4>::builder()
+        .queue(gpu.queue.clone())
+        .len(counters.len())
+        .copy_host_slice(
+            &counters
+                .iter()
+                .map(|c| ocl::prm::Uint4::new(c[0], c[1], c[2], c[3]))
+                .collect::<Vec<_>>(),
+        )
+        .build()
+        .unwrap();
+    let out = gpu.zeroed::<f32>(counters.len(), "rng out").unwrap();
+    let k = ocl::Kernel::builder()
+        .program(&program)
+        .name("probe_rng")
+        .queue(gpu.queue.clone())
+        .global_work_size(counters.len())
+        .arg(&buf)
+        .arg(seed)
+        .arg(&out)
+        .arg(counters.len() as u32)
+        .build()
+        .unwrap();
+    unsafe { k.enq().unwrap() };
+    let mut got = vec![0f32; counters.len()];
+    out.read(&mut got).enq().unwrap();
+    for (c, g) in counters.iter().zip(&got) {
+        let want = rng_uniform(rng_sample_key(seed, c[0], c[1]), c[2], c[3]);
+        assert_eq!(g.to_bits(), want.to_bits(), "counter {c:?}");
+    }
+}
+
+#[test]
+fn camera_rays_match_the_reference() {
+    for lens in ["", "lens_radius = 0.05\nfocal_distance = 3.0"] {
+        let text = cornell("max_depth = 2", "").replace("fov = 40", &format!("fov = 40\n{lens}"));
+        let scene = scene_from_toml(&text);
+        let opts = options(&scene, 20, 10, 4);
+        let arrays = SceneArrays::build(&scene, &opts.frame).unwrap();
+        let gpu = gpu();
+        let mut defines = generic_defines();
+        if lens.is_empty() {
+            defines.retain(|d| d.0 != "HAS_DOF");
+            defines.push(("HAS_DOF".into(), "0".into()));
+        }
+        let program = gpu.program("probes.cl", &defines, "").unwrap();
+        let params = gpu.upload(std::slice::from_ref(&arrays.params)).unwrap();
+        let n = 200;
+        let o = gpu.zeroed::<Float4>(n, "o").unwrap();
+        let d = gpu.zeroed::<Float4>(n, "d").unwrap();
+        let k = ocl::Kernel::builder()
+            .program(&program)
+            .name("probe_camera")
+            .queue(gpu.queue.clone())
+            .global_work_size([20, 10])
+            .arg(&params)
+            .arg(5u32)
+            .arg(&o)
+            .arg(&d)
+            .build()
+            .unwrap();
+        unsafe { k.enq().unwrap() };
+        let (mut go, mut gd) = (vec![Float4::default(); n], vec![Float4::default(); n]);
+        o.read(&mut go).enq().unwrap();
+        d.read(&mut gd).enq().unwrap();
+        for y in 0..10u32 {
+            for x in 0..20u32 {
+                let i = (y * 20 + x) as usize;
+                let (ro, rd) = camera_ray(&arrays.params, x, y, rng_sample_key(4, i as u32, 5));
+                assert!(
+                    (go[i].xyz() - ro).length() < 1e-5 && (gd[i].xyz() - rd).length() < 1e-5,
+                    "pixel ({x},{y}) lens {lens:?}: device {:?} {:?} vs reference {ro} {rd}",
+                    go[i],
+                    gd[i]
+                );
+            }
+        }
+    }
+}
