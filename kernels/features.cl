@@ -11,10 +11,14 @@
     || !defined(HAS_TRIANGLE_LIGHTS) || !defined(HAS_DIFFUSE) || !defined(HAS_SPECULAR) \
     || !defined(HAS_GLASS) || !defined(HAS_METAL) || !defined(HAS_DOF) \
     || !defined(HAS_RUSSIAN_ROULETTE) || !defined(NEXT_EVENT_ESTIMATION) \
-    || !defined(OUTPUT_FEATURES)
+    || !defined(OUTPUT_FEATURES) || !defined(OUTPUT_VARIANCE)
 #error "noisefree: a feature switch is missing from the build options"
 #endif
 
 #define HAS_LIGHTS (HAS_SPHERE_LIGHTS || HAS_TRIANGLE_LIGHTS)
+
+#if OUTPUT_VARIANCE && !OUTPUT_FEATURES
+#error "noisefree: OUTPUT_VARIANCE needs OUTPUT_FEATURES (the means live in F)"
+#endif
 
 #endif

@@ -1,11 +1,30 @@
 // The per-pixel output stage: what one path sample leaves behind, and how it is folded into the
-// pixel's running means (the FilterVector F, eq. 6.1, with the mean update of eq. 6.5).
-// Statistics stages added later (variances, sample vectors) hook in at film_accumulate.
+// pixel's statistics (thesis §6.2.1-6.2.2): the running means of the FilterVector F (eq. 6.1)
+// and, when a filter needs them, Welford's running S_n of the scene features (the variance
+// GBuffer GB, eq. 6.2). Later stages (sample vectors) hook in at film_accumulate.
 #ifndef NOISEFREE_FILM_CL
 #define NOISEFREE_FILM_CL
 
 #include "layout.cl"
 #include "features.cl"
+
+// Lanes of F (src/layout.rs FilterVector).
+#define F_DIRECT 0
+#define F_INDIRECT 3
+#define F_DEPTH 6
+#define F_NORMAL 7
+#define F_ALBEDO 10
+#define F_ALBEDO2 13
+// Lanes of GB (src/layout.rs GBuffer).
+#define GB_DEPTH 0
+#define GB_NORMAL 1
+#define GB_ALBEDO 4
+#define GB_DIRECTION 7
+#define GB_ALBEDO2 10
+// Lanes of the statistics state (src/layout.rs StatsState).
+#define ST_DIRECTION 0
+#define ST_DEPTH_SHIFT 3
+#define ST_DEPTH_MEAN 4
 
 // One path's contribution and first-hit features.
 typedef struct {
@@ -30,32 +49,98 @@ inline PathSample path_sample_empty(void) {
     return ps;
 }
 
-// Packs a sample in FilterVector order (src/layout.rs: direct, indirect, depth, normal,
-// albedo, albedo2).
-inline float16 filter_vector_of(const PathSample* ps) {
-    return (float16)(ps->direct.x, ps->direct.y, ps->direct.z,
-                     ps->indirect.x, ps->indirect.y, ps->indirect.z,
-                     ps->depth,
-                     ps->normal.x, ps->normal.y, ps->normal.z,
-                     ps->albedo.x, ps->albedo.y, ps->albedo.z,
-                     ps->albedo2.x, ps->albedo2.y, ps->albedo2.z);
-}
-
-// Eq. 6.5: mu_n = mu_{n-1} + (x_n - mu_{n-1}) / n, on all sixteen components at once.
-// n is the sample's 1-based count in the pixel.
-inline float16 running_mean(float16 mean, float16 x, float n) {
-    return mean + (x - mean) / n;
-}
-
-inline void film_accumulate(float16* mean, const PathSample* ps, uint n) {
-    float16 x = filter_vector_of(ps);
-#if !OUTPUT_FEATURES
-    // Only the light is wanted: the feature lanes stay at their (zero) initial value.
-    x.s6789 = (float4)(0.0f);
-    x.sABCD = (float4)(0.0f);
-    x.sEF = (float2)(0.0f);
+// A pixel's statistics while a launch works on it (private memory; loaded once, stored once).
+typedef struct {
+    float mean[16];   // F
+#if OUTPUT_VARIANCE
+    float s[16];      // GB: S_n per feature component
+    float state[8];   // StatsState
 #endif
-    *mean = running_mean(*mean, x, (float)n);
+} PixelStats;
+
+inline void pixel_stats_load(PixelStats* p, __global const float* f, __global const float* gb,
+                             __global const float* st, uint pixel) {
+    vstore16(vload16(pixel, f), 0, p->mean);
+#if OUTPUT_VARIANCE
+    vstore16(vload16(pixel, gb), 0, p->s);
+    vstore8(vload8(pixel, st), 0, p->state);
+#endif
+}
+
+inline void pixel_stats_store(const PixelStats* p, __global float* f, __global float* gb,
+                              __global float* st, uint pixel) {
+    vstore16(vload16(0, p->mean), pixel, f);
+#if OUTPUT_VARIANCE
+    vstore16(vload16(0, p->s), pixel, gb);
+    vstore8(vload8(0, p->state), pixel, st);
+#endif
+}
+
+// Eq. 6.5: mu_n = mu_{n-1} + (x_n - mu_{n-1}) / n. n is the 1-based sample count.
+inline void running_mean(float* mean, float x, float n) {
+    *mean += (x - *mean) / n;
+}
+
+// Eqs. 6.5 and 6.6 (Knuth, after Welford): the running mean and
+// S_n = S_{n-1} + (x_n - mu_{n-1}) (x_n - mu_n), with S_1 = 0 (mu_1 = x_1 makes the product 0).
+// This is the one update every statistic uses. Each term is a product of two deviations from
+// the mean, so S_n never goes negative and a constant stream gives exactly 0.
+//
+// Where float32 loses accuracy: the deviations x - mu are small next to mu when the data sit at
+// a large offset (depth in millimetres, or 1e4 with a spread of 0.1). mu then has an absolute
+// rounding error of half an ulp of mu (5e-4 at 1e4), and once (x - mu) / n drops below that,
+// mu stops moving at all ("stagnation", here after a few hundred samples): S_n then grows
+// around a wrong mean and overestimates the variance by (mu - mean)^2 per sample. The cure is
+// to run the recursion on shifted data x - K with K the pixel's first sample (kept in
+// StatsState), which is what film_accumulate does for depth; F.depth = K + mean(x - K).
+// Normals, albedos and directions are bounded by 1 and need no shift. tests/statistics.rs
+// checks both cases against a float64 two-pass computation.
+inline void welford(float* mean, float* s, float x, float n) {
+    float delta = x - *mean;
+    running_mean(mean, x, n);
+    *s += delta * (x - *mean);
+}
+
+inline void accumulate3(PixelStats* p, int f_lane, int gb_lane, float3 x, float n) {
+#if OUTPUT_VARIANCE
+    welford(&p->mean[f_lane], &p->s[gb_lane], x.x, n);
+    welford(&p->mean[f_lane + 1], &p->s[gb_lane + 1], x.y, n);
+    welford(&p->mean[f_lane + 2], &p->s[gb_lane + 2], x.z, n);
+#else
+    running_mean(&p->mean[f_lane], x.x, n);
+    running_mean(&p->mean[f_lane + 1], x.y, n);
+    running_mean(&p->mean[f_lane + 2], x.z, n);
+#endif
+}
+
+// Folds sample number n (1-based) of this pixel into its statistics.
+inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
+    float n = (float)count;
+    // Colour: means only (GB holds no colour variance, eq. 6.2).
+    running_mean(&p->mean[F_DIRECT], ps->direct.x, n);
+    running_mean(&p->mean[F_DIRECT + 1], ps->direct.y, n);
+    running_mean(&p->mean[F_DIRECT + 2], ps->direct.z, n);
+    running_mean(&p->mean[F_INDIRECT], ps->indirect.x, n);
+    running_mean(&p->mean[F_INDIRECT + 1], ps->indirect.y, n);
+    running_mean(&p->mean[F_INDIRECT + 2], ps->indirect.z, n);
+#if OUTPUT_FEATURES
+#if OUTPUT_VARIANCE
+    if (count == 1u) {
+        p->state[ST_DEPTH_SHIFT] = ps->depth;
+        p->state[ST_DEPTH_MEAN] = 0.0f;
+    }
+    welford(&p->state[ST_DEPTH_MEAN], &p->s[GB_DEPTH], ps->depth - p->state[ST_DEPTH_SHIFT], n);
+    p->mean[F_DEPTH] = p->state[ST_DEPTH_SHIFT] + p->state[ST_DEPTH_MEAN];
+    welford(&p->state[ST_DIRECTION], &p->s[GB_DIRECTION], ps->direction.x, n);
+    welford(&p->state[ST_DIRECTION + 1], &p->s[GB_DIRECTION + 1], ps->direction.y, n);
+    welford(&p->state[ST_DIRECTION + 2], &p->s[GB_DIRECTION + 2], ps->direction.z, n);
+#else
+    running_mean(&p->mean[F_DEPTH], ps->depth, n);
+#endif
+    accumulate3(p, F_NORMAL, GB_NORMAL, ps->normal, n);
+    accumulate3(p, F_ALBEDO, GB_ALBEDO, ps->albedo, n);
+    accumulate3(p, F_ALBEDO2, GB_ALBEDO2, ps->albedo2, n);
+#endif
 }
 
 #endif

@@ -7,9 +7,12 @@
 #define ROBUST_FAR_SCALE 1.0000004f
 
 // Replace zero direction components by +-1e-30 before inverting (Alg. 2 line 2). With the exact
-// 1/D = +-inf, an origin lying on a slab plane gives 0 * inf = NaN and the ray would miss the
-// box it grazes; with +-1e30 every product is finite or +-inf, never NaN, and axis-parallel
-// rays are classified exactly.
+// 1/D = +-inf, an origin lying on a slab plane gives 0 * inf = NaN, and the comparisons of a
+// NaN decide the hit arbitrarily; with +-1e30 every product is finite or +-inf, never NaN, an
+// axis-parallel ray inside a slab gets the interval (-huge, +huge) and one outside an empty
+// one. A ray exactly in a face's plane is classified by the sign of its zero; the host pads
+// every box outward (src/bvh.rs pad_bound) so that no triangle lies on a box face and that
+// choice never decides a hit.
 inline float3 safe_inverse(float3 d) {
     const float tiny = 1.0e-30f;
     float3 s = (float3)(fabs(d.x) < tiny ? copysign(tiny, d.x) : d.x,

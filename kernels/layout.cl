@@ -123,4 +123,25 @@ typedef struct __attribute__((aligned(64))) {
     float albedo2[3]; // Mean albedo of the first diffuse surface after the first bounce ("texture2"); 0 if none.
 } FilterVector;
 
+// The variance GBuffer GB of eq. 6.2, held as Welford's running sums of squared
+// deviations S_n (eq. 6.6); the variance S_n / (n - 1) is formed only when a filter asks
+// for it. 13 floats padded to one float16 (§6.3.1).
+typedef struct __attribute__((aligned(64))) {
+    float depth;
+    float normal[3];
+    float albedo[3];
+    float direction[3]; // Direction leaving the first hit (its mean lives in StatsState, not in F).
+    float albedo2[3];
+    float pad[3];
+} GBuffer;
+
+// Running state of the statistics that is neither a FilterVector mean nor an S_n:
+// the mean first-bounce direction, and the depth shift (see kernels/film.cl on float32).
+typedef struct __attribute__((aligned(32))) {
+    float direction_mean[3];
+    float depth_shift; // The pixel's first depth sample K; depth is accumulated as x - K.
+    float depth_shifted_mean; // Running mean of x - K; F.depth = K + this.
+    float pad[3];
+} StatsState;
+
 #endif

@@ -107,7 +107,9 @@ __kernel void render(__constant const SceneParams* params,
                      __global const float4* texels,
                      __global const Light* lights,
                      __global const float* light_cdf,
-                     __global float16* filter_vectors,
+                     __global float* filter_vectors,    // FilterVector per pixel
+                     __global float* gbuffers,          // GBuffer per pixel (OUTPUT_VARIANCE)
+                     __global float* stats_state,       // StatsState per pixel (OUTPUT_VARIANCE)
                      __global uint* ray_counts,
                      uint sample_base,
                      uint sample_count) {
@@ -116,14 +118,15 @@ __kernel void render(__constant const SceneParams* params,
     uint pixel = y * params->image_width + x;
     SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
                    textures, texels, lights, light_cdf};
-    float16 mean = filter_vectors[pixel];
+    PixelStats stats;
+    pixel_stats_load(&stats, filter_vectors, gbuffers, stats_state, pixel);
     uint rays = 0u;
     for (uint k = 0u; k < sample_count; ++k) {
         uint sample = sample_base + k;
         uint key = rng_sample_key(params->seed, pixel, sample);
         PathSample ps = trace_path(&s, x, y, key, &rays);
-        film_accumulate(&mean, &ps, sample + 1u);
+        film_accumulate(&stats, &ps, sample + 1u);
     }
-    filter_vectors[pixel] = mean;
+    pixel_stats_store(&stats, filter_vectors, gbuffers, stats_state, pixel);
     ray_counts[pixel] = rays;
 }

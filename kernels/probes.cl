@@ -7,6 +7,7 @@
 #include "rng.cl"
 #include "scene.cl"
 #include "camera.cl"
+#include "film.cl"
 
 // rng_uniform for each (pixel, sample, bounce, dim) quadruple.
 __kernel void probe_rng(__global const uint4* counters, uint seed, __global float* out, uint n) {
@@ -51,15 +52,40 @@ __kernel void probe_camera(__constant const SceneParams* params, uint sample,
     out_dir[pixel] = (float4)(d, 0.0f);
 }
 
+// Feeds one stream of values per pixel through the renderer's statistics stage
+// (film_accumulate), for samples [first, first + count): several calls emulate progressive
+// launches. Every feature lane of a sample gets the stream value.
+__kernel void probe_film(__global const float* stream, uint stream_len, uint first, uint count,
+                         __global float* f, __global float* gb, __global float* st, uint pixels) {
+    uint pixel = get_global_id(0);
+    if (pixel >= pixels) return;
+    PixelStats stats;
+    pixel_stats_load(&stats, f, gb, st, pixel);
+    for (uint k = first; k < first + count; ++k) {
+        float v = stream[pixel * stream_len + k];
+        PathSample ps = path_sample_empty();
+        ps.direct = (float3)(v);
+        ps.depth = v;
+        ps.normal = (float3)(v);
+        ps.albedo = (float3)(v);
+        ps.albedo2 = (float3)(v);
+        ps.direction = (float3)(v);
+        film_accumulate(&stats, &ps, k + 1u);
+    }
+    pixel_stats_store(&stats, f, gb, st, pixel);
+}
+
 // sizeof and field offsets of every shared struct, measured on the device (tests/layout.rs).
 // The test prepends `#define LAYOUT_PROBE_BODY ...`, generated from src/layout.rs.
 #ifdef LAYOUT_PROBE_BODY
 __kernel void probe_layout(__global uint* out,
                            __global SceneParams* a, __global BvhNode* b, __global TriangleGeom* c,
                            __global TriangleShading* d, __global Sphere* e, __global Material* f,
-                           __global TextureInfo* g, __global Light* h, __global FilterVector* i) {
+                           __global TextureInfo* g, __global Light* h, __global FilterVector* i,
+                           __global GBuffer* j, __global StatsState* k_) {
     if (get_global_id(0) != 0) return;
     uint k = 0;
+    __global StatsState* k2 = k_;
 #define SIZE(p) out[k++] = (uint)sizeof(*(p));
 #define OFFSET(p, field) out[k++] = (uint)((__global char*)&((p)->field) - (__global char*)(p));
     LAYOUT_PROBE_BODY

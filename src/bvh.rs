@@ -83,6 +83,19 @@ pub fn build(triangles: &[[glam::Vec3; 3]], quality: BuildQuality) -> Result<Fla
     Ok(flat)
 }
 
+/// Relative and absolute outward padding of node boxes.
+const PAD_RELATIVE: f32 = 1.0 / (1 << 20) as f32;
+const PAD_ABSOLUTE: f32 = 1.0e-20;
+
+/// Moves a box bound outward by a relative 2^-20 plus 1e-20. A ray lying exactly in the plane of
+/// a box face (an axis-parallel ray, whose zero direction component the kernels replace by
+/// +-1e-30) is classified by the sign of that zero, so it could miss a triangle touching the
+/// face. After padding no triangle touches the box boundary, so that classification never
+/// decides a hit; and 1e-20 * 1e30 keeps the slab distances of such rays far beyond any scene.
+fn pad_bound(v: f32, outward: f32) -> f32 {
+    v + outward * (v.abs() * PAD_RELATIVE + PAD_ABSOLUTE)
+}
+
 /// Depth-first flattening with skip indices, using explicit stacks (trees can be deeper than
 /// any safe recursion depth).
 ///
@@ -106,8 +119,8 @@ pub fn flatten(
         let n = &nodes[id];
         stats.max_depth = stats.max_depth.max(depth);
         let mut node = BvhNode {
-            bounds_min: n.aabb.min.to_array(),
-            bounds_max: n.aabb.max.to_array(),
+            bounds_min: n.aabb.min.to_array().map(|v| pad_bound(v, -1.0)),
+            bounds_max: n.aabb.max.to_array().map(|v| pad_bound(v, 1.0)),
             skip: 0,
             leaf: 0,
         };
@@ -194,8 +207,13 @@ mod tests {
                 assert_eq!(bvh.nodes[right].skip as usize, skip);
                 for c in [left, right] {
                     for k in 0..3 {
-                        assert!(bvh.nodes[c].bounds_min[k] >= node.bounds_min[k]);
-                        assert!(bvh.nodes[c].bounds_max[k] <= node.bounds_max[k]);
+                        // Children are padded as much as their parent: allow that slack.
+                        let slack = 2.0
+                            * (node.bounds_max[k].abs().max(node.bounds_min[k].abs())
+                                * PAD_RELATIVE
+                                + PAD_ABSOLUTE);
+                        assert!(bvh.nodes[c].bounds_min[k] >= node.bounds_min[k] - slack);
+                        assert!(bvh.nodes[c].bounds_max[k] <= node.bounds_max[k] + slack);
                     }
                 }
             }
@@ -222,6 +240,45 @@ mod tests {
             }
         }
         assert_eq!(covered, tris.len());
+    }
+
+    #[test]
+    fn ray_in_the_plane_of_a_box_face_still_reaches_the_leaf() {
+        use crate::reference::geometry::ray_aabb;
+        use crate::reference::geometry::{ray_triangle, safe_inverse};
+        // A wall at z = 0 spanning x in [0, 1]: its box's min-x face is the plane x = 0.
+        let tris = vec![
+            [
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+            [
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+        ];
+        let bvh = build(&tris, BuildQuality::Medium).unwrap();
+        let o = Vec3::new(0.0, 0.5, -5.0);
+        for d in [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(-0.0, 0.0, 1.0),
+            Vec3::new(-0.0, -0.0, 1.0),
+        ] {
+            let inv = safe_inverse(d);
+            for node in &bvh.nodes {
+                let (lo, hi) = (Vec3::from(node.bounds_min), Vec3::from(node.bounds_max));
+                assert!(
+                    ray_aabb(o, inv, 0.0, f32::INFINITY, lo, hi),
+                    "direction {d:?} misses a box"
+                );
+            }
+            // And the triangle edge on x = 0 is hit (Möller-Trumbore's bounds are inclusive).
+            assert!(tris.iter().any(|t| {
+                ray_triangle(o, d, t[0], t[1], t[2]).is_some_and(|h| (h.0 - 5.0).abs() < 1e-6)
+            }));
+        }
     }
 
     #[test]

@@ -8,7 +8,7 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::gpu::{self, Gpu};
-use crate::output::{self, RgbImage};
+use crate::output;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene;
 
@@ -56,6 +56,13 @@ pub struct RenderArgs {
     /// Do not write the EXR.
     #[arg(long)]
     pub no_exr: bool,
+    /// Also write every per-pixel buffer (FilterVector means, feature variances, spp) to one
+    /// multi-channel OpenEXR.
+    #[arg(long, value_name = "FILE.exr")]
+    pub aovs: Option<PathBuf>,
+    /// Also write a false-colour PNG of every per-pixel buffer into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub aov_png: Option<PathBuf>,
     /// Stop after this many seconds even if fewer than spp samples are done.
     #[arg(long, value_name = "SECONDS")]
     pub time_limit: Option<f64>,
@@ -252,6 +259,11 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     }
     options.all_features = args.all_features;
     options.local_size = args.local_size;
+    // The statistics stage is compiled in only when something reads it.
+    if args.aovs.is_some() || args.aov_png.is_some() {
+        options.outputs.features = true;
+        options.outputs.variance = true;
+    }
 
     // Outputs: explicit paths must be writable now, before minutes of rendering.
     let png_path = args
@@ -261,15 +273,16 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     let exr_path = if args.no_exr {
         None
     } else {
+        // Next to the PNG unless named.
         Some(
             args.exr
                 .clone()
-                .unwrap_or_else(|| default_output(&args.scene, "exr")),
+                .unwrap_or_else(|| png_path.with_extension("exr")),
         )
     };
     for (given, path) in [
         (args.out.is_some(), Some(&png_path)),
-        (args.exr.is_some(), exr_path.as_ref()),
+        (args.exr.is_some() || args.out.is_some(), exr_path.as_ref()),
     ] {
         if let Some(path) = path {
             if !given && let Some(dir) = path.parent() {
@@ -308,11 +321,20 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         println!("  camera: {}", renderer.arrays.focus_note);
     }
     progressive(&mut renderer, spp, args.time_limit, args.quiet)?;
-    let film = renderer.read_film()?;
-    let image = RgbImage::beauty(renderer.width(), renderer.height(), &film);
+    let buffers = renderer.read_buffers()?;
+    let image = buffers.beauty();
     output::write_png(&png_path, &image, args.exposure)?;
     if let Some(p) = &exr_path {
         output::write_exr(p, &image)?;
+    }
+    if let Some(p) = &args.aovs {
+        let mut meta = std::collections::BTreeMap::new();
+        meta.insert("scene".to_string(), args.scene.display().to_string());
+        meta.insert("seed".to_string(), renderer.arrays.params.seed.to_string());
+        crate::stats::aovs::write_aov_exr(p, &buffers, &meta)?;
+    }
+    if let Some(dir) = &args.aov_png {
+        crate::stats::aovs::write_aov_pngs(dir, &buffers, args.exposure)?;
     }
     let summary = RenderSummary {
         width: renderer.width(),

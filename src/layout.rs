@@ -298,6 +298,32 @@ device_structs! {
         /// Mean albedo of the first diffuse surface after the first bounce ("texture2"); 0 if none.
         pub albedo2: [f32; 3],
     }
+
+    /// The variance GBuffer GB of eq. 6.2, held as Welford's running sums of squared
+    /// deviations S_n (eq. 6.6); the variance S_n / (n - 1) is formed only when a filter asks
+    /// for it. 13 floats padded to one float16 (§6.3.1).
+    #[align(64)]
+    pub struct GBuffer {
+        pub depth: f32,
+        pub normal: [f32; 3],
+        pub albedo: [f32; 3],
+        /// Direction leaving the first hit (its mean lives in StatsState, not in F).
+        pub direction: [f32; 3],
+        pub albedo2: [f32; 3],
+        pub pad: [f32; 3],
+    }
+
+    /// Running state of the statistics that is neither a FilterVector mean nor an S_n:
+    /// the mean first-bounce direction, and the depth shift (see kernels/film.cl on float32).
+    #[align(32)]
+    pub struct StatsState {
+        pub direction_mean: [f32; 3],
+        /// The pixel's first depth sample K; depth is accumulated as x - K.
+        pub depth_shift: f32,
+        /// Running mean of x - K; F.depth = K + this.
+        pub depth_shifted_mean: f32,
+        pub pad: [f32; 3],
+    }
 }
 
 /// Every shared struct, for the generated header and the layout test.
@@ -315,6 +341,8 @@ pub fn all_declarations() -> Vec<(&'static str, String, Vec<FieldLayout>, usize)
         one::<TextureInfo>(),
         one::<Light>(),
         one::<FilterVector>(),
+        one::<GBuffer>(),
+        one::<StatsState>(),
     ]
 }
 
@@ -407,9 +435,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn filter_vector_is_one_float16() {
+    fn filter_vector_and_gbuffer_are_one_float16_each() {
         assert_eq!(std::mem::size_of::<FilterVector>(), 64);
         assert_eq!(std::mem::align_of::<FilterVector>(), 64);
+        assert_eq!(std::mem::size_of::<GBuffer>(), 64);
+        assert_eq!(std::mem::size_of::<StatsState>(), 32);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! Real-time Rendering*, MSc thesis, Utrecht University, 2013.
 //!
 //! Modules follow the data: [`scene`] → [`bvh`] → [`render`] (device buffers and the
-//! megakernel in `kernels/`) → [`output`]. [`layout`] is the one definition of every struct
+//! megakernel in `kernels/`) → [`stats`] (per-pixel statistics) → [`output`], [`metrics`]. [`layout`] is the one definition of every struct
 //! shared with the kernels; [`reference`] holds plain Rust versions of the kernels for tests.
 
 pub mod assets;
@@ -17,3 +17,4 @@ pub mod output;
 pub mod reference;
 pub mod render;
 pub mod scene;
+pub mod stats;

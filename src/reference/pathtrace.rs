@@ -287,6 +287,9 @@ pub fn sample_direct_light(
 pub struct PathSample {
     pub direct: Vec3,
     pub indirect: Vec3,
+    /// Every contribution, whatever its bucket (not in the kernel): direct + indirect must
+    /// equal it, which tests/statistics.rs checks against the kernel's split.
+    pub total: Vec3,
     pub depth: f32,
     pub normal: Vec3,
     pub albedo: Vec3,
@@ -299,6 +302,7 @@ impl PathSample {
         PathSample {
             direct: Vec3::ZERO,
             indirect: Vec3::ZERO,
+            total: Vec3::ZERO,
             depth: SKY_DEPTH,
             normal: Vec3::ZERO,
             albedo: Vec3::ZERO,
@@ -308,6 +312,7 @@ impl PathSample {
     }
 
     fn add_light(&mut self, bounce: u32, value: Vec3) {
+        self.total += value;
         if bounce <= 1 {
             self.direct += value;
         } else {

@@ -17,6 +17,8 @@ pub struct Feature {
 pub struct Outputs {
     /// The first-hit features of the FilterVector (depth, normal, albedo, albedo2).
     pub features: bool,
+    /// The variance GBuffer (running S_n of every feature, eq. 6.2); implies `features`.
+    pub variance: bool,
 }
 
 /// The effects compiled into the megakernel.
@@ -176,11 +178,20 @@ impl FeatureSet {
                 ),
                 feature(
                     "OUTPUT_FEATURES",
-                    outputs.features,
-                    if outputs.features {
-                        "feature buffers requested (AOVs or a filter)"
+                    outputs.features || outputs.variance,
+                    if outputs.features || outputs.variance {
+                        "feature means requested (AOVs or a filter)"
                     } else {
                         "only the image is requested"
+                    },
+                ),
+                feature(
+                    "OUTPUT_VARIANCE",
+                    outputs.variance,
+                    if outputs.variance {
+                        "feature variances requested (AOVs or a filter)"
+                    } else {
+                        "no filter or AOV needs feature variances"
                     },
                 ),
             ],
@@ -195,7 +206,10 @@ impl FeatureSet {
         for f in &mut set.features {
             if !matches!(
                 f.define,
-                "HAS_RUSSIAN_ROULETTE" | "NEXT_EVENT_ESTIMATION" | "OUTPUT_FEATURES"
+                "HAS_RUSSIAN_ROULETTE"
+                    | "NEXT_EVENT_ESTIMATION"
+                    | "OUTPUT_FEATURES"
+                    | "OUTPUT_VARIANCE"
             ) && !f.on
             {
                 f.on = true;

@@ -12,10 +12,11 @@ use ocl::{Buffer, Event, Kernel};
 
 use crate::gpu::{Gpu, event_duration, round_up};
 use crate::layout::{
-    BvhNode, FilterVector, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
-    TriangleShading,
+    BvhNode, FilterVector, Float4, GBuffer, Light, Material, SceneParams, Sphere, StatsState,
+    TextureInfo, TriangleGeom, TriangleShading,
 };
 use crate::scene::Scene;
+use crate::stats::PixelBuffers;
 pub use arrays::{FrameSettings, SceneArrays};
 pub use features::{FeatureSet, Outputs};
 
@@ -80,12 +81,19 @@ pub struct LaunchStats {
     pub rays: u64,
 }
 
+/// Positions of the per-launch arguments of kernels/pathtrace.cl `render`.
+const ARG_SAMPLE_BASE: u32 = 14;
+const ARG_SAMPLE_COUNT: u32 = 15;
+
 pub struct Renderer {
     pub gpu: Arc<Gpu>,
     pub arrays: SceneArrays,
     pub features: FeatureSet,
     /// Running means per pixel (eq. 6.1, 6.5).
     pub film: Buffer<FilterVector>,
+    /// Running S_n per pixel (eq. 6.2, 6.6); one dummy element unless variances are wanted.
+    pub gbuffers: Buffer<GBuffer>,
+    _stats_state: Buffer<StatsState>,
     ray_counts: Buffer<u32>,
     kernel: Kernel,
     _scene: DeviceScene,
@@ -95,9 +103,13 @@ pub struct Renderer {
 }
 
 /// Bytes of device memory the per-pixel buffers of a w x h image take.
-pub fn film_bytes(width: u32, height: u32) -> u64 {
+pub fn film_bytes(width: u32, height: u32, variance: bool) -> u64 {
     let px = width as u64 * height as u64;
-    px * (std::mem::size_of::<FilterVector>() as u64 + 4)
+    let mut per_pixel = std::mem::size_of::<FilterVector>() as u64 + 4;
+    if variance {
+        per_pixel += (std::mem::size_of::<GBuffer>() + std::mem::size_of::<StatsState>()) as u64;
+    }
+    px * per_pixel
 }
 
 impl Renderer {
@@ -109,8 +121,9 @@ impl Renderer {
             pixels as u64 * std::mem::size_of::<FilterVector>() as u64,
             "FilterVector film",
         )?;
+        let variance = options.outputs.variance;
         gpu.check_total(
-            film_bytes(frame.width, frame.height),
+            film_bytes(frame.width, frame.height, variance),
             "the per-pixel buffers",
         )?;
 
@@ -123,6 +136,10 @@ impl Renderer {
         let program = gpu.program("pathtrace.cl", &features.defines(), "")?;
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let film = gpu.zeroed::<FilterVector>(pixels, "FilterVector film")?;
+        // Only what is asked for is allocated: without variances these are one element each.
+        let stats_pixels = if variance { pixels } else { 1 };
+        let gbuffers = gpu.zeroed::<GBuffer>(stats_pixels, "variance GBuffer")?;
+        let stats_state = gpu.zeroed::<StatsState>(stats_pixels, "statistics state")?;
         let ray_counts = gpu.zeroed::<u32>(pixels, "ray count")?;
 
         let (w, h) = (frame.width as usize, frame.height as usize);
@@ -154,6 +171,8 @@ impl Renderer {
             .arg(&d.lights)
             .arg(&d.light_cdf)
             .arg(&film)
+            .arg(&gbuffers)
+            .arg(&stats_state)
             .arg(&ray_counts)
             .arg(0u32)
             .arg(0u32);
@@ -163,6 +182,8 @@ impl Renderer {
             arrays,
             features,
             film,
+            gbuffers,
+            _stats_state: stats_state,
             ray_counts,
             kernel,
             _scene: device_scene,
@@ -190,8 +211,8 @@ impl Renderer {
         if count == 0 {
             return Ok(LaunchStats::default());
         }
-        self.kernel.set_arg(12, self.samples_done)?;
-        self.kernel.set_arg(13, count)?;
+        self.kernel.set_arg(ARG_SAMPLE_BASE, self.samples_done)?;
+        self.kernel.set_arg(ARG_SAMPLE_COUNT, count)?;
         let mut event = Event::empty();
         // SAFETY: every buffer argument is alive (owned by self) and sized for the global range.
         unsafe {
@@ -224,5 +245,28 @@ impl Renderer {
             .context("reading the film from the device")?;
         out.truncate(self.width() as usize * self.height() as usize);
         Ok(out)
+    }
+
+    /// The statistics every filter reads: F and, if they were gathered, the feature variances
+    /// S_n / (n - 1).
+    pub fn read_buffers(&self) -> Result<PixelBuffers> {
+        let filter_vectors = self.read_film()?;
+        let variances = if self.features.is_on("OUTPUT_VARIANCE") {
+            let mut s = vec![GBuffer::default(); self.gbuffers.len()];
+            self.gbuffers
+                .read(&mut s)
+                .enq()
+                .context("reading the variance GBuffer")?;
+            Some(crate::stats::variances_from_sums(&s, self.samples_done))
+        } else {
+            None
+        };
+        Ok(PixelBuffers {
+            width: self.width(),
+            height: self.height(),
+            spp: self.samples_done,
+            filter_vectors,
+            variances,
+        })
     }
 }

@@ -31,6 +31,7 @@ pub fn generic_defines() -> Vec<(String, String)> {
         "HAS_RUSSIAN_ROULETTE",
         "NEXT_EVENT_ESTIMATION",
         "OUTPUT_FEATURES",
+        "OUTPUT_VARIANCE",
     ]
     .iter()
     .map(|d| (d.to_string(), "1".to_string()))

@@ -1,0 +1,442 @@
+//! Per-pixel statistics (thesis §6.1-6.2.2): the Welford update in float32 against float64,
+//! the direct/indirect split, texture2 through mirrors and glass, the variance buffers'
+//! behaviour (Fig. 6.4), and the AOV file round trip.
+
+mod common;
+
+use common::*;
+use noisefree::layout::{FilterVector, GBuffer, StatsState};
+use noisefree::reference::pathtrace::{ReferenceOptions, trace_path};
+use noisefree::reference::rng::rng_sample_key;
+use noisefree::render::SceneArrays;
+use noisefree::stats::{PixelBuffers, feature_variance_sums, variances_from_sums};
+
+/// Runs `streams` (one per pixel, equal lengths) through the kernel's statistics stage in
+/// launches of `chunk` samples; returns (F, S_n) per pixel.
+fn device_welford(streams: &[Vec<f32>], chunk: usize) -> (Vec<FilterVector>, Vec<GBuffer>) {
+    let gpu = gpu();
+    let program = gpu.program("probes.cl", &generic_defines(), "").unwrap();
+    let (pixels, len) = (streams.len(), streams[0].len());
+    let flat: Vec<f32> = streams.iter().flatten().copied().collect();
+    let stream = gpu.upload(&flat).unwrap();
+    let f = gpu.zeroed::<FilterVector>(pixels, "F").unwrap();
+    let gb = gpu.zeroed::<GBuffer>(pixels, "GB").unwrap();
+    let st = gpu.zeroed::<StatsState>(pixels, "state").unwrap();
+    let kernel = ocl::Kernel::builder()
+        .program(&program)
+        .name("probe_film")
+        .queue(gpu.queue.clone())
+        .global_work_size(pixels)
+        .arg(&stream)
+        .arg(len as u32)
+        .arg(0u32)
+        .arg(0u32)
+        .arg(&f)
+        .arg(&gb)
+        .arg(&st)
+        .arg(pixels as u32)
+        .build()
+        .unwrap();
+    let mut first = 0;
+    while first < len {
+        let count = chunk.min(len - first);
+        kernel.set_arg(2, first as u32).unwrap();
+        kernel.set_arg(3, count as u32).unwrap();
+        unsafe { kernel.enq().unwrap() };
+        first += count;
+    }
+    let mut fv = vec![FilterVector::default(); pixels];
+    let mut s = vec![GBuffer::default(); pixels];
+    f.read(&mut fv).enq().unwrap();
+    gb.read(&mut s).enq().unwrap();
+    (fv, s)
+}
+
+fn two_pass(x: &[f32]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let var = x.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var)
+}
+
+fn normal_stream(rng: &mut TestRng, n: usize, mean: f32, sd: f32) -> Vec<f32> {
+    (0..n)
+        .map(|_| {
+            // Box-Muller.
+            let (u1, u2) = (rng.uniform().max(1e-7), rng.uniform());
+            mean + sd * (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+        })
+        .collect()
+}
+
+#[test]
+fn welford_in_float32_matches_float64_two_pass() {
+    let mut rng = TestRng(17);
+    let n = 100_000;
+    let depth_like = normal_stream(&mut rng, n, 1.0e4, 0.1);
+    let colour_like = normal_stream(&mut rng, n, 0.5, 0.3);
+    let constant = vec![0.73f32; n];
+    let streams = vec![depth_like.clone(), colour_like.clone(), constant];
+    // Progressive: launches of 1000 samples, as the renderer carries state across launches.
+    let (f, s) = device_welford(&streams, 1000);
+    let var = variances_from_sums(&s, n as u32);
+
+    let (m, v) = two_pass(&depth_like);
+    let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+    assert!(
+        rel(f[0].depth as f64, m) < 1e-6,
+        "depth mean {} vs {m}",
+        f[0].depth
+    );
+    assert!(
+        rel(var[0].depth as f64, v) < 1e-3,
+        "depth-like variance {} vs {v} (rel {:.2e})",
+        var[0].depth,
+        rel(var[0].depth as f64, v)
+    );
+    // The same stream through the unshifted lanes (normal) shows why the shift is needed.
+    let unshifted = rel(var[0].normal[0] as f64, v);
+    assert!(
+        unshifted > 1e-3,
+        "expected the unshifted float32 recursion to lose accuracy here ({unshifted:.2e})"
+    );
+
+    let (m, v) = two_pass(&colour_like);
+    for (got, what) in [
+        (var[1].albedo[0], "albedo"),
+        (var[1].normal[1], "normal"),
+        (var[1].direction[2], "direction"),
+        (var[1].albedo2[0], "albedo2"),
+    ] {
+        assert!(
+            rel(got as f64, v) < 1e-3,
+            "colour-like {what} variance {got} vs {v}"
+        );
+    }
+    assert!(rel(f[1].albedo[0] as f64, m) < 1e-5);
+
+    let g = &s[2];
+    for x in feature_variance_sums(g) {
+        assert_eq!(x, 0.0, "a constant stream has exactly zero S_n");
+    }
+    for g in &s {
+        assert!(
+            feature_variance_sums(g).iter().all(|&x| x >= 0.0),
+            "negative variance: {g:?}"
+        );
+    }
+}
+
+#[test]
+fn welford_single_launch_and_one_sample_per_launch_agree() {
+    let mut rng = TestRng(5);
+    let streams = vec![normal_stream(&mut rng, 300, 3.0, 0.5)];
+    let (_, a) = device_welford(&streams, 300);
+    let (_, b) = device_welford(&streams, 1);
+    assert_eq!(
+        a[0], b[0],
+        "the statistics must not depend on launch batching"
+    );
+}
+
+/// Direct and indirect light are one image split in two: their sum equals the unsplit total
+/// of every path (accumulated separately by the Rust reference with the same random numbers).
+#[test]
+fn direct_plus_indirect_is_the_beauty_image() {
+    let extra = r#"
+[[material]]
+name = "mirror"
+type = "specular"
+color = [0.9, 0.9, 0.9]
+
+[[sphere]]
+center = [-0.4, 0.4, -0.2]
+radius = 0.4
+material = "mirror"
+
+[[sphere]]
+center = [0.4, 0.3, 0.3]
+radius = 0.3
+material = "white"
+"#;
+    let scene = scene_from_toml(&cornell("max_depth = 3", extra));
+    let (w, h, spp) = (24u32, 24u32, 8u32);
+    let mut opts = options(&scene, w, h, 21);
+    opts.outputs.features = true;
+    opts.outputs.variance = true;
+    let film = render_film(&scene, &opts, spp, spp);
+    let arrays = SceneArrays::build(&scene, &opts.frame).unwrap();
+    let ro = ReferenceOptions {
+        russian_roulette: true,
+        next_event_estimation: true,
+    };
+    let mut agree = 0;
+    let mut with_both = 0;
+    for (i, f) in film.iter().enumerate() {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        let mut total = [0f64; 3];
+        let mut rays = 0;
+        for s in 0..spp {
+            let ps = trace_path(
+                &arrays,
+                ro,
+                x,
+                y,
+                rng_sample_key(21, i as u32, s),
+                &mut rays,
+            );
+            for c in 0..3 {
+                total[c] += ps.total[c] as f64 / spp as f64;
+            }
+        }
+        if f.direct.iter().sum::<f32>() > 0.0 && f.indirect.iter().sum::<f32>() > 0.0 {
+            with_both += 1;
+        }
+        let ok = (0..3).all(|c| {
+            let split = (f.direct[c] + f.indirect[c]) as f64;
+            (split - total[c]).abs() <= 1e-5 * total[c].abs().max(1e-3)
+        });
+        agree += ok as usize;
+    }
+    assert!(
+        with_both > film.len() / 2,
+        "most pixels should have both direct and indirect light"
+    );
+    // Paths that round a comparison differently on the device may branch apart; that is rare.
+    assert!(
+        agree as f64 >= 0.97 * film.len() as f64,
+        "direct + indirect matched the total in only {agree} of {} pixels",
+        film.len()
+    );
+}
+
+/// texture2 is the albedo of the first diffuse surface after the first bounce: the wall seen
+/// in a mirror, or through glass (Fig. 6.3).
+#[test]
+fn texture2_sees_through_mirrors_and_glass() {
+    let base = |object: &str| {
+        format!(
+            r#"
+[render]
+max_depth = 4
+
+[camera]
+origin = [0, 0, 3]
+target = [0, 0, 0]
+fov = 10
+
+[[material]]
+name = "red"
+type = "diffuse"
+color = [0.8, 0.1, 0.1]
+
+[[material]]
+name = "green"
+type = "diffuse"
+color = [0.1, 0.8, 0.1]
+
+[[material]]
+name = "mirror"
+type = "specular"
+color = [0.9, 0.9, 0.9]
+
+[[material]]
+name = "glass"
+type = "glass"
+refract_color = [0.95, 0.95, 0.95]
+
+[[light]]
+type = "infinite"
+color = [0.2, 0.2, 0.2]
+
+# Red wall behind the camera, green wall behind the object.
+[[mesh]]
+generator = "quad"
+material = "red"
+scale = 20
+rotate = [-90, 0, 0]
+translate = [0, 0, 6]
+
+[[mesh]]
+generator = "quad"
+material = "green"
+scale = 20
+rotate = [90, 0, 0]
+translate = [0, 0, -3]
+
+{object}
+"#
+        )
+    };
+    let mirror = base(
+        "[[mesh]]\ngenerator = \"quad\"\nmaterial = \"mirror\"\nscale = 4\nrotate = [90, 0, 0]\n",
+    );
+    let glass = base("[[mesh]]\ngenerator = \"box\"\nmaterial = \"glass\"\nscale = [4, 4, 0.5]\n");
+    // Through glass, a fraction of paths is reflected back to the red wall: a slab reflects
+    // 2R / (1 + R) in total with R = 0.04 at normal incidence (n = 1.5), the rest reaches green.
+    let r = 0.04f32;
+    let slab = 2.0 * r / (1.0 + r);
+    let mix = |a: [f32; 3], b: [f32; 3], t: f32| [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t);
+    let (red, green) = ([0.8, 0.1, 0.1], [0.1, 0.8, 0.1]);
+    for (text, want_albedo, want_albedo2, what) in [
+        (mirror, [0.9, 0.9, 0.9], red, "mirror"),
+        (glass, [0.95, 0.95, 0.95], mix(green, red, slab), "glass"),
+    ] {
+        let scene = scene_from_toml(&text);
+        let mut opts = options(&scene, 8, 8, 2);
+        opts.outputs.features = true;
+        let film = render_film(&scene, &opts, 64, 64);
+        let mut mean2 = [0f32; 3];
+        for f in &film {
+            for c in 0..3 {
+                assert!(
+                    (f.albedo[c] - want_albedo[c]).abs() < 1e-4,
+                    "{what}: albedo {:?}",
+                    f.albedo
+                );
+                mean2[c] += f.albedo2[c] / film.len() as f32;
+            }
+            // Each sample saw red, green or (escaping sideways) nothing: a mix with blue <= 0.1.
+            assert!(
+                f.albedo2[2] <= 0.1 + 1e-5
+                    && (f.albedo2[0] + f.albedo2[1] - 9.0 * f.albedo2[2]).abs() < 1e-3,
+                "{what}: {:?}",
+                f.albedo2
+            );
+        }
+        for c in 0..3 {
+            // 4096 samples: the standard error of the reflected fraction is about 0.004.
+            assert!(
+                (mean2[c] - want_albedo2[c]).abs() < 0.015,
+                "{what}: mean albedo2 {mean2:?}, expected {want_albedo2:?}"
+            );
+        }
+    }
+}
+
+fn render_buffers(text: &str, w: u32, h: u32, spp: u32) -> PixelBuffers {
+    let scene = scene_from_toml(text);
+    let mut opts = options(&scene, w, h, 8);
+    opts.outputs.features = true;
+    opts.outputs.variance = true;
+    let mut r = noisefree::render::Renderer::new(gpu(), &scene, &opts).unwrap();
+    r.render_samples(spp).unwrap();
+    r.read_buffers().unwrap()
+}
+
+/// Fig. 6.4: normal and texture variance are high at geometric edges, and much higher where
+/// depth of field blurs the image.
+#[test]
+fn variances_rise_at_edges_and_out_of_focus() {
+    let scene = |lens: &str| {
+        format!(
+            r#"
+[camera]
+origin = [0, 0, 4]
+target = [0, 0, 0]
+fov = 30
+{lens}
+
+[[material]]
+name = "a"
+type = "diffuse"
+color = [0.9, 0.6, 0.2]
+
+[[material]]
+name = "b"
+type = "diffuse"
+color = [0.2, 0.3, 0.8]
+
+[[light]]
+type = "infinite"
+color = [1, 1, 1]
+
+[[sphere]]
+center = [0, 0, 1.5]
+radius = 0.5
+material = "a"
+
+[[mesh]]
+generator = "quad"
+material = "b"
+scale = 10
+rotate = [90, 0, 0]
+translate = [0, 0, -2]
+"#
+        )
+    };
+    let (w, h) = (48u32, 48u32);
+    let sharp = render_buffers(&scene(""), w, h, 32);
+    // Focused on the wall 6 units away: the sphere 2.5 units away is blurred.
+    let blurred = render_buffers(&scene("lens_radius = 0.15\nfocal_distance = 6.0"), w, h, 32);
+    let var_sum = |b: &PixelBuffers, i: usize| {
+        let v = feature_variance_sums(&b.variances.as_ref().unwrap()[i]);
+        v[1] + v[2] // normal + texture
+    };
+    // Classify pixels of the sharp image: interior (all neighbours have the same material) or
+    // edge (the sphere's silhouette).
+    let on_sphere = |b: &PixelBuffers, i: usize| b.filter_vectors[i].depth < 4.0;
+    let mut edge = Vec::new();
+    let mut interior = Vec::new();
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = (y * w + x) as usize;
+            let n = [i - 1, i + 1, i - w as usize, i + w as usize];
+            let same = n
+                .iter()
+                .all(|&j| on_sphere(&sharp, j) == on_sphere(&sharp, i));
+            let var = var_sum(&sharp, i);
+            if same {
+                interior.push(var)
+            } else {
+                edge.push(var)
+            }
+        }
+    }
+    let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
+    assert!(edge.len() > 20 && interior.len() > 1000);
+    assert!(
+        mean(&edge) > 10.0 * mean(&interior),
+        "edge {} vs interior {}",
+        mean(&edge),
+        mean(&interior)
+    );
+    let total = |b: &PixelBuffers| {
+        (0..(w * h) as usize)
+            .map(|i| var_sum(b, i) as f64)
+            .sum::<f64>()
+    };
+    assert!(
+        total(&blurred) > 3.0 * total(&sharp),
+        "DOF {} vs pinhole {}",
+        total(&blurred),
+        total(&sharp)
+    );
+    // Depth variance too (Fig. 6.5): the blurred silhouette mixes sphere and wall depths.
+    let depth_total = |b: &PixelBuffers| {
+        b.variances
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|g| g.depth as f64)
+            .sum::<f64>()
+    };
+    assert!(depth_total(&blurred) > 3.0 * depth_total(&sharp));
+}
+
+#[test]
+fn aov_exr_round_trips() {
+    let text = cornell("max_depth = 2", "");
+    let b = render_buffers(&text, 20, 12, 4);
+    let dir = std::env::temp_dir().join(format!("noisefree-aov-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("aovs.exr");
+    let mut meta = std::collections::BTreeMap::new();
+    meta.insert("scene".to_string(), "test".to_string());
+    noisefree::stats::aovs::write_aov_exr(&path, &b, &meta).unwrap();
+    let (back, meta_back) = noisefree::stats::aovs::read_aov_exr(&path).unwrap();
+    assert_eq!(back, b, "every buffer and the spp must survive the file");
+    assert_eq!(meta_back.get("scene").map(String::as_str), Some("test"));
+    let pngs = noisefree::stats::aovs::write_aov_pngs(&dir.join("png"), &b, 0.0).unwrap();
+    assert_eq!(pngs.len(), 12);
+}
