@@ -144,4 +144,20 @@ typedef struct __attribute__((aligned(32))) {
     float pad[3];
 } StatsState;
 
+// Parameters of the data-driven filter for one run (thesis Tables 6.2, 6.3).
+typedef struct __attribute__((aligned(16))) {
+    uint width;
+    uint height;
+    int half_width; // (kw - 1) / 2 (Alg. 8 line 2).
+    int step; // 1, or 2 with holes (§6.3.3).
+    float sigma2_dc; // Eq. 6.8: 1 / (2 sigma_dc^2).
+    float sigma2_ic; // Eq. 6.9: 1 / (2 sigma_ic^2).
+    float variance_factor; // Multiplies GB to give variances: 1 / (n - 1) for Welford sums, 1 for variances.
+    uint pad;
+    float sigma2_f[5]; // 1 / (2 sigma_f,i^2) for depth, normal, texture, direction, texture2 (eq. 6.10).
+    uint pad2[3];
+    float variance_scale[5]; // The variance scales s_f,i, same order.
+    uint pad3[3];
+} DdfParams;
+
 #endif

@@ -19,6 +19,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     ("film.cl", include_str!("../kernels/film.cl")),
     ("pathtrace.cl", include_str!("../kernels/pathtrace.cl")),
     ("probes.cl", include_str!("../kernels/probes.cl")),
+    ("ddf.cl", include_str!("../kernels/ddf.cl")),
 ];
 
 pub fn source(name: &str) -> Option<&'static str> {

@@ -324,6 +324,30 @@ device_structs! {
         pub depth_shifted_mean: f32,
         pub pad: [f32; 3],
     }
+
+    /// Parameters of the data-driven filter for one run (thesis Tables 6.2, 6.3).
+    #[align(16)]
+    pub struct DdfParams {
+        pub width: u32,
+        pub height: u32,
+        /// (kw - 1) / 2 (Alg. 8 line 2).
+        pub half_width: i32,
+        /// 1, or 2 with holes (§6.3.3).
+        pub step: i32,
+        /// Eq. 6.8: 1 / (2 sigma_dc^2).
+        pub sigma2_dc: f32,
+        /// Eq. 6.9: 1 / (2 sigma_ic^2).
+        pub sigma2_ic: f32,
+        /// Multiplies GB to give variances: 1 / (n - 1) for Welford sums, 1 for variances.
+        pub variance_factor: f32,
+        pub pad: u32,
+        /// 1 / (2 sigma_f,i^2) for depth, normal, texture, direction, texture2 (eq. 6.10).
+        pub sigma2_f: [f32; 5],
+        pub pad2: [u32; 3],
+        /// The variance scales s_f,i, same order.
+        pub variance_scale: [f32; 5],
+        pub pad3: [u32; 3],
+    }
 }
 
 /// Every shared struct, for the generated header and the layout test.
@@ -343,6 +367,7 @@ pub fn all_declarations() -> Vec<(&'static str, String, Vec<FieldLayout>, usize)
         one::<FilterVector>(),
         one::<GBuffer>(),
         one::<StatsState>(),
+        one::<DdfParams>(),
     ]
 }
 

@@ -9,6 +9,7 @@
 pub mod assets;
 pub mod bvh;
 pub mod cli;
+pub mod filters;
 pub mod gpu;
 pub mod kernels;
 pub mod layout;

@@ -1,18 +1,31 @@
 //! Procedural assets made by the project's own code: meshes named by `[[mesh]] generator = ...`
-//! in scene files. Deterministic for a seed.
+//! in scene files, and the bundled texture images (`textures`, written by
+//! `cargo run --release --bin make_assets -- scenes/textures`). Deterministic for a seed.
+//!
+//! Every generator returns parts with an MTL-style default material (`Kd`, or `Ke` for the
+//! parts that emit light), so a scene can use them as they are or override them all with
+//! `[[mesh]] material = ...`.
+
+pub mod airplane;
+pub mod builder;
+pub mod conference;
+pub mod cube;
+pub mod textures;
 
 use glam::{Vec2, Vec3};
 
 use crate::scene::mesh::MeshPart;
 
 /// Names accepted by `[[mesh]] generator`.
-pub const MESH_GENERATORS: &[&str] = &["quad"];
+pub const MESH_GENERATORS: &[&str] = &["quad", "box", "airplane", "conference_room"];
 
 /// The mesh a generator makes, or None for an unknown name.
 pub fn generate_mesh(name: &str, seed: u64) -> Option<Vec<MeshPart>> {
-    let _ = seed;
     match name {
         "quad" => Some(vec![quad()]),
+        "box" => Some(vec![cube::unit_box()]),
+        "airplane" => Some(airplane::airplane(seed)),
+        "conference_room" => Some(conference::conference_room(seed)),
         _ => None,
     }
 }

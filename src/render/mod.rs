@@ -93,7 +93,8 @@ pub struct Renderer {
     pub film: Buffer<FilterVector>,
     /// Running S_n per pixel (eq. 6.2, 6.6); one dummy element unless variances are wanted.
     pub gbuffers: Buffer<GBuffer>,
-    _stats_state: Buffer<StatsState>,
+    /// Mean first-bounce directions and the depth shift (see kernels/film.cl).
+    pub stats_state: Buffer<StatsState>,
     ray_counts: Buffer<u32>,
     kernel: Kernel,
     _scene: DeviceScene,
@@ -183,7 +184,7 @@ impl Renderer {
             features,
             film,
             gbuffers,
-            _stats_state: stats_state,
+            stats_state,
             ray_counts,
             kernel,
             _scene: device_scene,
@@ -248,18 +249,26 @@ impl Renderer {
     }
 
     /// The statistics every filter reads: F and, if they were gathered, the feature variances
-    /// S_n / (n - 1).
+    /// S_n / (n - 1) and mean first-bounce directions.
     pub fn read_buffers(&self) -> Result<PixelBuffers> {
         let filter_vectors = self.read_film()?;
-        let variances = if self.features.is_on("OUTPUT_VARIANCE") {
+        let (variances, directions) = if self.features.is_on("OUTPUT_VARIANCE") {
             let mut s = vec![GBuffer::default(); self.gbuffers.len()];
             self.gbuffers
                 .read(&mut s)
                 .enq()
                 .context("reading the variance GBuffer")?;
-            Some(crate::stats::variances_from_sums(&s, self.samples_done))
+            let mut st = vec![StatsState::default(); self.stats_state.len()];
+            self.stats_state
+                .read(&mut st)
+                .enq()
+                .context("reading the statistics state")?;
+            (
+                Some(crate::stats::variances_from_sums(&s, self.samples_done)),
+                Some(st.iter().map(|s| s.direction_mean).collect()),
+            )
         } else {
-            None
+            (None, None)
         };
         Ok(PixelBuffers {
             width: self.width(),
@@ -267,6 +276,20 @@ impl Renderer {
             spp: self.samples_done,
             filter_vectors,
             variances,
+            directions,
         })
+    }
+
+    /// The device buffers for filters that run on the device after each frame.
+    pub fn device_buffers(&self) -> crate::filters::DeviceBuffers<'_> {
+        let n = self.samples_done;
+        crate::filters::DeviceBuffers {
+            width: self.width(),
+            height: self.height(),
+            filter_vectors: &self.film,
+            gbuffers: &self.gbuffers,
+            stats_state: &self.stats_state,
+            variance_factor: if n > 1 { 1.0 / (n - 1) as f32 } else { 0.0 },
+        }
     }
 }

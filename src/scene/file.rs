@@ -23,9 +23,9 @@ pub struct SceneFile {
     pub meshes: Vec<Spanned<MeshSection>>,
     #[serde(default, rename = "light")]
     pub lights: Vec<Spanned<LightSection>>,
-    /// Filter parameters; read by the filters (later stages) and ignored by the renderer.
+    /// Filter parameters (the command line wins over them).
     #[serde(default)]
-    pub filter: Option<toml::Table>,
+    pub filter: Option<FilterSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -220,4 +220,27 @@ pub struct LightSection {
     pub uv_scale: Option<Spanned<[f32; 2]>>,
     #[serde(default)]
     pub uv_shift: Option<Spanned<[f32; 2]>>,
+}
+
+/// `[filter]`: which filter runs after rendering and its parameters. Every field is optional;
+/// the command line overrides it. See scenes/README.md.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FilterSection {
+    /// "none", "ddf" (the data-driven filter), "rpf" or "atrous".
+    pub method: Option<String>,
+    pub kw: Option<u32>,
+    pub holes: Option<bool>,
+    pub sigma_dc: Option<f32>,
+    pub sigma_ic: Option<f32>,
+    /// sigma_f for depth, normal, texture, direction, texture2.
+    pub sigma_f: Option<[f32; 5]>,
+    /// Variance scales s_f, same order.
+    pub variance_scale: Option<[f32; 5]>,
+    /// "thesis" (eq. 6.14 as printed) or "difference".
+    pub direction: Option<String>,
+    pub texture2: Option<bool>,
+    /// Kernel variant: "naive", "vector" or "rows".
+    pub variant: Option<String>,
+    pub work_group: Option<u32>,
 }

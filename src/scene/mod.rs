@@ -161,7 +161,7 @@ pub struct Scene {
     pub triangles: Vec<Triangle>,
     pub environment: Option<Environment>,
     /// The `[filter]` table, for the filters.
-    pub filter: Option<toml::Table>,
+    pub filter: Option<file::FilterSection>,
     /// Problems repaired while loading (degenerate triangles, bad normals), reported once.
     pub warnings: Vec<String>,
 }

@@ -11,43 +11,47 @@ use super::{PixelBuffers, feature_variance_sums};
 use crate::layout::{FilterVector, GBuffer, SKY_DEPTH};
 use crate::output::{RgbImage, write_atomically, write_png};
 
-/// Every channel, in the order written: name, reader of the value from (F, variances).
-type Getter = fn(&FilterVector, &GBuffer) -> f32;
+/// Every channel, in the order written: name, reader of the value from (F, variances, mean
+/// direction).
+type Getter = fn(&FilterVector, &GBuffer, &[f32; 3]) -> f32;
 
 fn channels() -> Vec<(&'static str, Getter)> {
     vec![
-        ("R", |f, _| f.direct[0] + f.indirect[0]),
-        ("G", |f, _| f.direct[1] + f.indirect[1]),
-        ("B", |f, _| f.direct[2] + f.indirect[2]),
-        ("direct.R", |f, _| f.direct[0]),
-        ("direct.G", |f, _| f.direct[1]),
-        ("direct.B", |f, _| f.direct[2]),
-        ("indirect.R", |f, _| f.indirect[0]),
-        ("indirect.G", |f, _| f.indirect[1]),
-        ("indirect.B", |f, _| f.indirect[2]),
-        ("depth.Z", |f, _| f.depth),
-        ("normal.X", |f, _| f.normal[0]),
-        ("normal.Y", |f, _| f.normal[1]),
-        ("normal.Z", |f, _| f.normal[2]),
-        ("albedo.R", |f, _| f.albedo[0]),
-        ("albedo.G", |f, _| f.albedo[1]),
-        ("albedo.B", |f, _| f.albedo[2]),
-        ("albedo2.R", |f, _| f.albedo2[0]),
-        ("albedo2.G", |f, _| f.albedo2[1]),
-        ("albedo2.B", |f, _| f.albedo2[2]),
-        ("var.depth", |_, g| g.depth),
-        ("var.normal.X", |_, g| g.normal[0]),
-        ("var.normal.Y", |_, g| g.normal[1]),
-        ("var.normal.Z", |_, g| g.normal[2]),
-        ("var.albedo.R", |_, g| g.albedo[0]),
-        ("var.albedo.G", |_, g| g.albedo[1]),
-        ("var.albedo.B", |_, g| g.albedo[2]),
-        ("var.direction.X", |_, g| g.direction[0]),
-        ("var.direction.Y", |_, g| g.direction[1]),
-        ("var.direction.Z", |_, g| g.direction[2]),
-        ("var.albedo2.R", |_, g| g.albedo2[0]),
-        ("var.albedo2.G", |_, g| g.albedo2[1]),
-        ("var.albedo2.B", |_, g| g.albedo2[2]),
+        ("R", |f, _, _| f.direct[0] + f.indirect[0]),
+        ("G", |f, _, _| f.direct[1] + f.indirect[1]),
+        ("B", |f, _, _| f.direct[2] + f.indirect[2]),
+        ("direct.R", |f, _, _| f.direct[0]),
+        ("direct.G", |f, _, _| f.direct[1]),
+        ("direct.B", |f, _, _| f.direct[2]),
+        ("indirect.R", |f, _, _| f.indirect[0]),
+        ("indirect.G", |f, _, _| f.indirect[1]),
+        ("indirect.B", |f, _, _| f.indirect[2]),
+        ("depth.Z", |f, _, _| f.depth),
+        ("normal.X", |f, _, _| f.normal[0]),
+        ("normal.Y", |f, _, _| f.normal[1]),
+        ("normal.Z", |f, _, _| f.normal[2]),
+        ("albedo.R", |f, _, _| f.albedo[0]),
+        ("albedo.G", |f, _, _| f.albedo[1]),
+        ("albedo.B", |f, _, _| f.albedo[2]),
+        ("albedo2.R", |f, _, _| f.albedo2[0]),
+        ("albedo2.G", |f, _, _| f.albedo2[1]),
+        ("albedo2.B", |f, _, _| f.albedo2[2]),
+        ("direction.X", |_, _, d| d[0]),
+        ("direction.Y", |_, _, d| d[1]),
+        ("direction.Z", |_, _, d| d[2]),
+        ("var.depth", |_, g, _| g.depth),
+        ("var.normal.X", |_, g, _| g.normal[0]),
+        ("var.normal.Y", |_, g, _| g.normal[1]),
+        ("var.normal.Z", |_, g, _| g.normal[2]),
+        ("var.albedo.R", |_, g, _| g.albedo[0]),
+        ("var.albedo.G", |_, g, _| g.albedo[1]),
+        ("var.albedo.B", |_, g, _| g.albedo[2]),
+        ("var.direction.X", |_, g, _| g.direction[0]),
+        ("var.direction.Y", |_, g, _| g.direction[1]),
+        ("var.direction.Z", |_, g, _| g.direction[2]),
+        ("var.albedo2.R", |_, g, _| g.albedo2[0]),
+        ("var.albedo2.G", |_, g, _| g.albedo2[1]),
+        ("var.albedo2.B", |_, g, _| g.albedo2[2]),
     ]
 }
 
@@ -64,6 +68,8 @@ pub fn write_aov_exr(
         .as_ref()
         .ok_or_else(|| anyhow!("the AOV file needs feature variances"))?;
     let n = (b.width * b.height) as usize;
+    let zero = vec![[0.0f32; 3]; n];
+    let directions = b.directions.as_ref().unwrap_or(&zero);
     if b.filter_vectors.len() != n || variances.len() != n {
         bail!(
             "buffer sizes do not match the image size {}x{}",
@@ -78,7 +84,8 @@ pub fn write_aov_exr(
                 .filter_vectors
                 .iter()
                 .zip(variances)
-                .map(|(f, g)| get(f, g))
+                .zip(directions)
+                .map(|((f, g), d)| get(f, g, d))
                 .collect();
             AnyChannel::new(name, FlatSamples::F32(values))
         })
@@ -139,6 +146,7 @@ pub fn read_aov_exr(path: &Path) -> Result<(PixelBuffers, BTreeMap<String, Strin
     let n = w * h;
     let mut fv = vec![FilterVector::default(); n];
     let mut gb = vec![GBuffer::default(); n];
+    let mut dirs = vec![[0.0f32; 3]; n];
     for (name, _) in channels() {
         if name.len() == 1 {
             continue; // R, G, B are the sum of direct and indirect
@@ -153,7 +161,7 @@ pub fn read_aov_exr(path: &Path) -> Result<(PixelBuffers, BTreeMap<String, Strin
                     i / w
                 );
             }
-            let (f, g) = (&mut fv[i], &mut gb[i]);
+            let (f, g, d) = (&mut fv[i], &mut gb[i], &mut dirs[i]);
             let slot: &mut f32 = match name {
                 "direct.R" => &mut f.direct[0],
                 "direct.G" => &mut f.direct[1],
@@ -171,6 +179,9 @@ pub fn read_aov_exr(path: &Path) -> Result<(PixelBuffers, BTreeMap<String, Strin
                 "albedo2.R" => &mut f.albedo2[0],
                 "albedo2.G" => &mut f.albedo2[1],
                 "albedo2.B" => &mut f.albedo2[2],
+                "direction.X" => &mut d[0],
+                "direction.Y" => &mut d[1],
+                "direction.Z" => &mut d[2],
                 "var.depth" => &mut g.depth,
                 "var.normal.X" => &mut g.normal[0],
                 "var.normal.Y" => &mut g.normal[1],
@@ -210,6 +221,7 @@ pub fn read_aov_exr(path: &Path) -> Result<(PixelBuffers, BTreeMap<String, Strin
         spp: spp as u32,
         filter_vectors: fv,
         variances: Some(gb),
+        directions: Some(dirs),
     };
     Ok((buffers, metadata))
 }

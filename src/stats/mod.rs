@@ -16,6 +16,8 @@ pub struct PixelBuffers {
     pub filter_vectors: Vec<FilterVector>,
     /// Feature variances in GBuffer layout.
     pub variances: Option<Vec<GBuffer>>,
+    /// Mean first-bounce directions (for the direction-difference variant of the filter).
+    pub directions: Option<Vec<[f32; 3]>>,
 }
 
 impl PixelBuffers {

@@ -1,35 +1,19 @@
-//! The command line: `noisefree devices`, `noisefree render`.
+//! `noisefree render`: progressive rendering with a progress bar, optional filtering after
+//! each frame, images and AOVs out.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use clap::{Args, Parser, Subcommand};
+use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::gpu::{self, Gpu};
+use super::filter_args::{FilterArgs, Method};
+use crate::filters::ddf::DdfFilter;
+use crate::gpu::Gpu;
 use crate::output;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene;
-
-#[derive(Parser, Debug)]
-#[command(
-    name = "noisefree",
-    version,
-    about = "Physically based OpenCL path tracing with real-time denoising filters"
-)]
-pub struct Cli {
-    #[command(subcommand)]
-    pub command: Command,
-}
-
-#[derive(Subcommand, Debug)]
-pub enum Command {
-    /// List OpenCL platforms and devices.
-    Devices,
-    /// Render a scene file to a PNG (and a linear EXR).
-    Render(RenderArgs),
-}
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
@@ -50,14 +34,17 @@ pub struct RenderArgs {
     /// Tone-mapped sRGB PNG [default: out/<scene>.png].
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Linear float OpenEXR [default: out/<scene>.exr].
+    /// Linear float OpenEXR [default: the PNG's path with .exr].
     #[arg(long)]
     pub exr: Option<PathBuf>,
     /// Do not write the EXR.
     #[arg(long)]
     pub no_exr: bool,
-    /// Also write every per-pixel buffer (FilterVector means, feature variances, spp) to one
-    /// multi-channel OpenEXR.
+    /// With a filter: also write the unfiltered image as a linear EXR.
+    #[arg(long, value_name = "FILE.exr")]
+    pub exr_unfiltered: Option<PathBuf>,
+    /// Also write every per-pixel buffer (FilterVector means, feature variances, mean
+    /// directions, spp) to one multi-channel OpenEXR.
     #[arg(long, value_name = "FILE.exr")]
     pub aovs: Option<PathBuf>,
     /// Also write a false-colour PNG of every per-pixel buffer into this folder.
@@ -78,9 +65,15 @@ pub struct RenderArgs {
     /// Print the effects compiled into the kernel and why.
     #[arg(long)]
     pub explain: bool,
-    /// Work-group size, e.g. 8x8 [default: chosen by the driver].
+    /// Work-group size of the path tracer, e.g. 8x8 [default: chosen by the driver].
     #[arg(long, value_parser = parse_size)]
     pub local_size: Option<[usize; 2]>,
+    /// Filter after every frame (launch), not only at the end, and print min / median / max
+    /// filter kernel time over the frames.
+    #[arg(long)]
+    pub timings: bool,
+    #[command(flatten)]
+    pub filter: FilterArgs,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
@@ -104,46 +97,6 @@ fn parse_size(s: &str) -> std::result::Result<[usize; 2], String> {
     Ok([a, b])
 }
 
-/// Runs the command line; returns the process exit code.
-pub fn main() -> i32 {
-    let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Devices => devices(),
-        Command::Render(args) => render(&args).map(|_| ()),
-    };
-    match result {
-        Ok(()) => 0,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            1
-        }
-    }
-}
-
-fn devices() -> Result<()> {
-    let list = gpu::list_devices()?;
-    let mut platform = String::new();
-    for d in list {
-        if d.platform != platform {
-            println!("platform: {}", d.platform);
-            platform = d.platform.clone();
-        }
-        println!(
-            "  [{}] {} ({}) — {} compute units, {} local memory, max work-group {}, {} global memory, {}, driver {}",
-            d.index,
-            d.name,
-            d.kind,
-            d.compute_units,
-            gpu::human_bytes(d.local_mem_bytes),
-            d.max_work_group_size,
-            gpu::human_bytes(d.global_mem_bytes),
-            d.version,
-            d.driver
-        );
-    }
-    Ok(())
-}
-
 /// What a finished render reports.
 #[derive(Clone, Debug)]
 pub struct RenderSummary {
@@ -153,6 +106,7 @@ pub struct RenderSummary {
     pub seconds: f64,
     pub kernel_seconds: f64,
     pub rays: u64,
+    pub filter_times: Vec<Duration>,
 }
 
 impl RenderSummary {
@@ -172,12 +126,14 @@ fn default_output(scene: &Path, ext: &str) -> PathBuf {
     PathBuf::from("out").join(format!("{stem}.{ext}"))
 }
 
-/// Renders progressively until `spp` samples or the time limit, showing progress.
+/// Renders progressively until `spp` samples or the time limit, showing progress;
+/// `after_frame` runs after each launch.
 pub fn progressive(
     renderer: &mut Renderer,
     spp: u32,
     time_limit: Option<f64>,
     quiet: bool,
+    mut after_frame: impl FnMut(&Renderer) -> Result<()>,
 ) -> Result<()> {
     let bar = if quiet {
         ProgressBar::hidden()
@@ -203,6 +159,7 @@ pub fn progressive(
         }
         let count = batch.min(spp - renderer.samples_done());
         let stats = renderer.render_samples(count)?;
+        after_frame(renderer)?;
         let per_sample = stats.kernel_time.as_secs_f64() / count as f64;
         let mut next = (0.5 / per_sample.max(1e-6)) as u32;
         if let Some(limit) = limit {
@@ -257,10 +214,22 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     {
         bail!("--time-limit must be a positive number of seconds");
     }
+    let method = args
+        .filter
+        .method(scene.filter.as_ref())
+        .with_context(|| format!("in {}", args.scene.display()))?;
+    let ddf = match method {
+        Method::Ddf => Some(
+            args.filter
+                .ddf(scene.filter.as_ref())
+                .with_context(|| format!("in {}", args.scene.display()))?,
+        ),
+        Method::None => None,
+    };
     options.all_features = args.all_features;
     options.local_size = args.local_size;
     // The statistics stage is compiled in only when something reads it.
-    if args.aovs.is_some() || args.aov_png.is_some() {
+    if ddf.is_some() || args.aovs.is_some() || args.aov_png.is_some() {
         options.outputs.features = true;
         options.outputs.variance = true;
     }
@@ -273,7 +242,6 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     let exr_path = if args.no_exr {
         None
     } else {
-        // Next to the PNG unless named.
         Some(
             args.exr
                 .clone()
@@ -292,10 +260,28 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
             output::check_output_path(path)?;
         }
     }
+    for p in [&args.aovs, &args.exr_unfiltered].into_iter().flatten() {
+        output::check_output_path(p)?;
+    }
 
     let gpu = Gpu::open(args.device)?;
     let compile_start = Instant::now();
     let mut renderer = Renderer::new(gpu.clone(), &scene, &options)?;
+    let mut filter = match &ddf {
+        Some((settings, variant)) => {
+            let mut s = settings.clone();
+            // No pixel can be sky without an environment light: drop the sky branch (§6.3.4).
+            s.sky &= scene.environment.is_some();
+            Some(DdfFilter::new(
+                gpu.clone(),
+                &s,
+                *variant,
+                renderer.width(),
+                renderer.height(),
+            )?)
+        }
+        None => None,
+    };
     if !args.quiet {
         eprintln!(
             "device: {} | {} triangles, {} BVH nodes (built in {:.2} s), {} spheres, {} lights | kernels ready in {:.2} s",
@@ -320,12 +306,37 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         }
         println!("  camera: {}", renderer.arrays.focus_note);
     }
-    progressive(&mut renderer, spp, args.time_limit, args.quiet)?;
+    let mut filter_times = Vec::new();
+    let mut last_filtered = None;
+    progressive(&mut renderer, spp, args.time_limit, args.quiet, |r| {
+        if args.timings
+            && let Some(f) = filter.as_mut()
+        {
+            let out = f.run(&r.device_buffers())?;
+            filter_times.push(out.kernel_time);
+            last_filtered = Some(out.image);
+        }
+        Ok(())
+    })?;
     let buffers = renderer.read_buffers()?;
-    let image = buffers.beauty();
+    let unfiltered = buffers.beauty();
+    let image = match filter.as_mut() {
+        Some(f) => match last_filtered {
+            Some(img) => img,
+            None => {
+                let out = f.run(&renderer.device_buffers())?;
+                filter_times.push(out.kernel_time);
+                out.image
+            }
+        },
+        None => unfiltered.clone(),
+    };
     output::write_png(&png_path, &image, args.exposure)?;
     if let Some(p) = &exr_path {
         output::write_exr(p, &image)?;
+    }
+    if let Some(p) = &args.exr_unfiltered {
+        output::write_exr(p, &unfiltered)?;
     }
     if let Some(p) = &args.aovs {
         let mut meta = std::collections::BTreeMap::new();
@@ -343,6 +354,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         seconds: start.elapsed().as_secs_f64(),
         kernel_seconds: renderer.kernel_time_total.as_secs_f64(),
         rays: renderer.rays_total,
+        filter_times,
     };
     println!(
         "{}x{} {} spp in {:.2} s (kernel {:.2} s): {:.2} spp/s, {:.2} Mrays/s -> {}{}",
@@ -358,5 +370,11 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
             .map(|p| format!(", {}", p.display()))
             .unwrap_or_default()
     );
+    if let Some(f) = &filter {
+        super::print_timings(
+            &format!("data-driven filter ({})", f.variant().label()),
+            &summary.filter_times,
+        );
+    }
     Ok(summary)
 }

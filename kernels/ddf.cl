@@ -1,0 +1,224 @@
+// The data-driven filter (thesis ch. 6, Algorithm 8): a cross-bilateral filter without a
+// spatial term whose feature weights are relaxed where the pixel's own features are noisy
+// (eq. 6.10), filtering direct and indirect light separately (eqs. 6.11-6.21).
+//
+// Build options (src/filters/ddf.rs):
+//   DDF_VARIANT   0: naive, every neighbour's FilterVector read from global memory field by
+//                    field (Fig. 6.8); 1: the same with float16 vector loads (§6.3.1);
+//                 2: local-memory rows (§6.3.2, Fig. 6.10), float16 loads.
+//   DDF_SKY       1: sky pixels keep their unfiltered colour (§6.3.4); 0 when the scene has
+//                    no environment light (no pixel can be sky).
+//   DDF_TEXTURE2  1: the texture2 term of eq. 6.14; 0 drops it.
+//   DDF_DIRECTION 0: eq. 6.14 as printed, exp(-sigma2_f,3), the same for every neighbour;
+//                 1: the documented variant exp(-sigma2_f,3 |dir - dir_N|^2) on the mean
+//                    first-bounce directions.
+// Holes (§6.3.3) and the kernel width are run-time parameters (DdfParams).
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "layout.cl"
+
+#if !defined(DDF_VARIANT) || !defined(DDF_SKY) || !defined(DDF_TEXTURE2) || !defined(DDF_DIRECTION)
+#error "noisefree: a data-driven filter switch is missing from the build options"
+#endif
+
+// The centre pixel's values, fixed for the whole neighbourhood loop (Table 6.3).
+typedef struct {
+    float16 f;          // F of the centre (eq. 6.1)
+    float sigma2_f[5];  // eq. 6.10
+    float3 direction;   // mean first-bounce direction (DDF_DIRECTION 1)
+    float3 c_fd;        // filtered direct colour, accumulating (eq. 6.17)
+    float3 c_fi;        // filtered indirect colour (eq. 6.18)
+    float tw_d;         // total direct weight (eq. 6.19)
+    float tw_i;         // total indirect weight (eq. 6.20)
+} DdfCentre;
+
+inline float sum_sq3(float3 a, float3 b) {
+    float3 d = a - b;
+    return d.x * d.x + d.y * d.y + d.z * d.z;
+}
+
+// Initialisation (Alg. 8 lines 3-6): eq. 6.10 from the centre's variance GBuffer.
+inline DdfCentre ddf_centre(__constant const DdfParams* p, float16 f, __global const float* gb,
+                            __global const float* state, uint pixel) {
+    DdfCentre c;
+    c.f = f;
+    float16 g = vload16(pixel, gb) * p->variance_factor;   // S_n / (n - 1): the variances
+    float sums[5] = {g.s0, g.s1 + g.s2 + g.s3, g.s4 + g.s5 + g.s6, g.s7 + g.s8 + g.s9,
+                     g.sA + g.sB + g.sC};
+    for (int i = 0; i < 5; ++i)
+        c.sigma2_f[i] = p->sigma2_f[i] * (1.0f - clamp(sums[i] * p->variance_scale[i], 0.0f, 1.0f));
+#if DDF_DIRECTION
+    c.direction = vload3(0, state + pixel * 8u);
+#else
+    c.direction = (float3)(0.0f);
+#endif
+    c.c_fd = (float3)(0.0f);
+    c.c_fi = (float3)(0.0f);
+    c.tw_d = 0.0f;
+    c.tw_i = 0.0f;
+    return c;
+}
+
+// One neighbour N (eqs. 6.11-6.20). The products of exponentials in eqs. 6.13-6.16 are formed
+// as one exponential of the summed exponents: the same value, one exp instead of six.
+inline void ddf_neighbour(__constant const DdfParams* p, DdfCentre* c, float16 n,
+                          float3 n_direction) {
+    float e_dc = p->sigma2_dc * sum_sq3(c->f.s012, n.s012);                 // eq. 6.11
+    float e_ic = p->sigma2_ic * sum_sq3(c->f.s345, n.s345);                 // eq. 6.12
+    float dd = c->f.s6 - n.s6;
+    float e_fd = c->sigma2_f[0] * dd * dd                                    // eq. 6.13
+               + c->sigma2_f[1] * sum_sq3(c->f.s789, n.s789)
+               + c->sigma2_f[2] * sum_sq3(c->f.sABC, n.sABC);
+    float e_fi = e_fd;                                                       // eq. 6.14
+#if DDF_TEXTURE2
+    e_fi += c->sigma2_f[4] * sum_sq3(c->f.sDEF, n.sDEF);
+#endif
+#if DDF_DIRECTION
+    e_fi += c->sigma2_f[3] * sum_sq3(c->direction, n_direction);
+#else
+    // As printed: one factor for every neighbour, which cancels in eq. 6.21.
+    e_fi += c->sigma2_f[3];
+#endif
+    float w_d = exp(-(e_dc + e_fd));                                         // eq. 6.15
+    float w_i = exp(-(e_ic + e_fi));                                         // eq. 6.16
+    c->c_fd += w_d * n.s012;                                                 // eq. 6.17
+    c->c_fi += w_i * n.s345;                                                 // eq. 6.18
+    c->tw_d += w_d;                                                          // eq. 6.19
+    c->tw_i += w_i;                                                          // eq. 6.20
+}
+
+// Normalisation and output (eq. 6.21). When every weight underflowed (extreme sigmas), the
+// pixel keeps its own light instead of dividing 0 by 0.
+inline float4 ddf_output(const DdfCentre* c) {
+    float3 d = c->tw_d > 0.0f ? c->c_fd / c->tw_d : c->f.s012;
+    float3 i = c->tw_i > 0.0f ? c->c_fi / c->tw_i : c->f.s345;
+    return (float4)(d + i, 0.0f);
+}
+
+// The window: Alg. 8 loops from -half to half - 1, which is asymmetric; we use the symmetric
+// inclusive kw x kw window. With holes (step 2) and an odd half the grid -half, -half+2, ...
+// skips offset 0, so the centre is visited once more at the end: its own weight keeps
+// tw >= 1 whenever the weights do not underflow.
+inline bool ddf_centre_off_grid(__constant const DdfParams* p) {
+    return (p->half_width % p->step) != 0;
+}
+
+inline float3 neighbour_direction(__global const float* state, uint index) {
+#if DDF_DIRECTION
+    return vload3(0, state + index * 8u);
+#else
+    return (float3)(0.0f);
+#endif
+}
+
+inline float16 load_f_scalar(__global const FilterVector* fv, uint index) {
+    __global const FilterVector* n = fv + index;
+    return (float16)(n->direct[0], n->direct[1], n->direct[2],
+                     n->indirect[0], n->indirect[1], n->indirect[2], n->depth,
+                     n->normal[0], n->normal[1], n->normal[2],
+                     n->albedo[0], n->albedo[1], n->albedo[2],
+                     n->albedo2[0], n->albedo2[1], n->albedo2[2]);
+}
+
+inline float16 load_f(__global const float* f, uint index) {
+#if DDF_VARIANT == 0
+    return load_f_scalar((__global const FilterVector*)f, index);
+#else
+    return vload16(index, f);
+#endif
+}
+
+inline bool is_sky(float16 f) {
+    return f.s6 >= SKY_DEPTH;
+}
+
+#if DDF_VARIANT == 0 || DDF_VARIANT == 1
+
+// Naive (Fig. 6.8): each work-item loads every neighbour from global memory.
+__kernel void ddf_filter(__constant const DdfParams* p,
+                         __global const float* f,
+                         __global const float* gb,
+                         __global const float* state,
+                         __global float4* out) {
+    int x = get_global_id(0), y = get_global_id(1);
+    int w = (int)p->width, h = (int)p->height;
+    if (x >= w || y >= h) return;
+    uint pixel = (uint)(y * w + x);
+    float16 fc = load_f(f, pixel);
+#if DDF_SKY
+    if (is_sky(fc)) {
+        out[pixel] = (float4)(fc.s012 + fc.s345, 0.0f);
+        return;
+    }
+#endif
+    DdfCentre c = ddf_centre(p, fc, gb, state, pixel);
+    for (int dy = -p->half_width; dy <= p->half_width; dy += p->step) {
+        int ny = y + dy;
+        if (ny < 0 || ny >= h) continue;          // out-of-image neighbours are skipped
+        for (int dx = -p->half_width; dx <= p->half_width; dx += p->step) {
+            int nx = x + dx;
+            if (nx < 0 || nx >= w) continue;
+            uint ni = (uint)(ny * w + nx);
+            ddf_neighbour(p, &c, load_f(f, ni), neighbour_direction(state, ni));
+        }
+    }
+    if (ddf_centre_off_grid(p)) ddf_neighbour(p, &c, fc, c.direction);
+    out[pixel] = ddf_output(&c);
+}
+
+#elif DDF_VARIANT == 2
+
+// Local-memory rows (§6.3.2, Fig. 6.10). A work-group is a horizontal run of pixels of one
+// image row. For each row of the neighbourhood, every work-item loads the pixel in its own
+// column into local memory; after a barrier all of them read that row from local memory, and
+// neighbours left or right of the loaded run come from global memory. Local memory is one
+// float16 per work-item (64 bytes x work-group size), whatever the kernel width.
+// All work-items of a group share y, so the row loop and its barriers are uniform.
+__kernel void ddf_filter(__constant const DdfParams* p,
+                         __global const float* f,
+                         __global const float* gb,
+                         __global const float* state,
+                         __global float4* out,
+                         __local float16* row) {
+    int x = get_global_id(0), y = get_global_id(1);
+    int lid = get_local_id(0), run = get_local_size(0);
+    int x0 = x - lid;                              // first column of this run
+    int w = (int)p->width, h = (int)p->height;
+    bool active = x < w && y < h;
+    uint pixel = (uint)(y * w + x);
+    float16 fc = active ? vload16(pixel, f) : (float16)(0.0f);
+    bool keep = !active;
+#if DDF_SKY
+    keep = keep || is_sky(fc);                     // still takes part in the barriers
+#endif
+    DdfCentre c;
+    if (!keep) c = ddf_centre(p, fc, gb, state, pixel);
+    for (int dy = -p->half_width; dy <= p->half_width; dy += p->step) {
+        int ny = y + dy;
+        bool row_inside = ny >= 0 && ny < h;       // the same for the whole group
+        if (row_inside) row[lid] = x < w ? vload16((uint)(ny * w + x), f) : (float16)(0.0f);
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (row_inside && !keep) {
+            for (int dx = -p->half_width; dx <= p->half_width; dx += p->step) {
+                int nx = x + dx;
+                if (nx < 0 || nx >= w) continue;
+                int t = lid + dx;
+                uint ni = (uint)(ny * w + nx);
+                float16 n = (t >= 0 && t < run) ? row[t] : vload16(ni, f);
+                ddf_neighbour(p, &c, n, neighbour_direction(state, ni));
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (!active) return;
+    if (keep) {
+        out[pixel] = (float4)(fc.s012 + fc.s345, 0.0f);
+        return;
+    }
+    if (ddf_centre_off_grid(p)) ddf_neighbour(p, &c, fc, c.direction);
+    out[pixel] = ddf_output(&c);
+}
+
+#else
+#error "noisefree: DDF_VARIANT must be 0, 1 or 2"
+#endif

@@ -1,0 +1,88 @@
+//! The command line: `noisefree devices | render | filter`.
+
+mod filter_args;
+mod filter_cmd;
+mod render_cmd;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+use crate::gpu;
+pub use filter_args::{FilterArgs, Method};
+pub use filter_cmd::FilterCommandArgs;
+pub use render_cmd::{RenderArgs, RenderSummary, progressive, render};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "noisefree",
+    version,
+    about = "Physically based OpenCL path tracing with real-time denoising filters"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// List OpenCL platforms and devices.
+    Devices,
+    /// Render a scene file to a PNG (and a linear EXR), optionally filtered.
+    Render(RenderArgs),
+    /// Filter the per-pixel buffers of an AOV file (written by `render --aovs`) offline.
+    Filter(FilterCommandArgs),
+}
+
+/// Runs the command line; returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Devices => devices(),
+        Command::Render(args) => render(&args).map(|_| ()),
+        Command::Filter(args) => filter_cmd::run(&args),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            1
+        }
+    }
+}
+
+fn devices() -> Result<()> {
+    let list = gpu::list_devices()?;
+    let mut platform = String::new();
+    for d in list {
+        if d.platform != platform {
+            println!("platform: {}", d.platform);
+            platform = d.platform.clone();
+        }
+        println!(
+            "  [{}] {} ({}) — {} compute units, {} local memory, max work-group {}, {} global memory, {}, driver {}",
+            d.index,
+            d.name,
+            d.kind,
+            d.compute_units,
+            gpu::human_bytes(d.local_mem_bytes),
+            d.max_work_group_size,
+            gpu::human_bytes(d.global_mem_bytes),
+            d.version,
+            d.driver
+        );
+    }
+    Ok(())
+}
+
+/// Prints min / median / max filter kernel times (the thesis reports lower and upper bounds).
+pub(crate) fn print_timings(label: &str, times: &[std::time::Duration]) {
+    if let Some((lo, med, hi)) = crate::filters::time_summary(times) {
+        println!(
+            "{label} kernel time over {} run(s): min {:.3} ms, median {:.3} ms, max {:.3} ms",
+            times.len(),
+            lo.as_secs_f64() * 1e3,
+            med.as_secs_f64() * 1e3,
+            hi.as_secs_f64() * 1e3
+        );
+    }
+}
