@@ -160,4 +160,33 @@ typedef struct __attribute__((aligned(16))) {
     uint pad3[3];
 } DdfParams;
 
+// One path sample as Random Parameter Filtering stores it (thesis §5.1.1, Table 5.1):
+// 26 floats. Written by the megakernel only when RPF is requested.
+typedef struct __attribute__((aligned(4))) {
+    float position[2]; // Screen position: pixel coordinates plus the random point inside the pixel.
+    float random[6]; // Random parameters: lens u, v; time t (always 0); first-bounce direction x, y, z.
+    float world1[3]; // World position of the first hit (camera origin + SKY_DEPTH x direction for sky).
+    float normal1[3]; // Shading normal of the first hit (0 for sky).
+    float world2[3]; // World position of the second hit (0 when the path ends before).
+    float normal2[3]; // Shading normal of the second hit (0 when the path ends before).
+    float texture1[3]; // Albedo ("texture") of the first hit.
+    float color[3]; // The sample's colour (direct + indirect).
+} SampleVector;
+
+// Parameters of one pass of the edge-avoiding a-trous filter (Dammertz et al. 2010).
+typedef struct __attribute__((aligned(16))) {
+    float4 camera_origin; // Camera, to turn depth into world position.
+    float4 camera_forward;
+    float4 camera_right;
+    float4 camera_up;
+    uint width;
+    uint height;
+    int step; // Tap spacing of this pass, 2^iteration.
+    uint iteration;
+    float sigma_color;
+    float sigma_normal;
+    float sigma_position;
+    float tan_half_fov;
+} AtrousParams;
+
 #endif

@@ -82,7 +82,8 @@ __kernel void probe_layout(__global uint* out,
                            __global SceneParams* a, __global BvhNode* b, __global TriangleGeom* c,
                            __global TriangleShading* d, __global Sphere* e, __global Material* f,
                            __global TextureInfo* g, __global Light* h, __global FilterVector* i,
-                           __global GBuffer* j, __global StatsState* k_, __global DdfParams* l) {
+                           __global GBuffer* j, __global StatsState* k_, __global DdfParams* l,
+                           __global SampleVector* m, __global AtrousParams* n) {
     if (get_global_id(0) != 0) return;
     uint k = 0;
     __global StatsState* k2 = k_;

@@ -348,6 +348,47 @@ device_structs! {
         pub variance_scale: [f32; 5],
         pub pad3: [u32; 3],
     }
+
+    /// One path sample as Random Parameter Filtering stores it (thesis §5.1.1, Table 5.1):
+    /// 26 floats. Written by the megakernel only when RPF is requested.
+    #[align(4)]
+    pub struct SampleVector {
+        /// Screen position: pixel coordinates plus the random point inside the pixel.
+        pub position: [f32; 2],
+        /// Random parameters: lens u, v; time t (always 0); first-bounce direction x, y, z.
+        pub random: [f32; 6],
+        /// World position of the first hit (camera origin + SKY_DEPTH x direction for sky).
+        pub world1: [f32; 3],
+        /// Shading normal of the first hit (0 for sky).
+        pub normal1: [f32; 3],
+        /// World position of the second hit (0 when the path ends before).
+        pub world2: [f32; 3],
+        /// Shading normal of the second hit (0 when the path ends before).
+        pub normal2: [f32; 3],
+        /// Albedo ("texture") of the first hit.
+        pub texture1: [f32; 3],
+        /// The sample's colour (direct + indirect).
+        pub color: [f32; 3],
+    }
+
+    /// Parameters of one pass of the edge-avoiding a-trous filter (Dammertz et al. 2010).
+    #[align(16)]
+    pub struct AtrousParams {
+        /// Camera, to turn depth into world position.
+        pub camera_origin: Float4,
+        pub camera_forward: Float4,
+        pub camera_right: Float4,
+        pub camera_up: Float4,
+        pub width: u32,
+        pub height: u32,
+        /// Tap spacing of this pass, 2^iteration.
+        pub step: i32,
+        pub iteration: u32,
+        pub sigma_color: f32,
+        pub sigma_normal: f32,
+        pub sigma_position: f32,
+        pub tan_half_fov: f32,
+    }
 }
 
 /// Every shared struct, for the generated header and the layout test.
@@ -368,6 +409,8 @@ pub fn all_declarations() -> Vec<(&'static str, String, Vec<FieldLayout>, usize)
         one::<GBuffer>(),
         one::<StatsState>(),
         one::<DdfParams>(),
+        one::<SampleVector>(),
+        one::<AtrousParams>(),
     ]
 }
 

@@ -23,7 +23,9 @@ fn committed_header_is_generated_from_src_layout() {
 fn device_sizes_and_offsets_match_rust() {
     let gpu = common::gpu();
     // One pointer argument per struct, in all_declarations() order (see kernels/probes.cl).
-    let letters = ["a", "b", "c", "d", "e", "f", "g", "h", "i", "j", "k2", "l"];
+    let letters = [
+        "a", "b", "c", "d", "e", "f", "g", "h", "i", "j", "k2", "l", "m", "n",
+    ];
     let decls = all_declarations();
     assert_eq!(decls.len(), letters.len());
     let mut body = String::new();
