@@ -7,6 +7,7 @@
 
 #include "layout.cl"
 #include "features.cl"
+#include "rng.cl"
 
 // Lanes of F (src/layout.rs FilterVector).
 #define F_DIRECT 0
@@ -35,6 +36,11 @@ typedef struct {
     float3 albedo;     // first-hit albedo, 0 for sky
     float3 albedo2;    // albedo of the first diffuse surface after the first bounce, 0 if none
     float3 direction;  // direction leaving the first hit, 0 if none
+#if OUTPUT_SAMPLES
+    float3 world1;     // first hit (camera origin + SKY_DEPTH x direction for sky)
+    float3 world2;     // second hit, 0 if none
+    float3 normal2;    // shading normal at the second hit, 0 if none
+#endif
 } PathSample;
 
 inline PathSample path_sample_empty(void) {
@@ -46,6 +52,11 @@ inline PathSample path_sample_empty(void) {
     ps.albedo = (float3)(0.0f);
     ps.albedo2 = (float3)(0.0f);
     ps.direction = (float3)(0.0f);
+#if OUTPUT_SAMPLES
+    ps.world1 = (float3)(0.0f);
+    ps.world2 = (float3)(0.0f);
+    ps.normal2 = (float3)(0.0f);
+#endif
     return ps;
 }
 
@@ -142,5 +153,29 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
     accumulate3(p, F_ALBEDO2, GB_ALBEDO2, ps->albedo2, n);
 #endif
 }
+
+#if OUTPUT_SAMPLES
+// Random Parameter Filtering's sample vector (thesis §5.1.1, Table 5.1; src/layout.rs
+// SampleVector): screen position, random parameters (lens u, v, time 0, first-bounce
+// direction), world position and normal of the first and second hits, first-hit texture, and
+// the sample's colour. The pixel jitter and lens numbers are drawn again from the counter-based
+// generator: the same numbers the camera used.
+inline void write_sample_vector(__global float* out, uint index, uint x, uint y, uint key,
+                                const PathSample* ps, bool lens) {
+    __global float* v = out + (size_t)index * 26u;
+    v[0] = (float)x + rng_uniform(key, 0u, DIM_PIXEL_X);
+    v[1] = (float)y + rng_uniform(key, 0u, DIM_PIXEL_Y);
+    v[2] = lens ? rng_uniform(key, 0u, DIM_LENS_U) : 0.0f;
+    v[3] = lens ? rng_uniform(key, 0u, DIM_LENS_V) : 0.0f;
+    v[4] = 0.0f;                                   // t: no motion blur
+    vstore3(ps->direction, 0, v + 5);
+    vstore3(ps->world1, 0, v + 8);
+    vstore3(ps->normal, 0, v + 11);
+    vstore3(ps->world2, 0, v + 14);
+    vstore3(ps->normal2, 0, v + 17);
+    vstore3(ps->albedo, 0, v + 20);
+    vstore3(ps->direct + ps->indirect, 0, v + 23);
+}
+#endif
 
 #endif

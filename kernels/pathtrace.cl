@@ -46,6 +46,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 #endif
         Hit hit = intersect_closest(s, o, d, INFINITY, ray_count);
         if (hit.kind == HIT_NONE) {           // Alg. 1 lines 12-16: SampleSky
+#if OUTPUT_SAMPLES
+            if (bounce == 0u) ps.world1 = o + SKY_DEPTH * d;
+#endif
 #if HAS_ENV
             add_light(&ps, bounce, throughput * environment_radiance(s, d));
 #endif
@@ -53,6 +56,14 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
         }
         Surface sf = surface_at(s, &hit, o, d);
         __global const Material* m = s->materials + sf.material;
+#if OUTPUT_SAMPLES
+        if (bounce == 0u) {
+            ps.world1 = sf.p;
+        } else if (bounce == 1u) {
+            ps.world2 = sf.p;
+            ps.normal2 = sf.ns;
+        }
+#endif
         if (m->kind == MATERIAL_EMITTER) {    // an implicit connection ends the path
             // Lights emit from their front (outside) only, matching sample_direct_light.
             if (count_emission && sf.entering) add_light(&ps, bounce, throughput * m->emission.xyz);
@@ -111,6 +122,8 @@ __kernel void render(__constant const SceneParams* params,
                      __global float* gbuffers,          // GBuffer per pixel (OUTPUT_VARIANCE)
                      __global float* stats_state,       // StatsState per pixel (OUTPUT_VARIANCE)
                      __global uint* ray_counts,
+                     __global float* sample_vectors,    // SampleVector per sample (OUTPUT_SAMPLES)
+                     uint sample_capacity,              // samples per pixel it holds
                      uint sample_base,
                      uint sample_count) {
     uint x = get_global_id(0), y = get_global_id(1);
@@ -126,6 +139,11 @@ __kernel void render(__constant const SceneParams* params,
         uint key = rng_sample_key(params->seed, pixel, sample);
         PathSample ps = trace_path(&s, x, y, key, &rays);
         film_accumulate(&stats, &ps, sample + 1u);
+#if OUTPUT_SAMPLES
+        if (sample < sample_capacity)
+            write_sample_vector(sample_vectors, pixel * sample_capacity + sample, x, y, key, &ps,
+                                HAS_DOF && params->lens_radius > 0.0f);
+#endif
     }
     pixel_stats_store(&stats, filter_vectors, gbuffers, stats_state, pixel);
     ray_counts[pixel] = rays;

@@ -252,14 +252,37 @@ impl Gpu {
     /// A read-write device buffer of `len` elements filled with `T::default()`.
     pub fn zeroed<T: OclPrm>(&self, len: usize, what: &str) -> Result<Buffer<T>> {
         let len = len.max(1);
-        self.check_alloc((len * std::mem::size_of::<T>()) as u64, what)?;
-        let buffer = Buffer::builder()
+        let size = std::mem::size_of::<T>();
+        self.check_alloc((len * size) as u64, what)?;
+        let context = || format!("allocating the {what} buffer on the device");
+        // clEnqueueFillBuffer takes patterns of 1, 2, 4, ..., 128 bytes only.
+        if size.is_power_of_two() && size <= 128 {
+            return Buffer::builder()
+                .queue(self.queue.clone())
+                .flags(MemFlags::new().read_write())
+                .len(len)
+                .fill_val(T::default())
+                .build()
+                .with_context(context);
+        }
+        let buffer = Buffer::<T>::builder()
             .queue(self.queue.clone())
             .flags(MemFlags::new().read_write())
             .len(len)
-            .fill_val(T::default())
             .build()
-            .with_context(|| format!("allocating the {what} buffer on the device"))?;
+            .with_context(context)?;
+        let chunk = (1 << 20) / size.max(1) + 1;
+        let zeros = vec![T::default(); chunk.min(len)];
+        let mut offset = 0;
+        while offset < len {
+            let n = zeros.len().min(len - offset);
+            buffer
+                .write(&zeros[..n])
+                .offset(offset)
+                .enq()
+                .with_context(context)?;
+            offset += n;
+        }
         Ok(buffer)
     }
 

@@ -440,3 +440,70 @@ fn aov_exr_round_trips() {
     let pngs = noisefree::stats::aovs::write_aov_pngs(&dir.join("png"), &b, 0.0).unwrap();
     assert_eq!(pngs.len(), 12);
 }
+
+/// Random Parameter Filtering's sample vectors (§5.1.1): one per sample, consistent with the
+/// per-pixel means, and only allocated when asked for.
+#[test]
+fn sample_vectors_agree_with_the_pixel_means() {
+    let text = cornell(
+        "max_depth = 3",
+        "[[sphere]]\ncenter = [0, 0.5, 0]\nradius = 0.5\nmaterial = \"red\"\n",
+    )
+    .replace(
+        "fov = 40",
+        "fov = 40\nlens_radius = 0.05\nfocal_distance = 3.0",
+    );
+    let scene = scene_from_toml(&text);
+    let (w, h, spp) = (12u32, 10u32, 6u32);
+    let mut opts = options(&scene, w, h, 4);
+    opts.outputs.sample_vectors = Some(spp);
+    let mut r = noisefree::render::Renderer::new(gpu(), &scene, &opts).unwrap();
+    r.render_samples(2).unwrap();
+    r.render_samples(4).unwrap(); // progressive launches fill the same buffer
+    let film = r.read_film().unwrap();
+    let (n, samples) = r.read_sample_vectors().unwrap();
+    assert_eq!(n, spp);
+    assert_eq!(samples.len(), (w * h * spp) as usize);
+    let origin = noisefree::layout::Float4::from_vec3(glam::Vec3::new(0.0, 1.0, 3.4), 0.0).xyz();
+    for (pixel, f) in film.iter().enumerate() {
+        let px = &samples[pixel * spp as usize..(pixel + 1) * spp as usize];
+        let (x, y) = ((pixel as u32 % w) as f32, (pixel as u32 / w) as f32);
+        let mut mean_color = [0f32; 3];
+        let mut mean_depth = 0f32;
+        for s in px {
+            assert!(
+                s.position[0] >= x
+                    && s.position[0] < x + 1.0
+                    && s.position[1] >= y
+                    && s.position[1] < y + 1.0
+            );
+            assert!(
+                (0.0..1.0).contains(&s.random[0])
+                    && (0.0..1.0).contains(&s.random[1])
+                    && s.random[2] == 0.0
+            );
+            for c in 0..3 {
+                mean_color[c] += s.color[c] / spp as f32;
+            }
+            // The lens moves the ray origin by at most the lens radius.
+            mean_depth +=
+                ((glam::Vec3::from(s.world1) - origin).length() - 0.05).max(0.0) / spp as f32;
+            assert!(s.texture1.iter().all(|c| (0.0..=1.0).contains(c)));
+        }
+        for c in 0..3 {
+            let want = f.direct[c] + f.indirect[c];
+            assert!(
+                (mean_color[c] - want).abs() <= 1e-4 * want.max(1.0),
+                "pixel {pixel}: colour mean {mean_color:?} vs F"
+            );
+        }
+        assert!(
+            mean_depth <= f.depth + 1e-3,
+            "pixel {pixel}: world1 farther than the depth"
+        );
+    }
+    // Without RPF nothing is allocated beyond one placeholder element.
+    let plain = noisefree::render::Renderer::new(gpu(), &scene, &options(&scene, w, h, 4)).unwrap();
+    assert_eq!(plain.sample_vectors.len(), 1);
+    assert!(!plain.features.is_on("OUTPUT_SAMPLES"));
+}

@@ -19,6 +19,9 @@ pub struct Outputs {
     pub features: bool,
     /// The variance GBuffer (running S_n of every feature, eq. 6.2); implies `features`.
     pub variance: bool,
+    /// Random Parameter Filtering's sample vectors for this many samples per pixel
+    /// (thesis §5.1.1); implies `features`.
+    pub sample_vectors: Option<u32>,
 }
 
 /// The effects compiled into the megakernel.
@@ -178,8 +181,8 @@ impl FeatureSet {
                 ),
                 feature(
                     "OUTPUT_FEATURES",
-                    outputs.features || outputs.variance,
-                    if outputs.features || outputs.variance {
+                    outputs.features || outputs.variance || outputs.sample_vectors.is_some(),
+                    if outputs.features || outputs.variance || outputs.sample_vectors.is_some() {
                         "feature means requested (AOVs or a filter)"
                     } else {
                         "only the image is requested"
@@ -192,6 +195,15 @@ impl FeatureSet {
                         "feature variances requested (AOVs or a filter)"
                     } else {
                         "no filter or AOV needs feature variances"
+                    },
+                ),
+                feature(
+                    "OUTPUT_SAMPLES",
+                    outputs.sample_vectors.is_some(),
+                    if outputs.sample_vectors.is_some() {
+                        "Random Parameter Filtering needs every sample's vector"
+                    } else {
+                        "no RPF: no sample vectors"
                     },
                 ),
             ],
@@ -210,6 +222,7 @@ impl FeatureSet {
                     | "NEXT_EVENT_ESTIMATION"
                     | "OUTPUT_FEATURES"
                     | "OUTPUT_VARIANCE"
+                    | "OUTPUT_SAMPLES"
             ) && !f.on
             {
                 f.on = true;

@@ -12,8 +12,8 @@ use ocl::{Buffer, Event, Kernel};
 
 use crate::gpu::{Gpu, event_duration, round_up};
 use crate::layout::{
-    BvhNode, FilterVector, Float4, GBuffer, Light, Material, SceneParams, Sphere, StatsState,
-    TextureInfo, TriangleGeom, TriangleShading,
+    BvhNode, FilterVector, Float4, GBuffer, Light, Material, SampleVector, SceneParams, Sphere,
+    StatsState, TextureInfo, TriangleGeom, TriangleShading,
 };
 use crate::scene::Scene;
 use crate::stats::PixelBuffers;
@@ -82,8 +82,8 @@ pub struct LaunchStats {
 }
 
 /// Positions of the per-launch arguments of kernels/pathtrace.cl `render`.
-const ARG_SAMPLE_BASE: u32 = 14;
-const ARG_SAMPLE_COUNT: u32 = 15;
+const ARG_SAMPLE_BASE: u32 = 16;
+const ARG_SAMPLE_COUNT: u32 = 17;
 
 pub struct Renderer {
     pub gpu: Arc<Gpu>,
@@ -96,11 +96,19 @@ pub struct Renderer {
     /// Mean first-bounce directions and the depth shift (see kernels/film.cl).
     pub stats_state: Buffer<StatsState>,
     ray_counts: Buffer<u32>,
+    /// Every sample's vector for RPF; one dummy element unless requested.
+    pub sample_vectors: Buffer<SampleVector>,
+    sample_capacity: u32,
     kernel: Kernel,
     _scene: DeviceScene,
     samples_done: u32,
     pub rays_total: u64,
     pub kernel_time_total: Duration,
+}
+
+/// Bytes the RPF sample vectors of a w x h image at `spp` take (26 * 4 * spp * w * h).
+pub fn sample_vector_bytes(width: u32, height: u32, spp: u32) -> u64 {
+    width as u64 * height as u64 * spp as u64 * std::mem::size_of::<SampleVector>() as u64
 }
 
 /// Bytes of device memory the per-pixel buffers of a w x h image take.
@@ -141,6 +149,22 @@ impl Renderer {
         let stats_pixels = if variance { pixels } else { 1 };
         let gbuffers = gpu.zeroed::<GBuffer>(stats_pixels, "variance GBuffer")?;
         let stats_state = gpu.zeroed::<StatsState>(stats_pixels, "statistics state")?;
+        let sample_capacity = options.outputs.sample_vectors.unwrap_or(0);
+        let sample_len = if sample_capacity > 0 {
+            let bytes = sample_vector_bytes(frame.width, frame.height, sample_capacity);
+            gpu.check_alloc(
+                bytes,
+                "RPF sample vectors (26 floats per sample, thesis §5.1.1)",
+            )?;
+            gpu.check_total(
+                bytes + film_bytes(frame.width, frame.height, variance),
+                "the RPF sample vectors and per-pixel buffers",
+            )?;
+            pixels * sample_capacity as usize
+        } else {
+            1
+        };
+        let sample_vectors = gpu.zeroed::<SampleVector>(sample_len, "RPF sample vector")?;
         let ray_counts = gpu.zeroed::<u32>(pixels, "ray count")?;
 
         let (w, h) = (frame.width as usize, frame.height as usize);
@@ -175,6 +199,8 @@ impl Renderer {
             .arg(&gbuffers)
             .arg(&stats_state)
             .arg(&ray_counts)
+            .arg(&sample_vectors)
+            .arg(sample_capacity)
             .arg(0u32)
             .arg(0u32);
         let kernel = builder.build().context("creating the render kernel")?;
@@ -186,6 +212,8 @@ impl Renderer {
             gbuffers,
             stats_state,
             ray_counts,
+            sample_vectors,
+            sample_capacity,
             kernel,
             _scene: device_scene,
             samples_done: 0,
@@ -291,5 +319,28 @@ impl Renderer {
             stats_state: &self.stats_state,
             variance_factor: if n > 1 { 1.0 / (n - 1) as f32 } else { 0.0 },
         }
+    }
+
+    /// Every stored sample vector, pixel-major (index = pixel * spp + sample), for the
+    /// samples rendered so far (at most the capacity asked for).
+    pub fn read_sample_vectors(&self) -> Result<(u32, Vec<SampleVector>)> {
+        if self.sample_capacity == 0 {
+            anyhow::bail!("sample vectors were not requested for this render");
+        }
+        let spp = self.samples_done.min(self.sample_capacity);
+        let mut all = vec![SampleVector::default(); self.sample_vectors.len()];
+        self.sample_vectors
+            .read(&mut all)
+            .enq()
+            .context("reading the RPF sample vectors")?;
+        if spp == self.sample_capacity {
+            return Ok((spp, all));
+        }
+        let cap = self.sample_capacity as usize;
+        let out = all
+            .chunks(cap)
+            .flat_map(|px| px[..spp as usize].iter().copied())
+            .collect();
+        Ok((spp, out))
     }
 }

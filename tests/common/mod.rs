@@ -32,6 +32,7 @@ pub fn generic_defines() -> Vec<(String, String)> {
         "NEXT_EVENT_ESTIMATION",
         "OUTPUT_FEATURES",
         "OUTPUT_VARIANCE",
+        "OUTPUT_SAMPLES",
     ]
     .iter()
     .map(|d| (d.to_string(), "1".to_string()))
