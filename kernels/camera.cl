@@ -8,8 +8,9 @@
 #include "rng.cl"
 
 // Pixel (x, y) counts from the top-left corner; (jx, jy) in [0,1)^2 is the point in the pixel.
-inline void camera_ray(__constant const SceneParams* p, uint x, uint y, uint key,
+inline void camera_ray(const SceneRefs* s, uint x, uint y, uint key,
                        float3* origin, float3* direction) {
+    __constant const SceneParams* p = s->params;
     float jx = rng_uniform(key, 0u, DIM_PIXEL_X);
     float jy = rng_uniform(key, 0u, DIM_PIXEL_Y);
     float w = (float)p->image_width, h = (float)p->image_height;
@@ -20,6 +21,7 @@ inline void camera_ray(__constant const SceneParams* p, uint x, uint y, uint key
     float3 o = p->camera_origin.xyz;
 #if HAS_DOF
     if (p->lens_radius > 0.0f) {
+        DEBUG_COUNT(s, COUNT_LENS_SAMPLE);
         // Everything at focal_distance (measured along the view axis) stays sharp.
         float3 focus = o + dir * (p->focal_distance / dot(dir, forward));
         float2 lens = p->lens_radius * sample_disk(rng_uniform(key, 0u, DIM_LENS_U),

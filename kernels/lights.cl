@@ -43,6 +43,7 @@ inline float3 sample_direct_light(const SceneRefs* s, float3 surface_p, float3 n
     float inv_pdf;   // 1 / (pdf in solid angle), without the light choice
 #if HAS_SPHERE_LIGHTS
     if (light->kind == LIGHT_SPHERE) {
+        DEBUG_COUNT(s, COUNT_SPHERE_LIGHT);
         // Uniform directions in the cone the sphere subtends (solid-angle sampling).
         float3 c = light->p0.xyz;
         float r = light->p0.w;
@@ -62,6 +63,7 @@ inline float3 sample_direct_light(const SceneRefs* s, float3 surface_p, float3 n
 #endif
     {
 #if HAS_TRIANGLE_LIGHTS
+        DEBUG_COUNT(s, COUNT_TRIANGLE_LIGHT);
         // Uniform point on the triangle, converted to solid angle: pdf = d^2 / (cos_l area).
         float2 b = sample_triangle(r1, r2);
         float3 v0 = light->p0.xyz, v1 = light->p1.xyz, v2 = light->p2.xyz;

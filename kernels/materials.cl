@@ -62,8 +62,10 @@ inline float3 surface_albedo(const SceneRefs* s, const Surface* sf) {
         return mx > 0.0f ? e / mx : (float3)(0.0f);
     }
 #if HAS_TEXTURES
-    if (m->kind == MATERIAL_DIFFUSE && m->texture >= 0)
+    if (m->kind == MATERIAL_DIFFUSE && m->texture >= 0) {
+        DEBUG_COUNT(s, COUNT_TEXTURE);
         c *= texture_bilinear(s, (uint)m->texture, sf->uv).xyz;
+    }
 #endif
     return c;
 }
@@ -95,6 +97,7 @@ inline Scatter scatter(const SceneRefs* s, const Surface* sf, float3 d, float3 a
     uint kind = m->kind;
 #if HAS_DIFFUSE
     if (kind == MATERIAL_DIFFUSE) {
+        DEBUG_COUNT(s, COUNT_DIFFUSE);
         // Lambertian: cosine sampling cancels cos/pdf, the weight is the albedo (Alg. 5).
         sc.direction = sample_diffuse(r1, r2, sf->ns);
         sc.specular = false;
@@ -104,6 +107,7 @@ inline Scatter scatter(const SceneRefs* s, const Surface* sf, float3 d, float3 a
 #endif
 #if HAS_SPECULAR
     if (kind == MATERIAL_SPECULAR) {
+        DEBUG_COUNT(s, COUNT_SPECULAR);
         sc.direction = reflect_dir(d, sf->ns);
         sc.absorbed = dot(sc.direction, sf->ng) <= 0.0f;
         return sc;
@@ -111,6 +115,7 @@ inline Scatter scatter(const SceneRefs* s, const Surface* sf, float3 d, float3 a
 #endif
 #if HAS_METAL
     if (kind == MATERIAL_METAL) {
+        DEBUG_COUNT(s, COUNT_METAL);
         // Phong lobe around the mirror direction, sampled exactly, so f cos / pdf = colour.
         sc.direction = sample_phong_lobe(r1, r2, reflect_dir(d, sf->ns), m->exponent);
         sc.absorbed = dot(sc.direction, sf->ng) <= 0.0f;
@@ -119,6 +124,7 @@ inline Scatter scatter(const SceneRefs* s, const Surface* sf, float3 d, float3 a
 #endif
 #if HAS_GLASS
     if (kind == MATERIAL_GLASS) {
+        DEBUG_COUNT(s, COUNT_GLASS);
         // eqs. 4.8-4.10: Snell refraction, total internal reflection past the critical angle,
         // and Schlick's Fresnel approximation choosing reflection or refraction.
         float eta_i = sf->entering ? m->ior_outside : m->ior_inside;

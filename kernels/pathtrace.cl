@@ -25,7 +25,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
     __constant const SceneParams* params = s->params;
     PathSample ps = path_sample_empty();
     float3 o, d;
-    camera_ray(params, x, y, key, &o, &d);
+    camera_ray(s, x, y, key, &o, &d);
     float3 throughput = (float3)(1.0f);       // "weight" in Alg. 1
     bool count_emission = true;               // no light connection was made at the last vertex
 #if OUTPUT_FEATURES
@@ -88,7 +88,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
         }
 #endif
 #if HAS_LIGHTS && NEXT_EVENT_ESTIMATION
-        if (m->kind == MATERIAL_DIFFUSE) {    // Alg. 1 line 18: SampleLights, diffuse only
+        // Alg. 1 line 18: SampleLights, at diffuse hits only. The light count is checked at run
+        // time too: the generic kernel (all effects compiled in) renders light-less scenes.
+        if (m->kind == MATERIAL_DIFFUSE && params->light_count > 0u) {
             float3 li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, ray_count);
             add_light(&ps, bounce + 1u, throughput * albedo * INV_PI_F * li);
         }
@@ -124,13 +126,14 @@ __kernel void render(__constant const SceneParams* params,
                      __global uint* ray_counts,
                      __global float* sample_vectors,    // SampleVector per sample (OUTPUT_SAMPLES)
                      uint sample_capacity,              // samples per pixel it holds
+                     __global uint* debug_counters,     // DEBUG_COUNTERS builds only
                      uint sample_base,
                      uint sample_count) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
     SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
-                   textures, texels, lights, light_cdf};
+                   textures, texels, lights, light_cdf, debug_counters};
     PixelStats stats;
     pixel_stats_load(&stats, filter_vectors, gbuffers, stats_state, pixel);
     uint rays = 0u;

@@ -19,7 +19,30 @@ typedef struct {
     __global const float4* texels;
     __global const Light* lights;
     __global const float* light_cdf;
+    __global uint* counters;   // debug counters (DEBUG_COUNTERS builds only)
 } SceneRefs;
+
+// Debug counters, compiled in only for tests (-D DEBUG_COUNTERS=1): how often each optional
+// piece of code ran, so tests can show that a scene without, say, glass never runs glass
+// code. Indices are mirrored in src/render/mod.rs (DebugCounter).
+#define COUNT_LENS_SAMPLE 0
+#define COUNT_DIFFUSE 1
+#define COUNT_SPECULAR 2
+#define COUNT_GLASS 3
+#define COUNT_METAL 4
+#define COUNT_ENV_LOOKUP 5
+#define COUNT_ENV_TEXTURE 6
+#define COUNT_SPHERE_LIGHT 7
+#define COUNT_TRIANGLE_LIGHT 8
+#define COUNT_TEXTURE 9
+#define COUNT_SPHERE_TEST 10
+#define COUNT_BVH_TRAVERSAL 11
+#define DEBUG_COUNTER_COUNT 12
+#if defined(DEBUG_COUNTERS) && DEBUG_COUNTERS
+#define DEBUG_COUNT(s, what) atomic_inc((s)->counters + (what))
+#else
+#define DEBUG_COUNT(s, what) ((void)0)
+#endif
 
 #define HIT_NONE 0
 #define HIT_TRIANGLE 1
@@ -55,6 +78,7 @@ inline Hit intersect_closest(const SceneRefs* s, float3 o, float3 d, float t_max
     hit.kind = HIT_NONE;
     *ray_count += 1u;
 #if HAS_TRIANGLES
+    DEBUG_COUNT(s, COUNT_BVH_TRAVERSAL);
     float3 inv_d = safe_inverse(d);
     uint node_count = s->params->node_count;
     uint current = 0u;
@@ -87,6 +111,7 @@ inline Hit intersect_closest(const SceneRefs* s, float3 o, float3 d, float t_max
     }
 #endif
 #if HAS_SPHERES
+    DEBUG_COUNT(s, COUNT_SPHERE_TEST);
     for (uint i = 0u; i < s->params->sphere_count; ++i) {
         __global const Sphere* sp = s->spheres + i;
         float3 c = (float3)(sp->center[0], sp->center[1], sp->center[2]);

@@ -32,9 +32,11 @@ inline float4 texture_bilinear(const SceneRefs* s, uint index, float2 uv) {
 // u = 0.5 at -z. Without a texture it is a constant colour.
 inline float3 environment_radiance(const SceneRefs* s, float3 d) {
     __constant const SceneParams* p = s->params;
+    DEBUG_COUNT(s, COUNT_ENV_LOOKUP);
     float3 radiance = p->env_radiance.xyz;
 #if HAS_ENV_TEXTURE
     if (p->env_texture >= 0) {
+        DEBUG_COUNT(s, COUNT_ENV_TEXTURE);
         float u = 0.5f + atan2(d.x, -d.z) * (0.5f * INV_PI_F);
         float v = 0.5f + asin(clamp(d.y, -1.0f, 1.0f)) * INV_PI_F;
         float2 uv = (float2)(u, v) * p->env_uv.xy + p->env_uv.zw;

@@ -4,12 +4,13 @@
 //! to another binding touches this module only.
 
 use std::collections::HashMap;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, anyhow, bail};
 use ocl::core::QUEUE_PROFILING_ENABLE;
-use ocl::enums::{DeviceInfo, DeviceInfoResult, ProfilingInfo};
+use ocl::enums::{DeviceInfo, DeviceInfoResult, ProfilingInfo, ProgramInfo, ProgramInfoResult};
 use ocl::flags::{DeviceType, MemFlags};
 use ocl::{Buffer, Context, Device, Event, OclPrm, Platform, Program, Queue};
 
@@ -46,8 +47,13 @@ fn platforms() -> Result<Vec<Platform>> {
     Ok(Platform::list_from_core(ids))
 }
 
+/// Serialises OpenCL set-up in the process: the ICD loader's first platform query is not
+/// thread-safe (two threads opening devices at once saw "no platform" or crashed).
+static SETUP_LOCK: Mutex<()> = Mutex::new(());
+
 /// Every (platform, device) pair, flattened in the order `--device N` counts them.
 fn all_devices() -> Result<Vec<(Platform, Device)>> {
+    let _serial = SETUP_LOCK.lock().unwrap_or_else(|e| e.into_inner());
     let mut out = Vec::new();
     for p in platforms()? {
         for d in Device::list_all(p)? {
@@ -134,14 +140,30 @@ fn choose_index(explicit: Option<usize>, devices: &[DeviceSummary]) -> Result<us
     Ok(index)
 }
 
-/// A selected device with its context, one in-order profiling queue and a program cache.
+/// A selected device with its context, one in-order profiling queue and a program cache:
+/// in memory for the run, and on disk (program binaries) across runs.
 pub struct Gpu {
     pub summary: DeviceSummary,
     pub device: Device,
     pub context: Context,
     pub queue: Queue,
+    /// Where program binaries are kept; None disables the disk cache.
+    pub cache_dir: Option<PathBuf>,
     programs: Mutex<HashMap<String, Program>>,
     build_log: Mutex<Vec<BuildRecord>>,
+}
+
+static BUILD_LOCK: Mutex<()> = Mutex::new(());
+
+/// Where a program came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BuildSource {
+    /// Already built in this run.
+    Memory,
+    /// A program binary from the disk cache.
+    Disk,
+    /// Compiled from source (and stored in the disk cache).
+    Compiled,
 }
 
 /// One program build (or cache hit), for "compiling kernels" reports.
@@ -150,12 +172,45 @@ pub struct BuildRecord {
     pub main: String,
     pub options: String,
     pub seconds: f64,
-    pub cached: bool,
+    pub source: BuildSource,
+}
+
+/// The kernel cache folder: NOISEFREE_CACHE_DIR, else $XDG_CACHE_HOME/noisefree/kernels,
+/// else ~/.cache/noisefree/kernels. `noisefree cache --clear` empties it.
+pub fn default_cache_dir() -> Option<PathBuf> {
+    if let Some(d) = std::env::var_os("NOISEFREE_CACHE_DIR") {
+        return (!d.is_empty()).then(|| PathBuf::from(d));
+    }
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("noisefree").join("kernels"))
+}
+
+/// FNV-1a, 64 bit: a stable hash (std's hasher may change between Rust releases).
+pub fn fnv1a(parts: &[&[u8]]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for part in parts {
+        for &b in *part {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+        // Separate the parts, so ("ab", "c") and ("a", "bc") differ.
+        h ^= 0xff;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
 }
 
 impl Gpu {
-    /// Opens device `index` (or the default choice, see [`choose_index`]).
+    /// Opens device `index` (or the default choice, see [`choose_index`]) with the default
+    /// kernel cache folder.
     pub fn open(index: Option<usize>) -> Result<Arc<Gpu>> {
+        Gpu::open_with_cache(index, default_cache_dir())
+    }
+
+    /// Opens a device with the given kernel cache folder (None: no disk cache).
+    pub fn open_with_cache(index: Option<usize>, cache_dir: Option<PathBuf>) -> Result<Arc<Gpu>> {
         let devices = all_devices()?;
         let summaries: Vec<_> = devices
             .iter()
@@ -164,6 +219,7 @@ impl Gpu {
             .collect();
         let index = choose_index(index, &summaries)?;
         let (platform, device) = devices[index];
+        let _serial = SETUP_LOCK.lock().unwrap_or_else(|e| e.into_inner());
         let context = Context::builder()
             .platform(platform)
             .devices(device)
@@ -176,14 +232,16 @@ impl Gpu {
             device,
             context,
             queue,
+            cache_dir,
             programs: Mutex::new(HashMap::new()),
             build_log: Mutex::new(Vec::new()),
         }))
     }
 
     /// Builds `main` (a file under kernels/) with `defines` as `-D NAME=VALUE` options, or
-    /// returns the program already built with the same source and options. A failed build
-    /// reports the compiler's log.
+    /// returns the program already built with the same source and options: from memory in this
+    /// run, or from a program binary in the disk cache, keyed by a hash of (source, options,
+    /// device, driver). A failed build reports the compiler's log.
     pub fn program(
         &self,
         main: &str,
@@ -196,16 +254,52 @@ impl Gpu {
             options.push_str(&format!(" -D {k}={v}"));
         }
         let key = format!("{main}\u{0}{options}\u{0}{source}");
-        if let Some(p) = self.programs.lock().unwrap().get(&key) {
+        let record = |source: BuildSource, seconds: f64| {
             self.build_log.lock().unwrap().push(BuildRecord {
                 main: main.into(),
                 options: options.clone(),
-                seconds: 0.0,
-                cached: true,
+                seconds,
+                source,
             });
+        };
+        if let Some(p) = self.programs.lock().unwrap().get(&key) {
+            record(BuildSource::Memory, 0.0);
             return Ok(p.clone());
         }
+        // One build at a time in the process: PoCL's compiler is not safe to run from two
+        // threads on two contexts at once (seen as crashes in the test suite).
+        let _serial = BUILD_LOCK.lock().unwrap_or_else(|e| e.into_inner());
         let start = Instant::now();
+        let s = &self.summary;
+        let hash = fnv1a(&[
+            source.as_bytes(),
+            options.as_bytes(),
+            s.platform.as_bytes(),
+            s.name.as_bytes(),
+            s.version.as_bytes(),
+            s.driver.as_bytes(),
+            env!("CARGO_PKG_VERSION").as_bytes(),
+        ]);
+        let cache_file = self
+            .cache_dir
+            .as_ref()
+            .map(|d| d.join(format!("{main}-{hash:016x}.bin")));
+        if let Some(file) = &cache_file
+            && let Ok(binary) = std::fs::read(file)
+        {
+            let bins: [&[u8]; 1] = [&binary];
+            // A stale or foreign binary simply fails to build; then we compile from source.
+            if let Ok(program) = Program::builder()
+                .binaries(&bins)
+                .devices(self.device)
+                .cmplr_opt(options.clone())
+                .build(&self.context)
+            {
+                record(BuildSource::Disk, start.elapsed().as_secs_f64());
+                self.programs.lock().unwrap().insert(key, program.clone());
+                return Ok(program);
+            }
+        }
         let program = Program::builder()
             .source(source)
             .devices(self.device)
@@ -218,13 +312,11 @@ impl Gpu {
                     self.summary.name
                 )
             })?;
-        let seconds = start.elapsed().as_secs_f64();
-        self.build_log.lock().unwrap().push(BuildRecord {
-            main: main.into(),
-            options,
-            seconds,
-            cached: false,
-        });
+        record(BuildSource::Compiled, start.elapsed().as_secs_f64());
+        if let Some(file) = &cache_file {
+            // The cache is an optimisation: a folder we cannot write only costs a rebuild.
+            let _ = store_binary(&program, file);
+        }
         self.programs.lock().unwrap().insert(key, program.clone());
         Ok(program)
     }
@@ -315,6 +407,23 @@ impl Gpu {
         }
         Ok(())
     }
+}
+
+/// Writes a program's binary to `file` (through a temporary file and a rename).
+fn store_binary(program: &Program, file: &std::path::Path) -> Result<()> {
+    let Ok(ProgramInfoResult::Binaries(bins)) = program.info(ProgramInfo::Binaries) else {
+        bail!("the driver returned no program binary");
+    };
+    let Some(bin) = bins.into_iter().next().filter(|b| !b.is_empty()) else {
+        bail!("the driver returned an empty program binary");
+    };
+    if let Some(dir) = file.parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    let tmp = file.with_extension(format!("tmp{}", std::process::id()));
+    std::fs::write(&tmp, &bin)?;
+    std::fs::rename(&tmp, file)?;
+    Ok(())
 }
 
 /// Kernel execution time of a finished command, from its profiling event.

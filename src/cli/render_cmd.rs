@@ -118,6 +118,20 @@ impl RenderSummary {
     }
 }
 
+/// "pathtrace.cl compiled in 1.20 s, ddf.cl from the disk cache in 0.02 s".
+pub fn describe_builds(builds: &[crate::gpu::BuildRecord]) -> String {
+    use crate::gpu::BuildSource;
+    builds
+        .iter()
+        .map(|b| match b.source {
+            BuildSource::Compiled => format!("{} compiled in {:.2} s", b.main, b.seconds),
+            BuildSource::Disk => format!("{} from the disk cache in {:.2} s", b.main, b.seconds),
+            BuildSource::Memory => format!("{} already built", b.main),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn default_output(scene: &Path, ext: &str) -> PathBuf {
     let stem = scene
         .file_stem()
@@ -284,13 +298,17 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     };
     if !args.quiet {
         eprintln!(
-            "device: {} | {} triangles, {} BVH nodes (built in {:.2} s), {} spheres, {} lights | kernels ready in {:.2} s",
+            "device: {} | {} triangles, {} BVH nodes (built in {:.2} s), {} spheres, {} lights",
             gpu.summary.name,
             renderer.arrays.tri_geom.len(),
             renderer.arrays.nodes.len(),
             renderer.arrays.bvh_stats.build_time.as_secs_f64(),
             renderer.arrays.spheres.len(),
             renderer.arrays.lights.len(),
+        );
+        eprintln!(
+            "compiling kernels: {} (ready in {:.2} s)",
+            describe_builds(&gpu.builds()),
             compile_start.elapsed().as_secs_f64()
         );
     }

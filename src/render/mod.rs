@@ -29,6 +29,8 @@ pub struct RenderOptions {
     pub all_features: bool,
     /// Work-group size; None lets the driver choose. The image does not depend on it.
     pub local_size: Option<[usize; 2]>,
+    /// Compile in the debug counters of kernels/scene.cl (tests only).
+    pub debug_counters: bool,
 }
 
 impl RenderOptions {
@@ -38,6 +40,7 @@ impl RenderOptions {
             outputs: Outputs::default(),
             all_features: false,
             local_size: None,
+            debug_counters: false,
         }
     }
 }
@@ -82,8 +85,24 @@ pub struct LaunchStats {
 }
 
 /// Positions of the per-launch arguments of kernels/pathtrace.cl `render`.
-const ARG_SAMPLE_BASE: u32 = 16;
-const ARG_SAMPLE_COUNT: u32 = 17;
+const ARG_SAMPLE_BASE: u32 = 17;
+const ARG_SAMPLE_COUNT: u32 = 18;
+
+/// What the debug counters of kernels/scene.cl count (same order as COUNT_*).
+pub const DEBUG_COUNTERS: [&str; 12] = [
+    "lens samples",
+    "diffuse scatters",
+    "mirror scatters",
+    "glass scatters",
+    "metal scatters",
+    "environment lookups",
+    "environment texture lookups",
+    "sphere light samples",
+    "triangle light samples",
+    "surface texture lookups",
+    "sphere list tests",
+    "BVH traversals",
+];
 
 pub struct Renderer {
     pub gpu: Arc<Gpu>,
@@ -99,6 +118,7 @@ pub struct Renderer {
     /// Every sample's vector for RPF; one dummy element unless requested.
     pub sample_vectors: Buffer<SampleVector>,
     sample_capacity: u32,
+    debug_counters: Buffer<u32>,
     kernel: Kernel,
     _scene: DeviceScene,
     samples_done: u32,
@@ -142,7 +162,12 @@ impl Renderer {
         } else {
             FeatureSet::for_scene(scene, options.outputs)
         };
-        let program = gpu.program("pathtrace.cl", &features.defines(), "")?;
+        let mut defines = features.defines();
+        defines.push((
+            "DEBUG_COUNTERS".into(),
+            (options.debug_counters as u32).to_string(),
+        ));
+        let program = gpu.program("pathtrace.cl", &defines, "")?;
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let film = gpu.zeroed::<FilterVector>(pixels, "FilterVector film")?;
         // Only what is asked for is allocated: without variances these are one element each.
@@ -165,6 +190,7 @@ impl Renderer {
             1
         };
         let sample_vectors = gpu.zeroed::<SampleVector>(sample_len, "RPF sample vector")?;
+        let debug_counters = gpu.zeroed::<u32>(DEBUG_COUNTERS.len(), "debug counter")?;
         let ray_counts = gpu.zeroed::<u32>(pixels, "ray count")?;
 
         let (w, h) = (frame.width as usize, frame.height as usize);
@@ -201,6 +227,7 @@ impl Renderer {
             .arg(&ray_counts)
             .arg(&sample_vectors)
             .arg(sample_capacity)
+            .arg(&debug_counters)
             .arg(0u32)
             .arg(0u32);
         let kernel = builder.build().context("creating the render kernel")?;
@@ -214,6 +241,7 @@ impl Renderer {
             ray_counts,
             sample_vectors,
             sample_capacity,
+            debug_counters,
             kernel,
             _scene: device_scene,
             samples_done: 0,
@@ -342,5 +370,16 @@ impl Renderer {
             .flat_map(|px| px[..spp as usize].iter().copied())
             .collect();
         Ok((spp, out))
+    }
+
+    /// The debug counters (all zero unless built with `debug_counters`), named by
+    /// [`DEBUG_COUNTERS`].
+    pub fn read_debug_counters(&self) -> Result<Vec<u32>> {
+        let mut c = vec![0u32; DEBUG_COUNTERS.len()];
+        self.debug_counters
+            .read(&mut c)
+            .enq()
+            .context("reading the debug counters")?;
+        Ok(c)
     }
 }

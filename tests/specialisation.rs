@@ -1,0 +1,164 @@
+//! "Simulate only the effects a scene calls for": kernels specialised to each scene render
+//! the same bytes as the generic kernel, code for absent effects never runs, and kernel builds
+//! are cached on disk.
+
+mod common;
+
+use common::*;
+use noisefree::gpu::{BuildSource, Gpu};
+use noisefree::render::{DEBUG_COUNTERS, Renderer};
+
+fn bundled_scenes() -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(repo_path("scenes"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    v.sort();
+    assert!(v.len() >= 10, "the five scenes and their DOF variants");
+    v
+}
+
+#[test]
+fn specialised_kernels_render_the_generic_kernels_bytes() {
+    for path in bundled_scenes() {
+        let scene = noisefree::scene::load_scene(&path).unwrap();
+        let mut o = options(&scene, 24, 16, 3);
+        o.outputs.features = true;
+        o.outputs.variance = true;
+        let specialised = film_bytes(&render_film(&scene, &o, 3, 3));
+        o.all_features = true;
+        let generic = film_bytes(&render_film(&scene, &o, 3, 3));
+        assert!(
+            specialised == generic,
+            "{}: the specialised kernel's image differs from the generic one",
+            path.display()
+        );
+    }
+}
+
+fn counters(text: &str, all_features: bool) -> std::collections::BTreeMap<&'static str, u32> {
+    let scene = scene_from_toml(text);
+    let mut o = options(&scene, 16, 16, 1);
+    o.debug_counters = true;
+    o.all_features = all_features;
+    let mut r = Renderer::new(gpu(), &scene, &o).unwrap();
+    r.render_samples(2).unwrap();
+    DEBUG_COUNTERS
+        .iter()
+        .copied()
+        .zip(r.read_debug_counters().unwrap())
+        .collect()
+}
+
+#[test]
+fn absent_effects_never_run() {
+    let glass = "[[material]]\nname = \"glass\"\ntype = \"glass\"\n\n[[sphere]]\ncenter = [0, 0.5, 0]\nradius = 0.4\nmaterial = \"glass\"\n";
+    let pinhole_no_glass = cornell("max_depth = 3", "");
+    let dof_with_glass = cornell("max_depth = 3", glass).replace(
+        "fov = 40",
+        "fov = 40\nlens_radius = 0.05\nfocal_distance = 3",
+    );
+    for all in [false, true] {
+        let c = counters(&pinhole_no_glass, all);
+        let which = if all { "generic" } else { "specialised" };
+        assert_eq!(
+            c["lens samples"], 0,
+            "{which}: a pinhole camera sampled its lens"
+        );
+        assert_eq!(
+            c["glass scatters"], 0,
+            "{which}: a scene without glass evaluated glass"
+        );
+        assert_eq!(c["metal scatters"], 0, "{which}");
+        assert_eq!(c["sphere light samples"], 0, "{which}");
+        assert_eq!(c["surface texture lookups"], 0, "{which}");
+        if !all {
+            // The generic kernel cannot know these are empty; the specialised one has no code.
+            assert_eq!(
+                c["environment lookups"], 0,
+                "{which}: no environment light, yet it was looked up"
+            );
+            assert_eq!(
+                c["sphere list tests"], 0,
+                "{which}: a scene without spheres tested its sphere list"
+            );
+        }
+        assert!(
+            c["diffuse scatters"] > 0 && c["triangle light samples"] > 0 && c["BVH traversals"] > 0,
+            "{which}: {c:?}"
+        );
+    }
+    // The counters do count: the same code runs when the scene calls for it.
+    let c = counters(&dof_with_glass, false);
+    assert_eq!(c["lens samples"], 16 * 16 * 2);
+    assert!(
+        c["glass scatters"] > 0 && c["sphere list tests"] > 0,
+        "{c:?}"
+    );
+    // And the feature set says why.
+    let scene = scene_from_toml(&pinhole_no_glass);
+    let set = noisefree::render::FeatureSet::for_scene(&scene, Default::default());
+    for off in [
+        "HAS_GLASS",
+        "HAS_DOF",
+        "HAS_ENV",
+        "HAS_SPHERES",
+        "OUTPUT_FEATURES",
+        "OUTPUT_VARIANCE",
+        "OUTPUT_SAMPLES",
+    ] {
+        assert!(!set.is_on(off), "{off} should be off");
+    }
+}
+
+#[test]
+fn kernel_binaries_are_cached_on_disk_and_invalidated_by_changes() {
+    let dir = std::env::temp_dir().join(format!("noisefree-kcache-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let defines = generic_defines();
+    let source_of = |gpu: &Gpu| gpu.builds().last().unwrap().source;
+    let first = Gpu::open_with_cache(None, Some(dir.clone())).unwrap();
+    first.program("pathtrace.cl", &defines, "").unwrap();
+    assert_eq!(source_of(&first), BuildSource::Compiled);
+    first.program("pathtrace.cl", &defines, "").unwrap();
+    assert_eq!(
+        source_of(&first),
+        BuildSource::Memory,
+        "the same run reuses the program"
+    );
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "one binary stored"
+    );
+
+    // A second run (a new context) loads the binary instead of compiling.
+    let second = Gpu::open_with_cache(None, Some(dir.clone())).unwrap();
+    second.program("pathtrace.cl", &defines, "").unwrap();
+    assert_eq!(source_of(&second), BuildSource::Disk);
+    // A program from the disk cache works: it renders like a compiled one.
+    let scene = scene_from_toml(&cornell("max_depth = 2", ""));
+    let o = options(&scene, 8, 8, 1);
+    let mut a = Renderer::new(first.clone(), &scene, &o).unwrap();
+    let mut b = Renderer::new(second.clone(), &scene, &o).unwrap();
+    a.render_samples(2).unwrap();
+    b.render_samples(2).unwrap();
+    assert_eq!(
+        film_bytes(&a.read_film().unwrap()),
+        film_bytes(&b.read_film().unwrap())
+    );
+
+    // Another option or another source text is another program.
+    let mut other = defines.clone();
+    other.retain(|d| d.0 != "HAS_GLASS");
+    other.push(("HAS_GLASS".into(), "0".into()));
+    second.program("pathtrace.cl", &other, "").unwrap();
+    assert_eq!(source_of(&second), BuildSource::Compiled);
+    second
+        .program("pathtrace.cl", &defines, "// changed source\n")
+        .unwrap();
+    assert_eq!(source_of(&second), BuildSource::Compiled);
+    let _ = std::fs::remove_dir_all(&dir);
+}
