@@ -7,6 +7,7 @@
 //! shared with the kernels; [`reference`] holds plain Rust versions of the kernels for tests.
 
 pub mod assets;
+pub mod bench;
 pub mod bvh;
 pub mod cli;
 pub mod filters;

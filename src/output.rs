@@ -121,14 +121,59 @@ pub fn write_png(path: &Path, img: &RgbImage, exposure: f32) -> Result<()> {
 
 /// A linear, single-layer float RGB OpenEXR.
 pub fn write_exr(path: &Path, img: &RgbImage) -> Result<()> {
+    write_exr_with_metadata(path, img, &std::collections::BTreeMap::new())
+}
+
+/// A linear float RGB OpenEXR with `metadata` as text attributes named `noisefree.<key>`.
+pub fn write_exr_with_metadata(
+    path: &Path,
+    img: &RgbImage,
+    metadata: &std::collections::BTreeMap<String, String>,
+) -> Result<()> {
+    use exr::prelude::*;
     let w = img.width as usize;
+    let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+        let p = img.pixels[pos.y() * w + pos.x()];
+        (p[0], p[1], p[2])
+    });
+    let mut attributes = LayerAttributes::named("noisefree");
+    for (k, v) in metadata {
+        attributes.other.insert(
+            Text::from(format!("noisefree.{k}").as_str()),
+            AttributeValue::Text(Text::from(v.as_str())),
+        );
+    }
+    let layer = Layer::new(
+        (w, img.height as usize),
+        attributes,
+        Encoding::FAST_LOSSLESS,
+        channels,
+    );
+    let image = Image::from_layer(layer);
     write_atomically(path, |tmp| {
-        exr::prelude::write_rgb_file(tmp, w, img.height as usize, |x, y| {
-            let p = img.pixels[y * w + x];
-            (p[0], p[1], p[2])
-        })
-        .map_err(|e| anyhow::anyhow!("encoding OpenEXR: {e}"))
+        image
+            .write()
+            .to_file(tmp)
+            .map_err(|e| anyhow::anyhow!("encoding OpenEXR: {e}"))
     })
+}
+
+/// The `noisefree.<key>` text attributes of an OpenEXR file's first layer.
+pub fn read_exr_metadata(path: &Path) -> Result<std::collections::BTreeMap<String, String>> {
+    use exr::prelude::*;
+    let meta = MetaData::read_from_file(path, false)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read OpenEXR header: {e}", path.display()))?;
+    let mut out = std::collections::BTreeMap::new();
+    if let Some(h) = meta.headers.first() {
+        for (k, v) in &h.own_attributes.other {
+            if let (Some(key), AttributeValue::Text(t)) =
+                (k.to_string().strip_prefix("noisefree."), v)
+            {
+                out.insert(key.to_string(), t.to_string());
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// Reads the RGB channels of an OpenEXR file (the first RGBA layer).

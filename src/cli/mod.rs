@@ -1,8 +1,9 @@
-//! The command line: `noisefree devices | render | filter`.
+//! The command line: `noisefree devices | render | filter | compare | reference | bench | cache`.
 
 mod filter_args;
 mod filter_cmd;
 mod render_cmd;
+mod tools;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -31,6 +32,14 @@ pub enum Command {
     Render(RenderArgs),
     /// Filter the per-pixel buffers of an AOV file (written by `render --aovs`) offline.
     Filter(FilterCommandArgs),
+    /// Compare an image with a reference: MSE in CIELUV, MSE and relMSE in RGB, PSNR, SSIM.
+    Compare(tools::CompareArgs),
+    /// Render a scene's ground truth into the reference cache (reused when current).
+    Reference(tools::ReferenceArgs),
+    /// Benchmarks: speed and accuracy-versus-time studies, results under results/.
+    Bench(crate::bench::BenchArgs),
+    /// Show or clear the kernel binary cache.
+    Cache(tools::CacheArgs),
 }
 
 /// Runs the command line; returns the process exit code.
@@ -40,6 +49,20 @@ pub fn main() -> i32 {
         Command::Devices => devices(),
         Command::Render(args) => render(&args).map(|_| ()),
         Command::Filter(args) => filter_cmd::run(&args),
+        Command::Compare(args) => tools::compare(&args),
+        Command::Reference(args) => tools::reference(&args),
+        Command::Bench(args) => {
+            // "Cold" kernel builds must not come from the driver's own caches. Set before the
+            // first OpenCL call, while the process has one thread.
+            for (var, value) in [("POCL_KERNEL_CACHE", "0"), ("CUDA_CACHE_DISABLE", "1")] {
+                if std::env::var_os(var).is_none() {
+                    // SAFETY: no other thread exists yet that could read the environment.
+                    unsafe { std::env::set_var(var, value) };
+                }
+            }
+            crate::bench::run(&args)
+        }
+        Command::Cache(args) => tools::cache(&args),
     };
     match result {
         Ok(()) => 0,

@@ -179,6 +179,20 @@ impl DdfFilter {
         width: u32,
         height: u32,
     ) -> Result<DdfFilter> {
+        DdfFilter::with_work_group(gpu, settings, variant, width, height, None)
+    }
+
+    /// Like [`DdfFilter::new`]; the naive and vector variants run in work-groups of
+    /// `work_group` x 1 pixels when given (the driver chooses otherwise). The rows variant's
+    /// work-group is part of the variant.
+    pub fn with_work_group(
+        gpu: Arc<Gpu>,
+        settings: &DdfSettings,
+        variant: Variant,
+        width: u32,
+        height: u32,
+        work_group: Option<usize>,
+    ) -> Result<DdfFilter> {
         settings.validate()?;
         let defines = vec![
             ("DDF_VARIANT".to_string(), variant.define().to_string()),
@@ -224,9 +238,15 @@ impl DdfFilter {
                 b.global_work_size([round_up(w, work_group), h])
                     .local_work_size([work_group, 1]);
             }
-            _ => {
-                b.global_work_size([w, h]);
-            }
+            _ => match work_group {
+                Some(wg) if wg > 0 => {
+                    b.global_work_size([round_up(w, wg), h])
+                        .local_work_size([wg, 1]);
+                }
+                _ => {
+                    b.global_work_size([w, h]);
+                }
+            },
         }
         let kernel = b
             .build()

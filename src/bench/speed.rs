@@ -1,0 +1,442 @@
+//! Speed studies: the megakernel per scene (specialised vs generic), the cost of the per-pixel
+//! statistics, and the data-driven filter's kernel time (thesis §7.1-7.2).
+
+use std::path::Path;
+use std::time::Duration;
+
+use anyhow::Result;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::Context;
+use super::plot::{Chart, Series, line_chart};
+use super::table::{ResultTable, num};
+use crate::filters::UploadedBuffers;
+use crate::filters::ddf::{DdfFilter, DdfSettings, Variant};
+use crate::gpu::Gpu;
+use crate::render::{Outputs, RenderOptions, Renderer};
+use crate::scene::{self, Scene};
+
+fn scene_name(p: &Path) -> String {
+    p.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+fn bar(ctx: &Context, len: u64, what: &str) -> ProgressBar {
+    let b = if ctx.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(len)
+    };
+    b.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {msg:40} [{elapsed_precise}] {bar:25} {pos}/{len}  ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    b.set_message(what.to_string());
+    b
+}
+
+fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
+    let mut o = RenderOptions::for_scene(scene);
+    o.frame.width = w;
+    o.frame.height = h;
+    o
+}
+
+/// Kernel time per sample of a renderer, measured over `launches` launches of `spp` samples
+/// after a one-sample warm-up: (samples/s, Mrays/s).
+fn throughput(r: &mut Renderer, spp: u32, launches: u32) -> Result<(f64, f64)> {
+    r.render_samples(1)?;
+    let (mut t, mut rays, mut n) = (Duration::ZERO, 0u64, 0u32);
+    for _ in 0..launches {
+        let s = r.render_samples(spp)?;
+        t += s.kernel_time;
+        rays += s.rays;
+        n += spp;
+    }
+    let secs = t.as_secs_f64().max(1e-9);
+    Ok((n as f64 / secs, rays as f64 / secs / 1e6))
+}
+
+/// Samples per launch so that one launch takes about `target` seconds.
+fn calibrate(r: &mut Renderer, target: f64) -> Result<u32> {
+    let s = r.render_samples(1)?;
+    Ok(((target / s.kernel_time.as_secs_f64().max(1e-6)) as u32).clamp(1, 256))
+}
+
+/// Time until the megakernel for `scene` has rendered its first sample (an 8 x 8 image):
+/// program build plus the first launch, where drivers such as PoCL finish compiling. Cold:
+/// from source with the driver's caches off; cached: from noisefree's disk cache.
+fn build_times(ctx: &Context, scene: &Scene, o: &RenderOptions) -> Result<(f64, f64)> {
+    let dir = std::env::temp_dir().join(format!("noisefree-bench-kcache-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let index = Some(ctx.gpu.summary.index);
+    let mut tiny = o.clone();
+    tiny.frame.width = 8;
+    tiny.frame.height = 8;
+    let ready = |gpu: std::sync::Arc<Gpu>| -> Result<f64> {
+        let start = std::time::Instant::now();
+        let mut r = Renderer::new(gpu, scene, &tiny)?;
+        r.render_samples(1)?;
+        Ok(start.elapsed().as_secs_f64())
+    };
+    let cold = ready(Gpu::open_with_cache(index, Some(dir.clone()))?)?;
+    let cached = ready(Gpu::open_with_cache(index, Some(dir.clone()))?)?;
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok((cold, cached))
+}
+
+/// Per scene: build times and throughput of the specialised and the generic megakernel,
+/// measured side by side (alternating launches, so both see the same machine state).
+pub fn render_speed(ctx: &Context, fresh: bool) -> Result<()> {
+    let (w, h) = if ctx.quick { (96, 96) } else { (512, 512) };
+    let columns = [
+        "scene",
+        "width",
+        "height",
+        "kernel",
+        "ready_cold_s",
+        "ready_cached_s",
+        "spp_per_s",
+        "mrays_per_s",
+        "features",
+    ];
+    let mut t = ctx.table("render-speed", &columns, 4, fresh)?;
+    let pb = bar(ctx, ctx.scenes.len() as u64, "render speed");
+    for path in &ctx.scenes {
+        let name = scene_name(path);
+        pb.set_message(format!("render speed: {name}"));
+        let key = |k: &str| vec![name.clone(), w.to_string(), h.to_string(), k.to_string()];
+        if t.has(&key("specialised")) && t.has(&key("generic")) {
+            pb.inc(1);
+            continue;
+        }
+        let scene = scene::load_scene(path)?;
+        let spec_o = options(&scene, w, h);
+        let mut gen_o = spec_o.clone();
+        gen_o.all_features = true;
+        let (spec_cold, spec_warm) = build_times(ctx, &scene, &spec_o)?;
+        let (gen_cold, gen_warm) = build_times(ctx, &scene, &gen_o)?;
+        let mut spec = Renderer::new(ctx.gpu.clone(), &scene, &spec_o)?;
+        let mut gen_r = Renderer::new(ctx.gpu.clone(), &scene, &gen_o)?;
+        let spp = calibrate(&mut spec, if ctx.quick { 0.2 } else { 1.0 })?;
+        // Interleave: specialised, generic, specialised, generic.
+        let rounds = if ctx.quick { 1 } else { 3 };
+        let (mut s_spp, mut s_ray, mut g_spp, mut g_ray) = (0.0, 0.0, 0.0, 0.0);
+        for _ in 0..rounds {
+            let (a, b) = throughput(&mut spec, spp, 1)?;
+            let (c, d) = throughput(&mut gen_r, spp, 1)?;
+            s_spp += a / rounds as f64;
+            s_ray += b / rounds as f64;
+            g_spp += c / rounds as f64;
+            g_ray += d / rounds as f64;
+        }
+        for (k, cold, warm, sps, mrs, feats) in [
+            (
+                "specialised",
+                spec_cold,
+                spec_warm,
+                s_spp,
+                s_ray,
+                spec.features.tag(),
+            ),
+            (
+                "generic",
+                gen_cold,
+                gen_warm,
+                g_spp,
+                g_ray,
+                gen_r.features.tag(),
+            ),
+        ] {
+            if !t.has(&key(k)) {
+                let mut row = key(k);
+                row.extend([num(cold), num(warm), num(sps), num(mrs), feats]);
+                t.push(row)?;
+            }
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    write_render_speed_md(ctx, &t)
+}
+
+fn write_render_speed_md(ctx: &Context, t: &ResultTable) -> Result<()> {
+    let recs = t.records();
+    let mut md = String::from(
+        "# Megakernel speed per scene: specialised versus generic\n\n\
+         Kernel time from OpenCL profiling events; the two kernels run alternately in one run.\n\
+         Ready: seconds from loading the scene to the first sample of an 8x8 image (program build,\n\
+         scene upload and BVH, and the first launch, where PoCL finishes compiling); `cold` builds\n\
+         from source with the driver's caches off, `cached` loads the program binary from\n\
+         noisefree's disk cache.\n\n\
+         | scene | size | specialised spp/s | generic spp/s | speed-up | specialised Mrays/s | generic Mrays/s | ready cold s (spec. / gen.) | ready cached s (spec. / gen.) |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
+    );
+    for s in recs.iter().filter(|r| r["kernel"] == "specialised") {
+        let Some(g) = recs.iter().find(|r| {
+            r["kernel"] == "generic"
+                && r["scene"] == s["scene"]
+                && r["width"] == s["width"]
+                && r["height"] == s["height"]
+        }) else {
+            continue;
+        };
+        let ratio = s["spp_per_s"].parse::<f64>().unwrap_or(0.0)
+            / g["spp_per_s"].parse::<f64>().unwrap_or(1.0);
+        md.push_str(&format!(
+            "| {} | {}x{} | {} | {} | {} | {} | {} | {} / {} | {} / {} |\n",
+            s["scene"],
+            s["width"],
+            s["height"],
+            s["spp_per_s"],
+            g["spp_per_s"],
+            num(ratio),
+            s["mrays_per_s"],
+            g["mrays_per_s"],
+            s["ready_cold_s"],
+            g["ready_cold_s"],
+            s["ready_cached_s"],
+            g["ready_cached_s"]
+        ));
+    }
+    std::fs::write(ctx.out.join("render-speed.md"), md)?;
+    Ok(())
+}
+
+/// The statistics stage's cost: samples/s of the same scene without statistics, with the
+/// feature means, with means and variances (all one run, interleaved).
+pub fn statistics_cost(ctx: &Context, fresh: bool) -> Result<()> {
+    let (w, h) = if ctx.quick { (96, 96) } else { (512, 512) };
+    let mut t = ctx.table(
+        "statistics",
+        &[
+            "scene",
+            "width",
+            "height",
+            "statistics",
+            "spp_per_s",
+            "relative",
+        ],
+        4,
+        fresh,
+    )?;
+    let configs: [(&str, Outputs); 3] = [
+        ("none", Outputs::default()),
+        (
+            "means",
+            Outputs {
+                features: true,
+                ..Default::default()
+            },
+        ),
+        (
+            "means+variances",
+            Outputs {
+                features: true,
+                variance: true,
+                ..Default::default()
+            },
+        ),
+    ];
+    let pb = bar(ctx, ctx.scenes.len() as u64, "statistics cost");
+    for path in &ctx.scenes {
+        let name = scene_name(path);
+        pb.set_message(format!("statistics cost: {name}"));
+        let key = |k: &str| vec![name.clone(), w.to_string(), h.to_string(), k.to_string()];
+        if configs.iter().all(|(k, _)| t.has(&key(k))) {
+            pb.inc(1);
+            continue;
+        }
+        let scene = scene::load_scene(path)?;
+        let mut renderers = Vec::new();
+        for (_, outputs) in &configs {
+            let mut o = options(&scene, w, h);
+            o.outputs = *outputs;
+            renderers.push(Renderer::new(ctx.gpu.clone(), &scene, &o)?);
+        }
+        let spp = calibrate(&mut renderers[0], if ctx.quick { 0.2 } else { 1.0 })?;
+        let rounds = if ctx.quick { 1 } else { 3 };
+        let mut rates = vec![0.0; configs.len()];
+        for _ in 0..rounds {
+            for (i, r) in renderers.iter_mut().enumerate() {
+                rates[i] += throughput(r, spp, 1)?.0 / rounds as f64;
+            }
+        }
+        for (i, (k, _)) in configs.iter().enumerate() {
+            if !t.has(&key(k)) {
+                let mut row = key(k);
+                row.extend([num(rates[i]), num(rates[i] / rates[0])]);
+                t.push(row)?;
+            }
+        }
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    std::fs::write(
+        ctx.out.join("statistics.md"),
+        format!(
+            "# Cost of the per-pixel statistics (thesis §6.2.2)\n\n\
+             Samples/s of the megakernel without statistics, with the FilterVector feature means, and\n\
+             with the means and Welford variances; kernel time from profiling events, interleaved in\n\
+             one run. `relative` is samples/s over the `none` row.\n\n{}",
+            t.markdown()
+        ),
+    )?;
+    Ok(())
+}
+
+/// Rendered 8-spp buffers of Cornell diffuse at `w` x `h`, the filter's input.
+fn filter_input(ctx: &Context, w: u32, h: u32) -> Result<crate::stats::PixelBuffers> {
+    let path = Path::new("scenes/cornell_diffuse.toml");
+    let scene = scene::load_scene(path)?;
+    let mut o = options(&scene, w, h);
+    o.outputs = Outputs {
+        features: true,
+        variance: true,
+        ..Default::default()
+    };
+    let mut r = Renderer::new(ctx.gpu.clone(), &scene, &o)?;
+    r.render_samples(8)?;
+    r.read_buffers()
+}
+
+/// Filter kernel time over kernel widths x resolutions x variants x work-group sizes, min /
+/// median / max over repeated runs after a warm-up (thesis §7.1-7.2).
+pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {
+    let (resolutions, widths, groups): (Vec<(u32, u32)>, Vec<u32>, Vec<usize>) = if ctx.quick {
+        (vec![(64, 48)], vec![7, 15], vec![64])
+    } else {
+        (
+            vec![(320, 240), (512, 512), (640, 480), (1280, 768)],
+            vec![7, 15, 25, 55],
+            vec![64, 256],
+        )
+    };
+    let variants = ["naive", "rows", "rows+holes"];
+    let columns = [
+        "width",
+        "height",
+        "kw",
+        "variant",
+        "work_group",
+        "runs",
+        "min_ms",
+        "median_ms",
+        "max_ms",
+    ];
+    let mut t = ctx.table("filter-speed", &columns, 5, fresh)?;
+    let cells = (resolutions.len() * widths.len() * variants.len() * groups.len()) as u64;
+    let pb = bar(ctx, cells, "filter speed");
+    for &(w, h) in &resolutions {
+        let mut input = None;
+        for &kw in &widths {
+            for variant in variants {
+                for &wg in &groups {
+                    let key = vec![
+                        w.to_string(),
+                        h.to_string(),
+                        kw.to_string(),
+                        variant.to_string(),
+                        wg.to_string(),
+                    ];
+                    pb.set_message(format!("filter speed: {w}x{h} kw {kw} {variant} wg {wg}"));
+                    if t.has(&key) {
+                        pb.inc(1);
+                        continue;
+                    }
+                    if input.is_none() {
+                        input = Some(UploadedBuffers::new(&ctx.gpu, &filter_input(ctx, w, h)?)?);
+                    }
+                    let up = input.as_ref().expect("uploaded above");
+                    let settings = DdfSettings {
+                        kw,
+                        holes: variant == "rows+holes",
+                        ..Default::default()
+                    };
+                    let (v, naive_wg) = match variant {
+                        "naive" => (Variant::Naive, Some(wg)),
+                        _ => (Variant::Rows { work_group: wg }, None),
+                    };
+                    let mut f =
+                        DdfFilter::with_work_group(ctx.gpu.clone(), &settings, v, w, h, naive_wg)?;
+                    f.run(&up.view())?; // warm-up
+                    let mut times = Vec::new();
+                    let max_runs = if ctx.quick { 3 } else { 7 };
+                    let budget = Duration::from_secs(if ctx.quick { 5 } else { 60 });
+                    let mut spent = Duration::ZERO;
+                    while times.len() < max_runs && (times.len() < 2 || spent < budget) {
+                        let k = f.run(&up.view())?.kernel_time;
+                        spent += k;
+                        times.push(k);
+                    }
+                    let (lo, med, hi) = crate::filters::time_summary(&times).expect("runs");
+                    let ms = |d: Duration| num(d.as_secs_f64() * 1e3);
+                    let mut row = key;
+                    row.extend([times.len().to_string(), ms(lo), ms(med), ms(hi)]);
+                    t.push(row)?;
+                    pb.inc(1);
+                }
+            }
+        }
+    }
+    pb.finish_and_clear();
+    write_filter_speed_outputs(ctx, &t)
+}
+
+fn write_filter_speed_outputs(ctx: &Context, t: &ResultTable) -> Result<()> {
+    let recs = t.records();
+    let mut resolutions: Vec<(String, String)> = recs
+        .iter()
+        .map(|r| (r["width"].to_string(), r["height"].to_string()))
+        .collect();
+    resolutions.dedup();
+    resolutions.sort_by_key(|(w, h)| w.parse::<u32>().unwrap_or(0) * h.parse::<u32>().unwrap_or(0));
+    resolutions.dedup();
+    let mut md = String::from(
+        "# Data-driven filter speed (thesis §7.1-7.2, Figs. 7.2-7.12)\n\n\
+         Input: Cornell diffuse at 8 spp. Kernel time from OpenCL profiling events, min / median /\n\
+         max over repeated runs after one warm-up run.\n\n",
+    );
+    for (w, h) in &resolutions {
+        let mut series: Vec<Series> = Vec::new();
+        for r in recs.iter().filter(|r| r["width"] == w && r["height"] == h) {
+            let label = format!("{} wg {}", r["variant"], r["work_group"]);
+            let p = (
+                r["kw"].parse::<f64>().unwrap_or(0.0),
+                r["median_ms"].parse::<f64>().unwrap_or(f64::NAN),
+            );
+            match series.iter_mut().find(|s| s.label == label) {
+                Some(s) => s.points.push(p),
+                None => series.push(Series {
+                    label,
+                    points: vec![p],
+                }),
+            }
+        }
+        for s in &mut series {
+            s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        let file = format!("filter-speed-{w}x{h}.png");
+        line_chart(
+            &ctx.out.join(&file),
+            &Chart {
+                title: format!("Data-driven filter, {w}x{h}: median kernel time"),
+                x_label: "kernel width kw".into(),
+                y_label: "ms".into(),
+                log_x: false,
+                log_y: true,
+            },
+            &series,
+        )?;
+        md.push_str(&format!(
+            "## {w}x{h}\n\n![filter time vs kernel width]({file})\n\n"
+        ));
+    }
+    md.push_str("## All measurements\n\n");
+    md.push_str(&t.markdown());
+    std::fs::write(ctx.out.join("filter-speed.md"), md)?;
+    Ok(())
+}
