@@ -79,20 +79,23 @@ inline float ray_sphere(float3 o, float3 d, float3 center, float radius, float t
 // Secondary rays start on the surface they leave. Moving the origin a fixed distance fails at
 // some scene scale, so the origin is moved by a few units in the last place along the normal
 // (Wächter & Binder, "A fast and robust method for avoiding self-intersection", Ray Tracing Gems
-// ch. 6): scale-invariant, with a small absolute step only near the world origin.
+// ch. 6): scale-invariant, except near the world origin where ulps vanish and a small absolute
+// step is taken. The paper's absolute constants (1/32 and 1/65536) assume a scene of size 1;
+// here they are multiplied by the scene's size `scale`, so a Cornell box of 2 mm and one of
+// 2 km take the same relative steps (tests/hard_cases_transport.rs).
 // n must point to the side the new ray leaves towards.
-inline float offset_component(float p, float n) {
-    const float origin = 1.0f / 32.0f;
-    const float float_scale = 1.0f / 65536.0f;
+inline float offset_component(float p, float n, float scale) {
+    const float origin = scale * (1.0f / 32.0f);
+    const float float_scale = scale * (1.0f / 65536.0f);
     const float int_scale = 256.0f;
     int of_i = (int)(int_scale * n);
     float p_i = as_float(as_int(p) + ((p < 0.0f) ? -of_i : of_i));
     return fabs(p) < origin ? p + float_scale * n : p_i;
 }
 
-inline float3 offset_ray_origin(float3 p, float3 n) {
-    return (float3)(offset_component(p.x, n.x), offset_component(p.y, n.y),
-                    offset_component(p.z, n.z));
+inline float3 offset_ray_origin(float3 p, float3 n, float scale) {
+    return (float3)(offset_component(p.x, n.x, scale), offset_component(p.y, n.y, scale),
+                    offset_component(p.z, n.z, scale));
 }
 
 #endif

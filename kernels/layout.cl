@@ -35,6 +35,10 @@ typedef struct __attribute__((aligned(16))) {
     uint rr_depth; // Path depth from which Russian roulette runs (eq. 2.9).
     uint max_vertices; // Hard cap on path vertices, a guard against runaway paths (see kernels/pathtrace.cl).
     uint seed;
+    float sample_clamp; // Largest colour component a single path sample may carry; 0: no clamp (default).  Clamping trades a bias for fewer fireflies.
+    float offset_scale; // Size of the scene (largest extent of its bounds): the unit of the absolute part of  the secondary-ray origin offset (kernels/geometry.cl), so it works at any scale.
+    uint pad1;
+    uint pad2;
 } SceneParams;
 
 // A flattened BVH node (§4.2.2 "BVH construction", Fig. 4.6). Depth-first order, left child

@@ -129,6 +129,14 @@ inline Scatter scatter(const SceneRefs* s, const Surface* sf, float3 d, float3 a
         // and Schlick's Fresnel approximation choosing reflection or refraction.
         float eta_i = sf->entering ? m->ior_outside : m->ior_inside;
         float eta_t = sf->entering ? m->ior_inside : m->ior_outside;
+        if (eta_i == eta_t) {
+            // Equal indices: there is no interface, so no reflection and no bending (Schlick's
+            // formula would still reflect at grazing angles, and sin^2 theta_t rounds to 1
+            // there and would fake total internal reflection).
+            sc.weight = m->color2.xyz;
+            sc.offset_normal = -sf->ng;
+            return sc;
+        }
         float cos_i = fmin(1.0f, -dot(d, sf->ns));
         float eta = eta_i / eta_t;
         float sin2_t = eta * eta * fmax(0.0f, 1.0f - cos_i * cos_i);   // eq. 4.9 squared
@@ -139,16 +147,11 @@ inline Scatter scatter(const SceneRefs* s, const Surface* sf, float3 d, float3 a
             return sc;
         }
         float cos_t = sqrt(1.0f - sin2_t);
-        float reflectance = 0.0f;
-        // Equal indices mean no interface: Fresnel reflectance is exactly 0, while Schlick's
-        // formula would still reflect (1 - cos)^5 at grazing angles.
-        if (eta_i != eta_t) {
-            float r0 = (eta_i - eta_t) / (eta_i + eta_t);
-            r0 *= r0;
-            float c = (eta_i <= eta_t) ? cos_i : cos_t;   // Schlick uses the angle in the rarer medium
-            float k = 1.0f - c;
-            reflectance = r0 + (1.0f - r0) * k * k * k * k * k;
-        }
+        float r0 = (eta_i - eta_t) / (eta_i + eta_t);
+        r0 *= r0;
+        float c = (eta_i <= eta_t) ? cos_i : cos_t;   // Schlick uses the angle in the rarer medium
+        float k = 1.0f - c;
+        float reflectance = r0 + (1.0f - r0) * k * k * k * k * k;
         if (rng_uniform(key, bounce, DIM_BSDF_LOBE) < reflectance) {
             sc.direction = reflected;
             sc.weight = m->color.xyz;

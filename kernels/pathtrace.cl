@@ -104,8 +104,19 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 #if NEXT_EVENT_ESTIMATION
         count_emission = sc.specular;
 #endif
-        o = offset_ray_origin(sf.p, sc.offset_normal);
+        o = offset_ray_origin(sf.p, sc.offset_normal, params->offset_scale);
         d = sc.direction;
+    }
+    // Optional firefly clamp (off by default: it biases the image). Direct and indirect are
+    // scaled together so their sum keeps its hue.
+    float limit = params->sample_clamp;
+    if (limit > 0.0f) {
+        float peak = max3(ps.direct + ps.indirect);
+        if (peak > limit) {
+            float k = limit / peak;
+            ps.direct *= k;
+            ps.indirect *= k;
+        }
     }
     return ps;
 }

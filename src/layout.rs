@@ -180,6 +180,14 @@ device_structs! {
         /// Hard cap on path vertices, a guard against runaway paths (see kernels/pathtrace.cl).
         pub max_vertices: u32,
         pub seed: u32,
+        /// Largest colour component a single path sample may carry; 0: no clamp (default).
+        /// Clamping trades a bias for fewer fireflies.
+        pub sample_clamp: f32,
+        /// Size of the scene (largest extent of its bounds): the unit of the absolute part of
+        /// the secondary-ray origin offset (kernels/geometry.cl), so it works at any scale.
+        pub offset_scale: f32,
+        pub pad1: u32,
+        pub pad2: u32,
     }
 
     /// A flattened BVH node (§4.2.2 "BVH construction", Fig. 4.6). Depth-first order, left child

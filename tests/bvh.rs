@@ -27,6 +27,7 @@ fn scene_of(triangles: Vec<Triangle>, spheres: Vec<SphereObject>) -> Scene {
             russian_roulette: true,
             next_event_estimation: true,
             setting: Setting::Indoor,
+            clamp: 0.0,
         },
         camera: Camera {
             origin: Vec3::new(0.0, 0.0, 10.0),
@@ -140,7 +141,11 @@ fn rays(
                 if d.dot(n) < 1e-3 {
                     d = (d + n).normalize();
                 }
-                out.push((offset_ray_origin(p, n), d, f32::INFINITY));
+                out.push((
+                    offset_ray_origin(p, n, arrays.params.offset_scale),
+                    d,
+                    f32::INFINITY,
+                ));
             }
             _ => {
                 // Finite segments, as shadow rays are.

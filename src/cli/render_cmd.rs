@@ -2,6 +2,7 @@
 //! each frame, images and AOVs out.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
@@ -72,6 +73,14 @@ pub struct RenderArgs {
     /// filter kernel time over the frames.
     #[arg(long)]
     pub timings: bool,
+    /// Clamp each path sample's colour to at most this value (fewer fireflies, some bias)
+    /// [default: the scene's [render] clamp, else off].
+    #[arg(long)]
+    pub clamp: Option<f32>,
+    /// On Ctrl-C, write the images rendered so far (otherwise nothing is written and existing
+    /// outputs stay as they were).
+    #[arg(long)]
+    pub save_partial: bool,
     #[command(flatten)]
     pub filter: FilterArgs,
     /// No progress bar.
@@ -140,8 +149,39 @@ fn default_output(scene: &Path, ext: &str) -> PathBuf {
     PathBuf::from("out").join(format!("{stem}.{ext}"))
 }
 
+/// Set by the Ctrl-C handler; the render loop stops after the launch in flight.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// The error of a render stopped by Ctrl-C without --save-partial (exit status 130).
+#[derive(Debug)]
+pub struct Interrupted;
+
+impl std::fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "interrupted: nothing was written (use --save-partial to keep what was rendered)"
+        )
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+/// Installs the Ctrl-C handler once per process.
+fn catch_ctrl_c() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // If another handler is already installed, Ctrl-C keeps its default meaning.
+        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst));
+    });
+}
+
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::SeqCst)
+}
+
 /// Renders progressively until `spp` samples or the time limit, showing progress;
-/// `after_frame` runs after each launch.
+/// `after_frame` runs after each launch. Stops early (after the launch in flight) on Ctrl-C.
 pub fn progressive(
     renderer: &mut Renderer,
     spp: u32,
@@ -165,7 +205,7 @@ pub fn progressive(
     // Launch sizes grow towards ~0.5 s per launch: responsive progress, few launches, and well
     // under GPU watchdog limits. The image does not depend on the batching (tests/determinism).
     let mut batch = 1u32;
-    while renderer.samples_done() < spp {
+    while renderer.samples_done() < spp && !interrupted() {
         if let Some(limit) = limit
             && start.elapsed() >= limit
         {
@@ -240,6 +280,12 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         ),
         Method::None => None,
     };
+    if let Some(c) = args.clamp {
+        if !(c >= 0.0 && c.is_finite()) {
+            bail!("--clamp must be >= 0 (0 = off), got {c}");
+        }
+        options.frame.sample_clamp = c;
+    }
     options.all_features = args.all_features;
     options.local_size = args.local_size;
     // The statistics stage is compiled in only when something reads it.
@@ -326,6 +372,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     }
     let mut filter_times = Vec::new();
     let mut last_filtered = None;
+    catch_ctrl_c();
     progressive(&mut renderer, spp, args.time_limit, args.quiet, |r| {
         if args.timings
             && let Some(f) = filter.as_mut()
@@ -336,6 +383,16 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         }
         Ok(())
     })?;
+    if interrupted() {
+        if !args.save_partial || renderer.samples_done() == 0 {
+            return Err(Interrupted.into());
+        }
+        eprintln!(
+            "interrupted after {} spp: writing what was rendered (--save-partial)",
+            renderer.samples_done()
+        );
+        last_filtered = None; // filter the final state below
+    }
     let buffers = renderer.read_buffers()?;
     let unfiltered = buffers.beauty();
     let image = match filter.as_mut() {

@@ -81,27 +81,27 @@ pub fn ray_sphere(
     }
 }
 
-fn offset_component(p: f32, n: f32) -> f32 {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+fn offset_component(p: f32, n: f32, scale: f32) -> f32 {
+    let origin = scale * (1.0 / 32.0);
+    let float_scale = scale * (1.0 / 65536.0);
     const INT_SCALE: f32 = 256.0;
     let of_i = (INT_SCALE * n) as i32;
     let p_i = f32::from_bits(
         (p.to_bits() as i32).wrapping_add(if p < 0.0 { -of_i } else { of_i }) as u32,
     );
-    if p.abs() < ORIGIN {
-        p + FLOAT_SCALE * n
+    if p.abs() < origin {
+        p + float_scale * n
     } else {
         p_i
     }
 }
 
-/// Wächter & Binder's scale-invariant origin offset.
-pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+/// Wächter & Binder's origin offset, its absolute part in units of the scene size `scale`.
+pub fn offset_ray_origin(p: Vec3, n: Vec3, scale: f32) -> Vec3 {
     Vec3::new(
-        offset_component(p.x, n.x),
-        offset_component(p.y, n.y),
-        offset_component(p.z, n.z),
+        offset_component(p.x, n.x, scale),
+        offset_component(p.y, n.y, scale),
+        offset_component(p.z, n.z, scale),
     )
 }
 
@@ -143,7 +143,7 @@ mod tests {
             let r = 0.5 * scale;
             let n = Vec3::new(0.3, 0.8, -0.52).normalize();
             let p = center + n * r;
-            let o = offset_ray_origin(p, n);
+            let o = offset_ray_origin(p, n, scale);
             // A ray leaving outwards along a tangent-ish direction must not re-hit the sphere.
             let d = (n + Vec3::new(0.9, -0.3, 0.1).normalize() * 3.0).normalize();
             let d = if d.dot(n) > 0.0 { d } else { -d };

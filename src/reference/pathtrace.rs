@@ -175,6 +175,11 @@ pub fn scatter(
             } else {
                 (m.ior_inside, m.ior_outside)
             };
+            if eta_i == eta_t {
+                sc.weight = m.color2.xyz();
+                sc.offset_normal = -sf.ng;
+                return sc;
+            }
             let cos_i = (-d.dot(sf.ns)).min(1.0);
             let eta = eta_i / eta_t;
             let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
@@ -185,14 +190,11 @@ pub fn scatter(
                 return sc;
             }
             let cos_t = (1.0 - sin2_t).sqrt();
-            let mut reflectance = 0.0;
-            if eta_i != eta_t {
-                let mut r0 = (eta_i - eta_t) / (eta_i + eta_t);
-                r0 *= r0;
-                let c = if eta_i <= eta_t { cos_i } else { cos_t };
-                let k = 1.0 - c;
-                reflectance = r0 + (1.0 - r0) * k * k * k * k * k;
-            }
+            let mut r0 = (eta_i - eta_t) / (eta_i + eta_t);
+            r0 *= r0;
+            let c = if eta_i <= eta_t { cos_i } else { cos_t };
+            let k = 1.0 - c;
+            let reflectance = r0 + (1.0 - r0) * k * k * k * k * k;
             if rng_uniform(key, bounce, DIM_BSDF_LOBE) < reflectance {
                 sc.direction = reflected;
                 sc.weight = m.color.xyz();
@@ -232,7 +234,7 @@ pub fn sample_direct_light(
     bounce: u32,
     rays: &mut u32,
 ) -> Vec3 {
-    let p = offset_ray_origin(surface_p, ng);
+    let p = offset_ray_origin(surface_p, ng, s.params.offset_scale);
     let light = &s.lights[select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT))];
     let r1 = rng_uniform(key, bounce, DIM_LIGHT_U);
     let r2 = rng_uniform(key, bounce, DIM_LIGHT_V);
@@ -403,8 +405,18 @@ pub fn trace_path(
         if opt.next_event_estimation {
             count_emission = sc.specular;
         }
-        o = offset_ray_origin(sf.p, sc.offset_normal);
+        o = offset_ray_origin(sf.p, sc.offset_normal, params.offset_scale);
         d = sc.direction;
+    }
+    let limit = params.sample_clamp;
+    if limit > 0.0 {
+        let peak = (ps.direct + ps.indirect).max_element();
+        if peak > limit {
+            let k = limit / peak;
+            ps.direct *= k;
+            ps.indirect *= k;
+            ps.total *= k;
+        }
     }
     ps
 }

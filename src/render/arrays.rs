@@ -20,6 +20,8 @@ pub struct FrameSettings {
     pub seed: u32,
     pub max_depth: u32,
     pub bvh_quality: BuildQuality,
+    /// Per-sample colour clamp (0: none).
+    pub sample_clamp: f32,
 }
 
 impl FrameSettings {
@@ -30,6 +32,7 @@ impl FrameSettings {
             seed: scene.render.seed,
             max_depth: scene.render.max_depth,
             bvh_quality: BuildQuality::default(),
+            sample_clamp: scene.render.clamp,
         }
     }
 }
@@ -327,6 +330,16 @@ fn scene_params(scene: &Scene, frame: &FrameSettings, a: &SceneArrays) -> Result
         rr_depth: frame.max_depth,
         max_vertices: MAX_PATH_VERTICES,
         seed: frame.seed,
+        sample_clamp: frame.sample_clamp,
+        offset_scale: {
+            let (lo, hi) = scene_bounds(scene);
+            let size = (hi - lo).max_element();
+            if size.is_finite() && size > 0.0 {
+                size
+            } else {
+                1.0
+            }
+        },
         env_uv: Float4::new(1.0, 1.0, 0.0, 0.0),
         ..Default::default()
     };

@@ -51,6 +51,9 @@ pub struct RenderSection {
     /// "indoor" or "outdoor": the RPF sigma^2_8 choice of thesis §5.1.4.
     #[serde(default)]
     pub setting: Option<Spanned<String>>,
+    /// Largest colour component one path sample may carry (0 or absent: no clamp).
+    #[serde(default)]
+    pub clamp: Option<Spanned<f32>>,
 }
 
 impl Default for RenderSection {
@@ -64,6 +67,7 @@ impl Default for RenderSection {
             russian_roulette: true,
             next_event_estimation: true,
             setting: None,
+            clamp: None,
         }
     }
 }

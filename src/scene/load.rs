@@ -268,6 +268,20 @@ impl Resolver<'_> {
             russian_roulette: r.russian_roulette,
             next_event_estimation: r.next_event_estimation,
             setting,
+            clamp: match &r.clamp {
+                None => 0.0,
+                Some(c) => {
+                    let v = *c.get_ref();
+                    if !(v >= 0.0 && v.is_finite()) {
+                        return Err(self.src.at(
+                            c,
+                            "render.clamp",
+                            format!("clamp must be >= 0 (0 = off), got {v}"),
+                        ));
+                    }
+                    v
+                }
+            },
         })
     }
 
@@ -292,10 +306,16 @@ impl Resolver<'_> {
             ));
         }
         if forward.normalize().cross(up).length() < 1e-6 {
-            return Err(self.src.at(
-                &cam.up,
+            // `up` may be the default, which has no place in the text: then point at the camera.
+            let span = if cam.up.span() == (0..0) {
+                c.span()
+            } else {
+                cam.up.span()
+            };
+            return Err(self.src.error(
+                span,
                 "camera.up",
-                "camera up is parallel to the view direction (or zero)",
+                format!("camera up {up} is parallel to the view direction (or zero)"),
             ));
         }
         let fov = *cam.fov.get_ref();
@@ -652,7 +672,14 @@ impl Resolver<'_> {
                         Some(&id) => id,
                         None => {
                             let id = materials.len() as u32;
-                            materials.push(self.material_from_mtl(mtl)?);
+                            // A map_Kd image that cannot be loaded: name the scene line of
+                            // this mesh, the mesh file and the image (in `e`).
+                            let material = self.material_from_mtl(mtl).map_err(|e| {
+                                let at = sec.file.as_ref().map_or(m.span(), |f| f.span());
+                                self.src
+                                    .error(at, "mesh.file", format!("mesh {origin}: {e}"))
+                            })?;
+                            materials.push(material);
                             mtl_cache.insert(mtl.name.clone(), id);
                             id
                         }

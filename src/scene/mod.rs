@@ -64,6 +64,8 @@ pub struct RenderSettings {
     pub russian_roulette: bool,
     pub next_event_estimation: bool,
     pub setting: Setting,
+    /// Per-sample clamp of the colour (0: none).
+    pub clamp: f32,
 }
 
 #[derive(Clone, Debug, PartialEq)]
