@@ -20,6 +20,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     ("pathtrace.cl", include_str!("../kernels/pathtrace.cl")),
     ("probes.cl", include_str!("../kernels/probes.cl")),
     ("ddf.cl", include_str!("../kernels/ddf.cl")),
+    ("atrous.cl", include_str!("../kernels/atrous.cl")),
 ];
 
 pub fn source(name: &str) -> Option<&'static str> {

@@ -3,7 +3,10 @@
 //! RGB image, so new filters (the axis-aligned, sheared and path-density filters of the other
 //! papers) plug in beside the data-driven one.
 
+pub mod atrous;
 pub mod ddf;
+pub mod method;
+pub mod rpf;
 
 use std::time::Duration;
 

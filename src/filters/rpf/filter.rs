@@ -1,0 +1,288 @@
+//! One pixel of one RPF iteration: neighbourhood (Alg. 6), dependencies (Alg. 7), weights
+//! (eqs. 5.8-5.17) and the cross-bilateral filter of every sample (eqs. 5.2, 5.18).
+//!
+//! Readings of §5.1.4:
+//!
+//! * **Which colours.** The mutual information always uses the *original* noisy colours of the
+//!   samples in N ("only the original noisy samples are used to calculate the mutual
+//!   information"); the features never change. The colours that are averaged (c′_j of eq.
+//!   5.18) are the *current* ones, the output of the previous iteration ("the filtered pixel
+//!   samples are stored and will become the new samples for the next iteration"). The colour
+//!   distance of eq. 5.2 (c̄_i − c̄_j) uses the current colours too, standardised over N like
+//!   every other element ([`RangeColors::Current`]); [`RangeColors::Original`] uses the
+//!   standardised original colours instead, as the NVIDIA reference implementation does.
+//! * **Eq. 5.2 / 5.18.** The weight of neighbour j for sample i is
+//!   `exp(−Σ_k α_k (c̄_i,k − c̄_j,k)² / (2σ_c²) − Σ_k β_k (f̄_i,k − f̄_j,k)² / (2σ_f²))` over the
+//!   3 colour channels and the 15 features of Table 5.1, both standardised over N; the spatial
+//!   term is dropped because N was drawn with the spatial Gaussian (§5.1.2). N contains the
+//!   pixel's own samples, sample i included (weight 1), so the denominator of eq. 5.18 is at
+//!   least 1. The average is evaluated as `c′_i + Σ_j w_ij (c′_j − c′_i) / Σ_j w_ij` in f64,
+//!   which is eq. 5.18 rearranged: a constant image comes out bit for bit constant and huge
+//!   colours cannot overflow. Weights are computed in f32; `exp(−d)` for d ≥ 105 is 0 in f32
+//!   and is not evaluated.
+
+use super::mi::MiWorkspace;
+use super::preprocess::{self, OffsetTable, PixelRng, Selection};
+use super::samples::{FLOATS_PER_SAMPLE, SampleSet, to_floats};
+use super::weights::{self, COLORS, Dependencies, FEATURES, POSITIONS, RANDOMS, Weights};
+use super::{RangeColors, RpfSettings};
+
+/// Offsets of the element groups in the 26 floats of a sample vector (Table 5.1).
+const P0: usize = 0;
+const R0: usize = P0 + POSITIONS;
+const F0: usize = R0 + RANDOMS;
+const C0: usize = F0 + FEATURES;
+/// The current colours follow the 26 elements in the scratch rows.
+const CUR0: usize = FLOATS_PER_SAMPLE;
+const ROWS: usize = FLOATS_PER_SAMPLE + COLORS;
+/// Dimensions of the weight of eq. 5.2: 3 colours + 15 features.
+const DIMS: usize = COLORS + FEATURES;
+/// exp(−d) is 0 in f32 from here on.
+const EXP_CUTOFF: f32 = 105.0;
+
+/// Per-iteration constants shared by all pixels.
+pub(super) struct Iteration<'a> {
+    pub set: &'a SampleSet,
+    /// Colours of the previous iteration (the originals in the first), one per sample.
+    pub current: &'a [[f32; 3]],
+    pub settings: &'a RpfSettings,
+    /// 0-based iteration index (t of eqs. 5.9 and 5.14).
+    pub t: u32,
+    pub table: OffsetTable,
+    /// M − spp (Alg. 6 line 4).
+    pub draws: usize,
+    /// σ² of eq. 5.17.
+    pub sigma2: f64,
+}
+
+impl<'a> Iteration<'a> {
+    pub fn new(
+        set: &'a SampleSet,
+        current: &'a [[f32; 3]],
+        settings: &'a RpfSettings,
+        t: u32,
+        box_size: u32,
+    ) -> Self {
+        Iteration {
+            set,
+            current,
+            settings,
+            t,
+            table: OffsetTable::new(box_size),
+            draws: draws(box_size, set.spp, settings.sample_fraction),
+            sigma2: weights::base_variance(settings.sigma2_8, set.spp),
+        }
+    }
+}
+
+/// M − spp: M = ⌊b² · spp · fraction⌋ (§5.1.2) neighbour draws after the pixel's own samples.
+pub(super) fn draws(box_size: u32, spp: u32, fraction: f32) -> usize {
+    let m = (box_size as f64 * box_size as f64 * spp as f64 * fraction as f64).floor() as usize;
+    m.saturating_sub(spp as usize)
+}
+
+/// The largest neighbourhood an iteration can collect: the pixel's samples plus the draws, at
+/// most every sample in the box.
+pub(super) fn max_neighbours(box_size: u32, spp: u32, fraction: f32) -> usize {
+    let side = 2 * (box_size as usize / 2) + 1;
+    (spp as usize + draws(box_size, spp, fraction)).min(side * side * spp as usize)
+}
+
+/// Reusable per-thread buffers (no allocation per pixel once grown).
+pub(super) struct Scratch {
+    visited: Vec<u64>,
+    indices: Vec<u32>,
+    /// `ROWS` rows of `cap` values: the 26 elements, then the current colours.
+    rows: Vec<f32>,
+    cap: usize,
+    current: Vec<[f32; 3]>,
+    /// `DIMS` rows of `cap` scaled, standardised values for the weights.
+    dims: Vec<f32>,
+    dist: Vec<f32>,
+    mi: MiWorkspace,
+}
+
+impl Scratch {
+    pub fn new(buckets: usize) -> Scratch {
+        Scratch {
+            visited: Vec::new(),
+            indices: Vec::new(),
+            rows: Vec::new(),
+            cap: 0,
+            current: Vec::new(),
+            dims: Vec::new(),
+            dist: Vec::new(),
+            mi: MiWorkspace::new(buckets),
+        }
+    }
+
+    fn ensure(&mut self, n: usize) {
+        if n > self.cap {
+            // Grow geometrically; the extra 16 floats keep the rows from starting at addresses
+            // a power of two apart, which would map all of them to the same cache sets.
+            let cap = n.max(self.cap * 3 / 2).next_multiple_of(16) + 16;
+            self.rows.resize(ROWS * cap, 0.0);
+            self.dims.resize(DIMS * cap, 0.0);
+            self.dist.resize(cap, 0.0);
+            self.cap = cap;
+        }
+    }
+}
+
+/// What one pixel's filtering found (for statistics and tests).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PixelInfo {
+    /// |N| including the pixel's own samples.
+    pub neighbours: usize,
+    pub weights: Weights,
+}
+
+/// Alg. 6 and Alg. 7 for pixel (x, y): fills `scratch` with N (standardised) and returns the
+/// weights.
+fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelInfo {
+    let set = it.set;
+    let s = it.settings;
+    let pixel = y as u64 * set.width as u64 + x as u64;
+    let mut rng = PixelRng::new(s.seed, pixel, it.t);
+    let sel = Selection {
+        samples: &set.samples,
+        width: set.width,
+        height: set.height,
+        spp: set.spp,
+        table: &it.table,
+        draws: it.draws,
+        kappa_world: s.world_position_tolerance as f64,
+        kappa_other: s.feature_tolerance as f64,
+        floor: s.tolerance_floor as f64,
+    };
+    preprocess::select(
+        &sel,
+        x,
+        y,
+        &mut rng,
+        &mut scratch.visited,
+        &mut scratch.indices,
+    );
+    let n = scratch.indices.len();
+    scratch.ensure(n);
+    let cap = scratch.cap;
+    // Gather N into rows (structure of arrays).
+    scratch.current.clear();
+    for (j, &index) in scratch.indices.iter().enumerate() {
+        let v = to_floats(&set.samples[index as usize]);
+        for (e, &value) in v.iter().enumerate() {
+            scratch.rows[e * cap + j] = value;
+        }
+        let c = it.current[index as usize];
+        for (k, &value) in c.iter().enumerate() {
+            scratch.rows[(CUR0 + k) * cap + j] = value;
+        }
+        scratch.current.push(c);
+    }
+    // Alg. 6 lines 15-18: standardise every element over N.
+    for r in 0..ROWS {
+        preprocess::standardize(&mut scratch.rows[r * cap..r * cap + n]);
+    }
+    // Alg. 7 on the 26 original elements.
+    let mi = &mut scratch.mi;
+    mi.load(&scratch.rows, FLOATS_PER_SAMPLE, cap, n);
+    let mut d = Dependencies::default();
+    for k in 0..COLORS {
+        for l in 0..RANDOMS {
+            d.color_random[k][l] = mi.mi(C0 + k, R0 + l);
+        }
+        for l in 0..POSITIONS {
+            d.color_position[k][l] = mi.mi(C0 + k, P0 + l);
+        }
+        for f in 0..FEATURES {
+            d.color_feature[k][f] = mi.mi(C0 + k, F0 + f);
+        }
+    }
+    for k in 0..FEATURES {
+        for l in 0..RANDOMS {
+            d.feature_random[k][l] = mi.mi(F0 + k, R0 + l);
+        }
+        for l in 0..POSITIONS {
+            d.feature_position[k][l] = mi.mi(F0 + k, P0 + l);
+        }
+    }
+    PixelInfo {
+        neighbours: n,
+        weights: weights::weights(&d, it.t),
+    }
+}
+
+/// Filters the `spp` samples of pixel (x, y) into `out` (eq. 5.18).
+pub(super) fn filter_pixel(
+    it: &Iteration<'_>,
+    x: u32,
+    y: u32,
+    scratch: &mut Scratch,
+    out: &mut [[f32; 3]],
+) -> PixelInfo {
+    let info = analyze(it, x, y, scratch);
+    let n = info.neighbours;
+    let cap = scratch.cap;
+    let w = &info.weights;
+    // Eqs. 5.15-5.17: 1 / (2σ_c²) = 1 / (2σ_f²).
+    let inv = weights::inverse_two_sigma2(w.w_r_c, it.sigma2);
+    // Fold α, β and 1/(2σ²) into the coordinates: the exponent of eq. 5.2 becomes a squared
+    // distance. Dimensions with a zero factor are left out.
+    let color_row = match it.settings.range_colors {
+        RangeColors::Current => CUR0,
+        RangeColors::Original => C0,
+    };
+    let mut active = 0;
+    let factors = (0..COLORS)
+        .map(|k| (color_row + k, w.alpha[k] as f64))
+        .chain((0..FEATURES).map(|k| (F0 + k, w.beta[k] as f64)));
+    for (row, factor) in factors {
+        let scale = (factor * inv).sqrt() as f32;
+        if !(scale > 0.0 && scale.is_finite()) {
+            continue;
+        }
+        let (src, dst) = (row * cap, active * cap);
+        for j in 0..n {
+            scratch.dims[dst + j] = scale * scratch.rows[src + j];
+        }
+        active += 1;
+    }
+    let spp = it.set.spp as usize;
+    for (i, o) in out.iter_mut().enumerate().take(spp) {
+        let dist = &mut scratch.dist[..n];
+        dist.fill(0.0);
+        for a in 0..active {
+            let row = &scratch.dims[a * cap..a * cap + n];
+            let centre = row[i];
+            for (d, &v) in dist.iter_mut().zip(row) {
+                let t = v - centre;
+                *d += t * t;
+            }
+        }
+        let ci = scratch.current[i];
+        let mut sum_w = 0.0f64;
+        let mut acc = [0.0f64; 3];
+        for (d, cj) in dist.iter().zip(&scratch.current) {
+            if *d >= EXP_CUTOFF {
+                continue;
+            }
+            let wij = (-*d).exp() as f64;
+            sum_w += wij;
+            for k in 0..3 {
+                acc[k] += wij * (cj[k] as f64 - ci[k] as f64);
+            }
+        }
+        // sum_w ≥ 1: sample i is in N with distance 0.
+        *o = std::array::from_fn(|k| {
+            let v = ci[k] as f64 + acc[k] / sum_w;
+            v.clamp(-(f32::MAX as f64), f32::MAX as f64) as f32
+        });
+    }
+    info
+}
+
+/// The neighbourhood size and weights of one pixel (no filtering).
+pub(super) fn analyze_pixel(it: &Iteration<'_>, x: u32, y: u32) -> PixelInfo {
+    let mut scratch = Scratch::new(it.settings.mi_buckets);
+    analyze(it, x, y, &mut scratch)
+}

@@ -1,0 +1,289 @@
+//! Mutual information from histograms (thesis §5.1.3, eq. 5.3, Algorithm 7).
+//!
+//! μ(X; Y) = H(X) + H(Y) − H(X, Y) in bits (Alg. 7: entropies with log₂), with the
+//! probabilities estimated by counting the samples of the neighbourhood N in buckets.
+//!
+//! **Buckets (a reading; Alg. 7 leaves `CalculateBucket` undefined).** Each variable is
+//! quantised on its own into `B` equal-width buckets spanning its range over N:
+//! `bucket = ⌊B · (v − min) / (max − min)⌋`, the maximum going to the last bucket. A variable
+//! whose values over N are all equal (zero range, e.g. the time parameter t, which is always 0)
+//! fills one bucket: its entropy and every mutual information with it are exactly 0. Because
+//! the bucketing only depends on the order and relative spacing of the values, it gives the
+//! same buckets for the normalised samples of Alg. 6 lines 15-18 as for the raw ones, so
+//! scaling the scene changes nothing here. `B` is [`super::RpfSettings::mi_buckets`], default
+//! 5, the value the NVIDIA reference implementation of RPF settled on ("5 should be pretty close
+//! to Sen's implementation, based on the cited Matlab code" of Peng et al.).
+//!
+//! The histogram estimate can come out a rounding error below zero for independent variables;
+//! it is clamped to 0 (mutual information is never negative).
+
+/// Most buckets per variable ([`super::RpfSettings::mi_buckets`] is checked against it).
+pub const MAX_BUCKETS: usize = 16;
+
+/// Bucket of every value of `values` (module docs), written to `codes`; returns the number of
+/// populated buckets.
+pub fn quantize(values: &[f32], buckets: usize, codes: &mut [u8]) -> usize {
+    assert!((1..=MAX_BUCKETS).contains(&buckets));
+    assert_eq!(values.len(), codes.len());
+    let (lo, hi) = min_max(values);
+    let top = (buckets - 1) as f32;
+    let range = hi - lo;
+    let wide = hi as f64 - lo as f64;
+    if wide.is_nan() || wide <= 0.0 || wide.is_infinite() {
+        codes.fill(0);
+        return usize::from(!values.is_empty());
+    }
+    if range.is_finite() {
+        // Single precision is enough for a bucket index and lets the loop vectorise.
+        let scale = buckets as f32 / range;
+        for (c, &v) in codes.iter_mut().zip(values) {
+            *c = ((v - lo) * scale).min(top) as u8;
+        }
+    } else {
+        let scale = buckets as f64 / (hi as f64 - lo as f64);
+        for (c, &v) in codes.iter_mut().zip(values) {
+            *c = ((v as f64 - lo as f64) * scale).min(top as f64) as u8;
+        }
+    }
+    let mut counts = [0u32; MAX_BUCKETS];
+    for &c in codes.iter() {
+        counts[c as usize] += 1;
+    }
+    counts.iter().filter(|&&c| c > 0).count()
+}
+
+/// Smallest and largest value (four independent lanes, so the loop is not one long chain).
+fn min_max(values: &[f32]) -> (f32, f32) {
+    let mut lo = [f32::INFINITY; 4];
+    let mut hi = [f32::NEG_INFINITY; 4];
+    let mut chunks = values.chunks_exact(4);
+    for c in &mut chunks {
+        for k in 0..4 {
+            lo[k] = lo[k].min(c[k]);
+            hi[k] = hi[k].max(c[k]);
+        }
+    }
+    for &v in chunks.remainder() {
+        lo[0] = lo[0].min(v);
+        hi[0] = hi[0].max(v);
+    }
+    (
+        lo[0].min(lo[1]).min(lo[2].min(lo[3])),
+        hi[0].max(hi[1]).max(hi[2].max(hi[3])),
+    )
+}
+
+/// Entropy in bits of a histogram of `total` samples.
+pub fn entropy_of_counts(counts: &[u32], total: u64) -> f64 {
+    if total == 0 {
+        return 0.0;
+    }
+    let n = total as f64;
+    let h: f64 = counts
+        .iter()
+        .filter(|&&c| c > 0)
+        .map(|&c| {
+            let p = c as f64 / n;
+            -p * p.log2()
+        })
+        .sum();
+    h.max(0.0)
+}
+
+/// Entropy in bits of `values` quantised into `buckets` buckets.
+pub fn entropy(values: &[f32], buckets: usize) -> f64 {
+    let mut codes = vec![0u8; values.len()];
+    quantize(values, buckets, &mut codes);
+    let mut counts = [0u32; MAX_BUCKETS];
+    for &c in &codes {
+        counts[c as usize] += 1;
+    }
+    entropy_of_counts(&counts[..buckets], values.len() as u64)
+}
+
+/// μ(X; Y) of eq. 5.3 in bits, Algorithm 7 with the buckets of the module docs. `x` and `y`
+/// are the same samples' values of two variables.
+pub fn mutual_information(x: &[f32], y: &[f32], buckets: usize) -> f64 {
+    assert_eq!(
+        x.len(),
+        y.len(),
+        "mutual information of unequal sample counts"
+    );
+    let n = x.len();
+    let mut cx = vec![0u8; n];
+    let mut cy = vec![0u8; n];
+    quantize(x, buckets, &mut cx);
+    quantize(y, buckets, &mut cy);
+    let mut hx = [0u32; MAX_BUCKETS];
+    let mut hy = [0u32; MAX_BUCKETS];
+    let mut hxy = vec![0u32; buckets * buckets];
+    for (&a, &b) in cx.iter().zip(&cy) {
+        hx[a as usize] += 1;
+        hy[b as usize] += 1;
+        hxy[a as usize * buckets + b as usize] += 1;
+    }
+    let t = n as u64;
+    let mi = entropy_of_counts(&hx[..buckets], t) + entropy_of_counts(&hy[..buckets], t)
+        - entropy_of_counts(&hxy, t);
+    mi.max(0.0)
+}
+
+/// The same estimate for many pairs of one neighbourhood, without allocating: every variable is
+/// quantised once, marginal entropies are computed once, and each pair costs one pass that
+/// counts into four interleaved joint histograms (so consecutive samples in the same bucket do
+/// not wait on each other's increments). Entropies use a table of c·log₂ c:
+/// H = log₂ n − (1/n) Σ c log₂ c. Gives the same values as [`mutual_information`] up to
+/// rounding (the unit tests compare them).
+#[derive(Clone, Debug)]
+pub struct MiWorkspace {
+    buckets: usize,
+    vars: usize,
+    n: usize,
+    /// Bucket codes, variable-major with stride `n`.
+    codes: Vec<u8>,
+    /// Entropy of each variable.
+    entropy: Vec<f64>,
+    /// Whether a variable fills more than one bucket (otherwise every μ with it is 0).
+    varies: Vec<bool>,
+    /// c · log₂ c for c = 0, 1, ...
+    xlogx: Vec<f64>,
+    hist: Vec<u32>,
+}
+
+impl MiWorkspace {
+    pub fn new(buckets: usize) -> MiWorkspace {
+        assert!((2..=MAX_BUCKETS).contains(&buckets));
+        MiWorkspace {
+            buckets,
+            vars: 0,
+            n: 0,
+            codes: Vec::new(),
+            entropy: Vec::new(),
+            varies: Vec::new(),
+            xlogx: vec![0.0],
+            hist: vec![0; 4 * buckets * buckets],
+        }
+    }
+
+    /// Quantises `vars` variables of `n` samples each, `values[v * stride .. v * stride + n]`.
+    pub fn load(&mut self, values: &[f32], vars: usize, stride: usize, n: usize) {
+        assert!(n <= stride && values.len() >= vars * stride);
+        self.vars = vars;
+        self.n = n;
+        self.codes.resize(vars * n, 0);
+        self.entropy.resize(vars, 0.0);
+        self.varies.resize(vars, false);
+        while self.xlogx.len() <= n {
+            let c = self.xlogx.len() as f64;
+            self.xlogx.push(c * c.log2());
+        }
+        let b = self.buckets;
+        for v in 0..vars {
+            let codes = &mut self.codes[v * n..(v + 1) * n];
+            let populated = quantize(&values[v * stride..v * stride + n], b, codes);
+            self.varies[v] = populated > 1;
+            self.entropy[v] = if populated > 1 {
+                let mut counts = [0u32; MAX_BUCKETS];
+                for &c in codes.iter() {
+                    counts[c as usize] += 1;
+                }
+                self.entropy_from(&counts[..b])
+            } else {
+                0.0
+            };
+        }
+    }
+
+    fn entropy_from(&self, counts: &[u32]) -> f64 {
+        if self.n == 0 {
+            return 0.0;
+        }
+        let s: f64 = counts.iter().map(|&c| self.xlogx[c as usize]).sum();
+        let n = self.n as f64;
+        (n.log2() - s / n).max(0.0)
+    }
+
+    /// Entropy in bits of variable `v`.
+    pub fn entropy(&self, v: usize) -> f64 {
+        self.entropy[v]
+    }
+
+    /// μ(variable x; variable y) in bits.
+    pub fn mi(&mut self, x: usize, y: usize) -> f64 {
+        if !self.varies[x] || !self.varies[y] {
+            return 0.0;
+        }
+        let (n, b) = (self.n, self.buckets);
+        let bb = b * b;
+        let hist = &mut self.hist[..4 * bb];
+        hist.fill(0);
+        let cx = &self.codes[x * n..(x + 1) * n];
+        let cy = &self.codes[y * n..(y + 1) * n];
+        let mut ix = cx.chunks_exact(4);
+        let mut iy = cy.chunks_exact(4);
+        for (a, c) in (&mut ix).zip(&mut iy) {
+            hist[a[0] as usize * b + c[0] as usize] += 1;
+            hist[bb + a[1] as usize * b + c[1] as usize] += 1;
+            hist[2 * bb + a[2] as usize * b + c[2] as usize] += 1;
+            hist[3 * bb + a[3] as usize * b + c[3] as usize] += 1;
+        }
+        for (&a, &c) in ix.remainder().iter().zip(iy.remainder()) {
+            hist[a as usize * b + c as usize] += 1;
+        }
+        let mut s = 0.0;
+        for k in 0..bb {
+            let c = hist[k] + hist[bb + k] + hist[2 * bb + k] + hist[3 * bb + k];
+            s += self.xlogx[c as usize];
+        }
+        let nf = n as f64;
+        let joint = (nf.log2() - s / nf).max(0.0);
+        (self.entropy[x] + self.entropy[y] - joint).max(0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg(state: &mut u64) -> f32 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*state >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    #[test]
+    fn workspace_matches_the_plain_estimate() {
+        let mut st = 7u64;
+        let n = 1001;
+        let mut values = vec![0.0f32; 3 * 1024];
+        for j in 0..n {
+            let a = lcg(&mut st);
+            values[j] = a;
+            values[1024 + j] = a * a + 0.1 * lcg(&mut st);
+            values[2048 + j] = 3.0; // constant
+        }
+        let mut ws = MiWorkspace::new(5);
+        ws.load(&values, 3, 1024, n);
+        let x = &values[..n];
+        let y = &values[1024..1024 + n];
+        let z = &values[2048..2048 + n];
+        assert!((ws.mi(0, 1) - mutual_information(x, y, 5)).abs() < 1e-9);
+        assert!((ws.mi(1, 0) - mutual_information(y, x, 5)).abs() < 1e-9);
+        assert!((ws.entropy(0) - entropy(x, 5)).abs() < 1e-9);
+        assert_eq!(ws.mi(0, 2), 0.0);
+        assert_eq!(mutual_information(x, z, 5), 0.0);
+        assert!((ws.mi(0, 0) - ws.entropy(0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn quantize_spans_the_range() {
+        let v = [0.0, 0.19, 0.2, 0.5, 0.99, 1.0];
+        let mut c = [9u8; 6];
+        assert_eq!(quantize(&v, 5, &mut c), 4);
+        assert_eq!(c, [0, 0, 1, 2, 4, 4]);
+        let mut c = [9u8; 3];
+        assert_eq!(quantize(&[2.0; 3], 5, &mut c), 1);
+        assert_eq!(c, [0; 3]);
+    }
+}

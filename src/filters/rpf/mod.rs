@@ -1,0 +1,398 @@
+//! Random Parameter Filtering (Sen & Darabi 2012) as thesis ch. 5 describes it: per-sample
+//! vectors of screen position, random parameters, scene features and colour (§5.1.1,
+//! Table 5.1; [`samples`]), a random neighbourhood per pixel (§5.1.2, Alg. 6;
+//! [`preprocess`]), mutual information between the elements (§5.1.3, Alg. 7, eqs. 5.3-5.14;
+//! [`mi`], [`weights`]) and a cross-bilateral filter of every sample (§5.1.4, eqs. 5.2,
+//! 5.15-5.18; `filter.rs`), over the box sizes 55, 35, 17, 7, each iteration filtering the
+//! output of the one before, and a box filter of each pixel's samples at the end.
+//!
+//! Every reading of a garbled or ambiguous formula is written where it is implemented:
+//! Alg. 6 (line 8's acceptance test, the draws, the normalisation) in [`preprocess`], the
+//! buckets of Alg. 7 in [`mi`], eqs. 5.4-5.17 in [`weights`], eqs. 5.2 and 5.18 and which
+//! colours they use in `filter.rs`.
+//!
+//! # Host, not OpenCL
+//!
+//! RPF runs on the host in Rust, in parallel over image rows with rayon. §5.2.3 gives the
+//! reasons it does not suit the device, and they hold for us: the neighbourhood N of every
+//! pixel is a random, data-dependent subset of up to 12,100 samples (b = 55 at 8 spp) whose
+//! size is only known after the acceptance test, so per-work-item memory is unbounded and
+//! unpredictable; the samples are gathered from random places (no coalescing); and every
+//! pixel builds ~190 joint histograms, which wants private scratch that a GPU work-item does
+//! not have. RPF is not meant to be interactive (thesis: 4,000-5,700 s per 512 × 512 frame on
+//! one core, Table 5.3), so a multi-threaded host implementation that is simple to check is the
+//! better trade. The renderer only has to copy the sample vectors back.
+//!
+//! # Determinism
+//!
+//! The random numbers of a pixel are a counter-based hash of (seed, pixel, iteration)
+//! ([`preprocess::PixelRng`]); nothing depends on thread ids or on the order pixels are done
+//! in, and each pixel's sums run in a fixed order. The same seed gives the same bytes with any
+//! number of threads (tests/rpf.rs).
+//!
+//! # Memory
+//!
+//! The sample vectors need 26 · 4 · spp · W · H bytes ([`samples::memory_bytes`];
+//! [`samples::check_memory`] says before allocating whether they fit and how many spp or rows
+//! would). The filter adds two colours per sample (24 bytes) and, per thread, scratch for the
+//! largest neighbourhood (≈ 29 · 4 · 2 · M bytes); allocations that fail are errors, not
+//! aborts.
+
+pub mod mi;
+pub mod preprocess;
+pub mod samples;
+pub mod weights;
+
+mod filter;
+
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result, bail};
+use rayon::prelude::*;
+
+use crate::output::RgbImage;
+pub use filter::PixelInfo;
+pub use samples::{SampleSet, check_memory, memory_bytes};
+pub use weights::Weights;
+
+/// σ²_8 of eq. 5.17 for indoor scenes ("noisy").
+pub const SIGMA2_8_INDOOR: f32 = 0.02;
+/// σ²_8 of eq. 5.17 for outdoor scenes ("less noise").
+pub const SIGMA2_8_OUTDOOR: f32 = 0.002;
+/// The box sizes of the four iterations (§5.1.2).
+pub const BOX_SIZES: [u32; 4] = [55, 35, 17, 7];
+
+/// Indoor or outdoor: picks σ²_8 (eq. 5.17).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneKind {
+    Indoor,
+    Outdoor,
+}
+
+impl SceneKind {
+    pub fn sigma2_8(self) -> f32 {
+        match self {
+            SceneKind::Indoor => SIGMA2_8_INDOOR,
+            SceneKind::Outdoor => SIGMA2_8_OUTDOOR,
+        }
+    }
+}
+
+/// Which colours the range term of eq. 5.2 compares (see `filter.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RangeColors {
+    /// The colours of the previous iteration (the default reading).
+    Current,
+    /// The original noisy colours in every iteration (the NVIDIA reference implementation).
+    Original,
+}
+
+/// Parameters of RPF; [`Default`] is the thesis's setting for an indoor scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RpfSettings {
+    /// σ²_8 of eq. 5.17 (a variance): 0.02 indoors, 0.002 outdoors ([`SceneKind`]).
+    pub sigma2_8: f32,
+    /// Seed of the neighbourhood sampling.
+    pub seed: u32,
+    /// Box size b of each iteration, largest first (§5.1.2: 55, 35, 17, 7). The box covers the
+    /// offsets −⌊b/2⌋..=⌊b/2⌋ (an even b is widened by one); σ_p = b/4.
+    pub box_sizes: Vec<u32>,
+    /// Histogram buckets per variable for the mutual information (Alg. 7; 2 to 16). Default 5,
+    /// as in the NVIDIA reference implementation ([`mi`]).
+    pub mi_buckets: usize,
+    /// M = ⌊b² · spp · sample_fraction⌋ samples considered per pixel (§5.1.2: ½).
+    pub sample_fraction: f32,
+    /// Standard deviations a world position may lie from the pixel's mean (Alg. 6 line 8: 30).
+    pub world_position_tolerance: f32,
+    /// Standard deviations a normal or texture value may lie from the mean (Alg. 6 line 8: 3).
+    pub feature_tolerance: f32,
+    /// Floor under the tolerance, in feature units (Alg. 6 line 8: 0.1; see [`preprocess`]).
+    pub tolerance_floor: f32,
+    /// Colours of the range term of eq. 5.2.
+    pub range_colors: RangeColors,
+}
+
+impl Default for RpfSettings {
+    fn default() -> Self {
+        RpfSettings {
+            sigma2_8: SIGMA2_8_INDOOR,
+            seed: 0,
+            box_sizes: BOX_SIZES.to_vec(),
+            mi_buckets: 5,
+            sample_fraction: 0.5,
+            world_position_tolerance: 30.0,
+            feature_tolerance: 3.0,
+            tolerance_floor: 0.1,
+            range_colors: RangeColors::Current,
+        }
+    }
+}
+
+impl RpfSettings {
+    /// The defaults with σ²_8 for `kind`.
+    pub fn for_scene(kind: SceneKind) -> Self {
+        RpfSettings {
+            sigma2_8: kind.sigma2_8(),
+            ..Default::default()
+        }
+    }
+
+    /// Checks every parameter; errors say which and why.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.sigma2_8 > 0.0 && self.sigma2_8.is_finite()) {
+            bail!(
+                "RPF sigma2_8 must be a positive variance (0.02 indoors, 0.002 outdoors), got {}",
+                self.sigma2_8
+            );
+        }
+        if self.box_sizes.is_empty() {
+            bail!("RPF needs at least one iteration (box sizes 55, 35, 17, 7)");
+        }
+        if let Some(b) = self.box_sizes.iter().find(|&&b| b == 0 || b > 1023) {
+            bail!("RPF box size {b} is out of range (1 to 1023 pixels)");
+        }
+        if !(2..=mi::MAX_BUCKETS).contains(&self.mi_buckets) {
+            bail!(
+                "RPF mi_buckets must be 2 to {}, got {}",
+                mi::MAX_BUCKETS,
+                self.mi_buckets
+            );
+        }
+        if !(self.sample_fraction > 0.0 && self.sample_fraction <= 4.0) {
+            bail!(
+                "RPF sample_fraction must be in (0, 4], got {}",
+                self.sample_fraction
+            );
+        }
+        for (name, v) in [
+            ("world_position_tolerance", self.world_position_tolerance),
+            ("feature_tolerance", self.feature_tolerance),
+        ] {
+            if !(v >= 1.0 && v.is_finite()) {
+                bail!("RPF {name} must be at least 1 standard deviation, got {v}");
+            }
+        }
+        if !(self.tolerance_floor >= 0.0 && self.tolerance_floor.is_finite()) {
+            bail!(
+                "RPF tolerance_floor must be finite and not negative, got {}",
+                self.tolerance_floor
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Where a running filter is (for progress bars).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    /// 0-based iteration.
+    pub iteration: usize,
+    pub iterations: usize,
+    pub box_size: u32,
+    /// Rows of this iteration done.
+    pub rows_done: u32,
+    pub rows: u32,
+}
+
+impl Progress {
+    /// Fraction of the whole filter done, weighting iterations by b² (their cost).
+    pub fn fraction(&self, box_sizes: &[u32]) -> f64 {
+        let cost = |b: &u32| (*b as f64).powi(2);
+        let total: f64 = box_sizes.iter().map(cost).sum();
+        let before: f64 = box_sizes[..self.iteration.min(box_sizes.len())]
+            .iter()
+            .map(cost)
+            .sum();
+        let this = cost(&self.box_size) * self.rows_done as f64 / self.rows.max(1) as f64;
+        ((before + this) / total.max(1.0)).min(1.0)
+    }
+}
+
+/// A progress callback that drives an indicatif bar of length 1000.
+pub fn progress_bar_callback(
+    bar: &indicatif::ProgressBar,
+    box_sizes: &[u32],
+) -> impl Fn(Progress) + Sync {
+    let bar = bar.clone();
+    let sizes = box_sizes.to_vec();
+    move |p: Progress| {
+        bar.set_position((p.fraction(&sizes) * 1000.0) as u64);
+        bar.set_message(format!(
+            "RPF iteration {}/{} (box {})",
+            p.iteration + 1,
+            p.iterations,
+            p.box_size
+        ));
+    }
+}
+
+/// Statistics of one iteration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IterationStats {
+    pub box_size: u32,
+    pub time: Duration,
+    /// Mean |N| over the pixels (own samples included).
+    pub mean_neighbours: f64,
+}
+
+/// The filtered image and how each iteration went.
+#[derive(Clone, Debug)]
+pub struct RpfOutput {
+    pub image: RgbImage,
+    pub iterations: Vec<IterationStats>,
+}
+
+/// Filters `set` with RPF and returns the box-filtered image.
+pub fn filter(set: &SampleSet, settings: &RpfSettings) -> Result<RgbImage> {
+    Ok(filter_with_progress(set, settings, &|_| {})?.image)
+}
+
+/// [`filter`] that reports progress after every image row (from worker threads) and returns
+/// per-iteration statistics.
+pub fn filter_with_progress(
+    set: &SampleSet,
+    settings: &RpfSettings,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<RpfOutput> {
+    settings.validate()?;
+    set.validate().context("RPF input")?;
+    let need = working_memory_bytes(set.width, set.height, set.spp, settings);
+    if let Some(available) = samples::available_memory_bytes()
+        && need > available
+    {
+        bail!(
+            "RPF on {}x{} at {} spp needs {} of working memory besides the samples, but only {} \
+             is available",
+            set.width,
+            set.height,
+            set.spp,
+            samples::human_bytes(need),
+            samples::human_bytes(available)
+        );
+    }
+    let (w, h, spp) = (set.width as usize, set.height as usize, set.spp as usize);
+    let count = set.samples.len();
+    let mut current = try_vec(count, "the RPF sample colours")?;
+    current.extend(set.samples.iter().map(|s| s.color));
+    let mut next = try_vec(count, "the RPF filtered colours")?;
+    next.resize(count, [0.0f32; 3]);
+    let iterations = settings.box_sizes.len();
+    let mut stats = Vec::with_capacity(iterations);
+    for (t, &b) in settings.box_sizes.iter().enumerate() {
+        let start = Instant::now();
+        let it = filter::Iteration::new(set, &current, settings, t as u32, b);
+        let rows_done = AtomicU32::new(0);
+        let neighbours = AtomicU64::new(0);
+        next.par_chunks_mut(w * spp).enumerate().for_each_init(
+            || filter::Scratch::new(settings.mi_buckets),
+            |scratch, (y, row)| {
+                let mut sum = 0u64;
+                for x in 0..w {
+                    let out = &mut row[x * spp..(x + 1) * spp];
+                    let info = filter::filter_pixel(&it, x as u32, y as u32, scratch, out);
+                    sum += info.neighbours as u64;
+                }
+                neighbours.fetch_add(sum, Ordering::Relaxed);
+                let done = rows_done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress(Progress {
+                    iteration: t,
+                    iterations,
+                    box_size: b,
+                    rows_done: done,
+                    rows: h as u32,
+                });
+            },
+        );
+        std::mem::swap(&mut current, &mut next);
+        stats.push(IterationStats {
+            box_size: b,
+            time: start.elapsed(),
+            mean_neighbours: neighbours.into_inner() as f64 / (w * h) as f64,
+        });
+    }
+    // The box filter of §5.1.4: the mean of each pixel's filtered samples, as c_0 + mean of
+    // the differences (exact for constant pixels).
+    let pixels = current
+        .par_chunks(spp)
+        .map(|c| {
+            let mut acc = [0.0f64; 3];
+            for s in c {
+                for k in 0..3 {
+                    acc[k] += s[k] as f64 - c[0][k] as f64;
+                }
+            }
+            std::array::from_fn(|k| {
+                let v = c[0][k] as f64 + acc[k] / spp as f64;
+                v.clamp(-(f32::MAX as f64), f32::MAX as f64) as f32
+            })
+        })
+        .collect();
+    Ok(RpfOutput {
+        image: RgbImage {
+            width: set.width,
+            height: set.height,
+            pixels,
+        },
+        iterations: stats,
+    })
+}
+
+/// The neighbourhood size and the weights α, β (eqs. 5.8-5.15) RPF computes for pixel (x, y)
+/// in iteration `iteration` (0-based, with that iteration's box size), from the original
+/// colours. For inspection and tests (it copies the colours of the whole set on every call);
+/// the filter itself does not call it.
+pub fn analyze_pixel(
+    set: &SampleSet,
+    settings: &RpfSettings,
+    iteration: usize,
+    x: u32,
+    y: u32,
+) -> Result<PixelInfo> {
+    settings.validate()?;
+    set.validate()?;
+    let Some(&b) = settings.box_sizes.get(iteration) else {
+        bail!(
+            "iteration {iteration} does not exist ({} box sizes)",
+            settings.box_sizes.len()
+        );
+    };
+    if x >= set.width || y >= set.height {
+        bail!(
+            "pixel ({x}, {y}) is outside the {}x{} image",
+            set.width,
+            set.height
+        );
+    }
+    let current: Vec<[f32; 3]> = set.samples.iter().map(|s| s.color).collect();
+    let it = filter::Iteration::new(set, &current, settings, iteration as u32, b);
+    Ok(filter::analyze_pixel(&it, x, y))
+}
+
+/// Bytes RPF allocates besides the sample vectors: two colours per sample plus per-thread
+/// scratch for the largest neighbourhood.
+pub fn working_memory_bytes(width: u32, height: u32, spp: u32, settings: &RpfSettings) -> u64 {
+    let samples = width as u64 * height as u64 * spp as u64;
+    let n = settings
+        .box_sizes
+        .iter()
+        .map(|&b| filter::max_neighbours(b, spp, settings.sample_fraction))
+        .max()
+        .unwrap_or(0) as u64;
+    // Scratch rows grow by half again (filter.rs): rows of 29 + 18 + 1 floats, 26 bucket
+    // codes, a current colour and an index per neighbour.
+    let n = n + n / 2 + 32;
+    let per_thread = n * (4 * (26 + 3 + 18 + 1) + 26 + 12 + 4);
+    samples * 24 + per_thread * rayon::current_num_threads() as u64
+}
+
+fn try_vec(n: usize, what: &str) -> Result<Vec<[f32; 3]>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| {
+        anyhow::anyhow!(
+            "cannot allocate {} for {what}",
+            samples::human_bytes(n as u64 * 12)
+        )
+    })?;
+    Ok(v)
+}

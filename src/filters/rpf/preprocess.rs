@@ -1,0 +1,409 @@
+//! Pre-processing (thesis §5.1.2, Algorithm 6): the neighbourhood N of a pixel and its
+//! normalisation.
+//!
+//! Readings of Algorithm 6:
+//!
+//! * **Line 2, 4-5: which samples are drawn.** N starts with the pixel's own `spp` samples
+//!   (in their order, so entry `i < spp` of N is sample `i` of the pixel). Then `M − spp`
+//!   draws, `M = ⌊b² · spp · f⌋` with `f` = [`super::RpfSettings::sample_fraction`] (½ in the
+//!   thesis: "kernel-width² · (8spp/2)", 12,100 for b = 55 at 8 spp). A draw picks a pixel
+//!   offset (dx, dy) from a Gaussian of σ_p = b/4 rounded to whole pixels, *conditioned* on
+//!   lying inside the b × b box (|dx|, |dy| ≤ ⌊b/2⌋), inside the image and outside P ("from
+//!   sample inside neighborhood but outside P"): such offsets are redrawn, not counted as a
+//!   draw. Each axis is drawn from the Gaussian's mass on each whole-pixel cell of the box
+//!   (an alias table). Then one of the pixel's `spp` samples is picked
+//!   uniformly (§5.1.2: "Then we randomly sample one out of x samples in the pixel").
+//! * **Duplicates.** "If a sample gets sampled more than once, we ignore it and continue to
+//!   the next sample": a repeated sample uses up its draw and is not added again. N is thus a
+//!   set; the acceptance test is a function of the sample alone, so we make all draws first
+//!   and then test each drawn sample once, in memory order (same N, cache-friendly reads).
+//! * **Line 8, the garbled acceptance test.** Printed as
+//!   `|f_j,k − m_p,k| > 3|30 σ_p,k and |f_j,k − m_p,k| > 0.1 or σ_p,k > 0.1`. We read `3|30`
+//!   as "3, or 30 for world positions" (§5.1.2: both the first and the second bounce's world
+//!   position get 30; normals and texture get 3), and the `and ... or` as
+//!   `d > κσ ∧ (d > 0.1 ∨ σ > 0.1)` with `d = |f_j,k − m_p,k|`: the sample is rejected when
+//!   any feature is farther than κ standard deviations from the pixel's mean *and* either that
+//!   distance or the standard deviation exceeds 0.1. (Reading it as `(… ∧ …) ∨ σ > 0.1` would
+//!   reject every neighbour of any pixel with one noisy feature, which cannot be meant.) Since
+//!   κ ≥ 1, this is the same as `d > max(κσ, 0.1)`: the 0.1 is a floor under the tolerance, so
+//!   a feature that is constant inside the pixel (σ = 0, e.g. the normal of a flat wall) still
+//!   accepts neighbours within 0.1 of it. The 0.1 is in scene units, the only place where the
+//!   scale of the scene enters RPF (§5.2, Table 5.4).
+//! * **Which statistics.** The pixel's mean and standard deviation (line 3) are over its `spp`
+//!   samples of the original features, with the population standard deviation (divide by n),
+//!   computed in f64.
+//! * **Lines 15-18: normalisation.** The printed indentation puts it inside the loop; it is
+//!   done once, after N is complete (the text: "After we are done looping over M − x samples,
+//!   each sample in N is normalized"). Every element is standardised over N:
+//!   `(x − μ_N) / σ_N` (population σ, f64); an element that is the same for every sample of N
+//!   (σ_N = 0) becomes 0 for all of them instead of 0/0.
+
+use crate::layout::SampleVector;
+
+/// Number of scene features (Table 5.1): world1, normal1, world2, normal2, texture1.
+pub const FEATURES: usize = 15;
+
+/// The 15 scene features of a sample, in the order world1, normal1, world2, normal2, texture1.
+#[inline]
+pub fn features(s: &SampleVector) -> [f32; FEATURES] {
+    let mut f = [0.0; FEATURES];
+    f[0..3].copy_from_slice(&s.world1);
+    f[3..6].copy_from_slice(&s.normal1);
+    f[6..9].copy_from_slice(&s.world2);
+    f[9..12].copy_from_slice(&s.normal2);
+    f[12..15].copy_from_slice(&s.texture1);
+    f
+}
+
+/// Whether feature `k` (order of [`features`]) is a world position (tolerance 30σ, not 3σ).
+#[inline]
+pub fn is_world_position(k: usize) -> bool {
+    k < 3 || (6..9).contains(&k)
+}
+
+/// Counter-based random numbers for one pixel in one iteration: a SplitMix64 stream whose
+/// start is a hash of (seed, pixel, iteration). No state is shared between pixels, so the
+/// neighbourhoods do not depend on the number of threads or the order pixels are filtered in.
+#[derive(Clone, Debug)]
+pub struct PixelRng(u64);
+
+#[inline]
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+impl PixelRng {
+    pub fn new(seed: u32, pixel: u64, iteration: u32) -> PixelRng {
+        let a = mix64(seed as u64 ^ 0x5250_465f_7365_6564); // "RPF_seed"
+        let b = mix64(a ^ pixel.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        PixelRng(mix64(b ^ ((iteration as u64) << 32 | 0x6974)))
+    }
+
+    #[inline]
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        mix64(self.0)
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    #[inline]
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Uniform integer in [0, n), n ≥ 1 (multiply-shift, bias below 2⁻³²).
+    #[inline]
+    pub fn below(&mut self, n: u32) -> u32 {
+        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
+    }
+}
+
+/// The distribution of one axis of a pixel offset: a Gaussian of σ_p = b/4 rounded to whole
+/// pixels, over the box's offsets −h..=h (h = ⌊b/2⌋). Each cell's mass is integrated with
+/// Simpson's rule; offsets are drawn in constant time from Walker's alias table.
+#[derive(Clone, Debug)]
+pub struct OffsetTable {
+    pub half: i32,
+    pub sigma: f64,
+    /// Normalised mass of offset k − half.
+    mass: Vec<f64>,
+    /// Alias table: column k keeps itself when the 32-bit uniform is below `keep[k]`, else
+    /// gives `alias[k]`.
+    keep: Vec<u64>,
+    alias: Vec<u32>,
+}
+
+impl OffsetTable {
+    pub fn new(box_size: u32) -> OffsetTable {
+        let half = (box_size / 2) as i32;
+        let sigma = box_size as f64 / 4.0;
+        let g = |t: f64| (-t * t / (2.0 * sigma * sigma)).exp();
+        let mut mass: Vec<f64> = (-half..=half)
+            .map(|d| {
+                const STEPS: usize = 32;
+                let (a, h) = (d as f64 - 0.5, 1.0 / STEPS as f64);
+                let mut s = g(a) + g(a + 1.0);
+                for i in 1..STEPS {
+                    s += g(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+                }
+                s * h / 3.0
+            })
+            .collect();
+        let total: f64 = mass.iter().sum();
+        mass.iter_mut().for_each(|m| *m /= total);
+        // Vose's construction, deterministic.
+        let n = mass.len();
+        let mut scaled: Vec<f64> = mass.iter().map(|m| m * n as f64).collect();
+        let mut keep = vec![1u64 << 32; n];
+        let mut alias: Vec<u32> = (0..n as u32).collect();
+        let (mut small, mut large): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&k| scaled[k] < 1.0);
+        while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
+            small.pop();
+            keep[s] = (scaled[s] * (1u64 << 32) as f64) as u64;
+            alias[s] = l as u32;
+            scaled[l] -= 1.0 - scaled[s];
+            if scaled[l] < 1.0 {
+                large.pop();
+                small.push(l);
+            }
+        }
+        OffsetTable {
+            half,
+            sigma,
+            mass,
+            keep,
+            alias,
+        }
+    }
+
+    /// Mass of offset `d` (normalised over the box).
+    pub fn mass(&self, d: i32) -> f64 {
+        self.mass[(d + self.half) as usize]
+    }
+
+    /// An offset in −half..=half from 64 random bits.
+    #[inline]
+    pub fn sample(&self, bits: u64) -> i32 {
+        let n = self.keep.len() as u64;
+        let column = ((bits >> 32) * n) >> 32;
+        let k = if (bits & 0xffff_ffff) < self.keep[column as usize] {
+            column as u32
+        } else {
+            self.alias[column as usize]
+        };
+        k as i32 - self.half
+    }
+}
+
+/// The acceptance test of Alg. 6 line 8 for one pixel: per feature, the pixel's mean and the
+/// tolerance max(κσ, floor) (see the module docs for the reading).
+#[derive(Clone, Debug)]
+pub struct FeatureGate {
+    pub mean: [f64; FEATURES],
+    pub sigma: [f64; FEATURES],
+    pub kappa: [f64; FEATURES],
+    pub floor: f64,
+}
+
+impl FeatureGate {
+    /// Mean and population standard deviation of the features of `pixel`'s samples.
+    pub fn new(pixel: &[SampleVector], kappa_world: f64, kappa_other: f64, floor: f64) -> Self {
+        let n = pixel.len().max(1) as f64;
+        let mut mean = [0.0f64; FEATURES];
+        for s in pixel {
+            for (m, f) in mean.iter_mut().zip(features(s)) {
+                *m += f as f64;
+            }
+        }
+        mean.iter_mut().for_each(|m| *m /= n);
+        let mut var = [0.0f64; FEATURES];
+        for s in pixel {
+            for (k, f) in features(s).into_iter().enumerate() {
+                let d = f as f64 - mean[k];
+                var[k] += d * d;
+            }
+        }
+        let sigma = var.map(|v| (v / n).sqrt());
+        let kappa = std::array::from_fn(|k| {
+            if is_world_position(k) {
+                kappa_world
+            } else {
+                kappa_other
+            }
+        });
+        FeatureGate {
+            mean,
+            sigma,
+            kappa,
+            floor,
+        }
+    }
+
+    /// Alg. 6 lines 6-11: false ("flag ← 0") when some feature k has
+    /// `d > κσ ∧ (d > floor ∨ σ > floor)`.
+    #[inline]
+    pub fn accepts(&self, s: &SampleVector) -> bool {
+        for (k, f) in features(s).into_iter().enumerate() {
+            let d = (f as f64 - self.mean[k]).abs();
+            let sigma = self.sigma[k];
+            if d > self.kappa[k] * sigma && (d > self.floor || sigma > self.floor) {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+/// What [`select`] needs besides the pixel.
+pub struct Selection<'a> {
+    pub samples: &'a [SampleVector],
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub table: &'a OffsetTable,
+    /// Draws after the pixel's own samples: M − spp.
+    pub draws: usize,
+    pub kappa_world: f64,
+    pub kappa_other: f64,
+    pub floor: f64,
+}
+
+/// Alg. 6 lines 1-14: fills `out` with the sample indices of N: the pixel's own samples first,
+/// then the accepted neighbours in memory order.
+/// `visited` is scratch for the duplicate test (resized and cleared here).
+pub fn select(
+    sel: &Selection<'_>,
+    x: u32,
+    y: u32,
+    rng: &mut PixelRng,
+    visited: &mut Vec<u64>,
+    out: &mut Vec<u32>,
+) {
+    let spp = sel.spp as usize;
+    let pixel = y as usize * sel.width as usize + x as usize;
+    let first = pixel * spp;
+    out.clear();
+    out.extend((first..first + spp).map(|i| i as u32));
+    let half = sel.table.half;
+    let (xlo, xhi) = (
+        (-half).max(-(x as i32)),
+        half.min(sel.width as i32 - 1 - x as i32),
+    );
+    let (ylo, yhi) = (
+        (-half).max(-(y as i32)),
+        half.min(sel.height as i32 - 1 - y as i32),
+    );
+    if (xlo == 0 && xhi == 0 && ylo == 0 && yhi == 0) || sel.draws == 0 {
+        return; // no pixel in the box but P itself
+    }
+    let gate = FeatureGate::new(
+        &sel.samples[first..first + spp],
+        sel.kappa_world,
+        sel.kappa_other,
+        sel.floor,
+    );
+    let side = 2 * half as usize + 1;
+    let words = (side * side * spp).div_ceil(64);
+    visited.clear();
+    visited.resize(words, 0);
+    // Draw first, marking each drawn sample in `visited` (a repeat sets a bit that is already
+    // set: "we ignore it"); then test every drawn sample once, in memory order, which gives
+    // the same set N as testing them in the order drawn but reads the samples row by row.
+    for _ in 0..sel.draws {
+        // Offsets outside the image and (0, 0) are drawn again (conditioning the Gaussian on
+        // the box minus P inside the image). The box minus P holds a pixel of the image here,
+        // and every offset of the box has a positive mass, so this ends.
+        let (dx, dy) = loop {
+            let dx = sel.table.sample(rng.next_u64());
+            let dy = sel.table.sample(rng.next_u64());
+            if (xlo..=xhi).contains(&dx) && (ylo..=yhi).contains(&dy) && (dx != 0 || dy != 0) {
+                break (dx, dy);
+            }
+        };
+        let s = rng.below(sel.spp) as usize;
+        let key = ((dy + half) as usize * side + (dx + half) as usize) * spp + s;
+        visited[key / 64] |= 1u64 << (key % 64);
+    }
+    for (word, &bits) in visited.iter().enumerate() {
+        let mut bits = bits;
+        while bits != 0 {
+            let key = word * 64 + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (cell, s) = (key / spp, key % spp);
+            let dy = (cell / side) as i32 - half;
+            let dx = (cell % side) as i32 - half;
+            let q = (y as i32 + dy) as usize * sel.width as usize + (x as i32 + dx) as usize;
+            let index = q * spp + s;
+            if gate.accepts(&sel.samples[index]) {
+                out.push(index as u32);
+            }
+        }
+    }
+}
+
+/// Sum in f64 over four fixed lanes (a fixed order, so deterministic, but not one long chain).
+fn sum_f64(values: &[f32], f: impl Fn(f64) -> f64) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let mut chunks = values.chunks_exact(4);
+    for c in &mut chunks {
+        for k in 0..4 {
+            acc[k] += f(c[k] as f64);
+        }
+    }
+    for &v in chunks.remainder() {
+        acc[0] += f(v as f64);
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
+}
+
+/// Standardises `values` in place over its samples (Alg. 6 lines 15-18): `(x − μ) / σ` with the
+/// population σ, computed in f64; every value becomes 0 when σ = 0. Returns (μ, σ).
+pub fn standardize(values: &mut [f32]) -> (f64, f64) {
+    let n = values.len();
+    if n == 0 {
+        return (0.0, 0.0);
+    }
+    let mean = sum_f64(values, |v| v) / n as f64;
+    let var = sum_f64(values, |v| (v - mean) * (v - mean)) / n as f64;
+    let sigma = var.sqrt();
+    if sigma > 0.0 && sigma.is_finite() {
+        let inv = 1.0 / sigma;
+        for v in values.iter_mut() {
+            *v = ((*v as f64 - mean) * inv) as f32;
+        }
+    } else {
+        values.fill(0.0);
+    }
+    (mean, sigma)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offset_table_is_a_rounded_gaussian() {
+        let t = OffsetTable::new(55);
+        assert_eq!(t.half, 27);
+        // Centre cell over the box's mass: erf(0.5 / (13.75 √2)) / erf(27.5 / (13.75 √2)).
+        let expected = 0.029008 / 0.954500;
+        assert!((t.mass(0) - expected).abs() < 1e-5, "{}", t.mass(0));
+        assert!((t.mass(-5) - t.mass(5)).abs() < 1e-12);
+        assert!(((-27..=27).map(|d| t.mass(d)).sum::<f64>() - 1.0).abs() < 1e-12);
+        // The alias table reproduces the masses: sweep the 64-bit inputs evenly.
+        for b in [1, 3, 7, 17, 55] {
+            let t = OffsetTable::new(b);
+            let h = t.half;
+            let mut counts = vec![0u64; 2 * h as usize + 1];
+            let steps = 1u64 << 20;
+            let mut rng = PixelRng::new(1, 2, 3);
+            for _ in 0..steps {
+                let d = t.sample(rng.next_u64());
+                assert!((-h..=h).contains(&d));
+                counts[(d + h) as usize] += 1;
+            }
+            for d in -h..=h {
+                let p = counts[(d + h) as usize] as f64 / steps as f64;
+                let sd = (t.mass(d) / steps as f64).sqrt();
+                assert!(
+                    (p - t.mass(d)).abs() < 6.0 * sd + 1e-9,
+                    "b {b} d {d}: {p} vs {}",
+                    t.mass(d)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn standardize_constant_is_zero() {
+        let mut v = [5.0f32; 7];
+        assert_eq!(standardize(&mut v), (5.0, 0.0));
+        assert_eq!(v, [0.0; 7]);
+        let mut v = [1.0f32, 3.0];
+        standardize(&mut v);
+        assert_eq!(v, [-1.0, 1.0]);
+    }
+}

@@ -1,0 +1,748 @@
+//! The edge-avoiding à-trous filter (Dammertz et al. 2010): the OpenCL passes against the plain
+//! Rust reference, and the behaviour the equations promise (constant images, sky, edges, the
+//! limits of the sigmas, no NaN, tiny images), the error on the bundled Cornell diffuse scene
+//! and its independence of the scene's scale.
+
+mod common;
+
+use std::sync::OnceLock;
+
+use common::*;
+use glam::Vec3;
+use noisefree::filters::UploadedBuffers;
+use noisefree::filters::atrous::{
+    AtrousCamera, AtrousFilter, AtrousSettings, B3, pixel_direction, reference,
+};
+use noisefree::layout::{FilterVector, SKY_DEPTH};
+use noisefree::metrics::mse_luv;
+use noisefree::output::RgbImage;
+use noisefree::render::Renderer;
+use noisefree::scene::Scene;
+use noisefree::stats::PixelBuffers;
+
+fn device(b: &PixelBuffers, cam: &AtrousCamera, s: &AtrousSettings) -> RgbImage {
+    let gpu = gpu();
+    let up = UploadedBuffers::new(&gpu, b).unwrap();
+    let mut f = AtrousFilter::new(gpu, s, cam, b.width, b.height).unwrap();
+    f.run(&up.view()).unwrap().image
+}
+
+fn max_rel_diff(a: &RgbImage, b: &RgbImage) -> f32 {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .flat_map(|(x, y)| {
+            (0..3).map(move |c| (x[c] - y[c]).abs() / x[c].abs().max(y[c].abs()).max(1e-3))
+        })
+        .fold(0.0, f32::max)
+}
+
+fn assert_finite(img: &RgbImage, what: &str) {
+    assert!(
+        img.pixels.iter().flatten().all(|v| v.is_finite()),
+        "{what}: non-finite output"
+    );
+}
+
+/// The defaults, or with `demodulate = false` the settings tuned for the beauty.
+fn settings(demodulate: bool) -> AtrousSettings {
+    if demodulate {
+        AtrousSettings::default()
+    } else {
+        AtrousSettings::for_beauty()
+    }
+}
+
+/// Renders `scene` and returns its buffers and camera.
+fn render(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> (PixelBuffers, AtrousCamera) {
+    let mut o = options(scene, w, h, seed);
+    o.outputs.features = true;
+    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
+    while r.samples_done() < spp {
+        r.render_samples((spp - r.samples_done()).min(256)).unwrap();
+    }
+    (
+        r.read_buffers().unwrap(),
+        AtrousCamera::from(&r.arrays.params),
+    )
+}
+
+/// A small Cornell box with a mirror and a sphere (mirror reflections, curved normals).
+fn cornell_with_spheres() -> Scene {
+    let extra = r#"
+[[material]]
+name = "mirror"
+type = "specular"
+color = [0.9, 0.9, 0.9]
+
+[[sphere]]
+center = [-0.4, 0.35, -0.3]
+radius = 0.35
+material = "mirror"
+
+[[sphere]]
+center = [0.4, 0.3, 0.3]
+radius = 0.3
+material = "red"
+"#;
+    scene_from_toml(&cornell("max_depth = 3", extra))
+}
+
+fn cornell_diffuse_scene() -> Scene {
+    noisefree::scene::load_scene(&repo_path("scenes/cornell_diffuse.toml")).unwrap()
+}
+
+/// An arbitrary, oblique camera for synthetic buffers.
+fn test_camera() -> AtrousCamera {
+    let forward = Vec3::new(0.3, -0.2, -1.0).normalize();
+    let right = forward.cross(Vec3::Y).normalize();
+    AtrousCamera {
+        origin: Vec3::new(0.5, 2.0, 7.0),
+        forward,
+        right,
+        up: right.cross(forward),
+        tan_half_fov: 0.4,
+    }
+}
+
+/// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector.
+fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffers {
+    let filter_vectors: Vec<_> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| f(x, y))
+        .collect();
+    PixelBuffers {
+        width: w,
+        height: h,
+        spp: 8,
+        filter_vectors,
+        variances: None,
+        directions: None,
+    }
+}
+
+/// Random features: noisy light, a few depth layers, random normals and albedos, some sky.
+fn random_buffers(w: u32, h: u32, seed: u64) -> PixelBuffers {
+    let mut rng = TestRng(seed);
+    let fvs: Vec<FilterVector> = (0..w * h)
+        .map(|_| {
+            if rng.uniform() < 0.1 {
+                return FilterVector {
+                    direct: [rng.range(0.0, 3.0); 3],
+                    indirect: [0.0; 3],
+                    depth: SKY_DEPTH,
+                    ..Default::default()
+                };
+            }
+            let layer = (rng.uniform() * 3.0).floor();
+            let n = if rng.uniform() < 0.5 {
+                rng.unit_vector()
+            } else {
+                Vec3::Z
+            };
+            FilterVector {
+                direct: std::array::from_fn(|_| rng.range(0.0, 1.0)),
+                indirect: std::array::from_fn(|_| rng.range(0.0, 0.5)),
+                depth: 2.0 + 3.0 * layer + rng.range(0.0, 0.05),
+                normal: n.to_array(),
+                albedo: std::array::from_fn(|_| rng.range(0.0, 1.0)),
+                albedo2: [0.5; 3],
+            }
+        })
+        .collect();
+    synthetic(w, h, |x, y| fvs[(y * w + x) as usize])
+}
+
+fn fv(light: [f32; 3], depth: f32, normal: [f32; 3], albedo: [f32; 3]) -> FilterVector {
+    FilterVector {
+        direct: light,
+        indirect: [0.0; 3],
+        depth,
+        normal,
+        albedo,
+        albedo2: albedo,
+    }
+}
+
+fn check_against_reference(b: &PixelBuffers, cam: &AtrousCamera, s: &AtrousSettings, what: &str) {
+    let want = reference(b, cam, s).unwrap();
+    assert_finite(&want, what);
+    let got = device(b, cam, s);
+    assert_finite(&got, what);
+    let d = max_rel_diff(&got, &want);
+    assert!(
+        d <= 1e-4,
+        "{what} {s:?}: max relative difference {d:e} between kernel and reference"
+    );
+}
+
+#[test]
+fn kernel_matches_the_rust_reference_on_rendered_buffers() {
+    // 70 x 45: no multiple of any work-group size.
+    let (b, cam) = render(&cornell_with_spheres(), 70, 45, 8, 1);
+    let (d, dcam) = render(&cornell_diffuse_scene(), 61, 37, 4, 2);
+    for demodulate in [true, false] {
+        for iterations in [0, 1, 5, 7] {
+            let s = AtrousSettings {
+                iterations,
+                demodulate,
+                ..Default::default()
+            };
+            check_against_reference(&b, &cam, &s, "cornell with spheres");
+            check_against_reference(&d, &dcam, &s, "cornell diffuse");
+        }
+        let s = AtrousSettings {
+            sigma_color: 0.1,
+            sigma_normal: 0.05,
+            sigma_position: 0.5,
+            demodulate,
+            ..Default::default()
+        };
+        check_against_reference(&b, &cam, &s, "cornell with spheres, small sigmas");
+    }
+}
+
+#[test]
+fn kernel_matches_the_rust_reference_on_synthetic_buffers_of_many_sizes() {
+    let sizes = [
+        (1, 1),
+        (1, 13),
+        (13, 1),
+        (2, 3),
+        (5, 5),
+        (17, 9),
+        (33, 65),
+        (100, 7),
+    ];
+    for (k, (w, h)) in sizes.into_iter().enumerate() {
+        let b = random_buffers(w, h, 11 + k as u64);
+        for demodulate in [true, false] {
+            for iterations in [1, 5] {
+                let s = AtrousSettings {
+                    iterations,
+                    demodulate,
+                    ..Default::default()
+                };
+                check_against_reference(&b, &test_camera(), &s, &format!("{w}x{h}"));
+            }
+        }
+    }
+}
+
+#[test]
+fn constant_image_stays_constant() {
+    // Constant light and albedo; depth, normals and sky vary: every weighted mean of equal
+    // values is that value, whatever the weights.
+    let b = synthetic(37, 23, |x, y| {
+        if (x * 3 + y) % 11 == 0 {
+            fv([0.3, 0.2, 0.1], SKY_DEPTH, [0.0; 3], [0.0; 3])
+        } else {
+            let n = if x < 20 {
+                [0.0, 0.0, 1.0]
+            } else {
+                [0.6, 0.0, 0.8]
+            };
+            fv(
+                [0.3, 0.2, 0.1],
+                1.0 + (x as f32) * 0.1 + if y > 10 { 5.0 } else { 0.0 },
+                n,
+                [0.5, 0.7, 0.9],
+            )
+        }
+    });
+    for demodulate in [true, false] {
+        for sigma in [1e-6, 1.0, 1e6] {
+            let s = AtrousSettings {
+                sigma_color: sigma,
+                sigma_normal: sigma,
+                sigma_position: sigma,
+                demodulate,
+                ..Default::default()
+            };
+            for (what, out) in [
+                ("kernel", device(&b, &test_camera(), &s)),
+                ("reference", reference(&b, &test_camera(), &s).unwrap()),
+            ] {
+                for p in &out.pixels {
+                    for (c, want) in p.iter().zip([0.3, 0.2, 0.1]) {
+                        assert!(
+                            (c - want).abs() <= 1e-5 * want,
+                            "{what} demodulate {demodulate} sigma {sigma}: {c} vs {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn no_nan_with_degenerate_features_all_sky_and_extreme_sigmas() {
+    let (rendered, cam) = render(&cornell_with_spheres(), 40, 30, 2, 5);
+    let cases: Vec<(&str, PixelBuffers, AtrousCamera)> = vec![
+        ("rendered", rendered, cam),
+        // Zero-variance features: every pixel has the same depth, normal and albedo.
+        (
+            "identical features",
+            synthetic(19, 11, |x, y| {
+                fv(
+                    [(x * y % 5) as f32 * 0.2; 3],
+                    3.0,
+                    [0.0, 1.0, 0.0],
+                    [0.5; 3],
+                )
+            }),
+            test_camera(),
+        ),
+        (
+            "all sky",
+            synthetic(16, 9, |x, _| {
+                fv([x as f32 * 0.1; 3], SKY_DEPTH, [0.0; 3], [0.0; 3])
+            }),
+            test_camera(),
+        ),
+        // Depth 0, normals 0, black albedo, black and very bright light.
+        (
+            "degenerate",
+            synthetic(12, 12, |x, y| {
+                let light = if (x + y) % 2 == 0 { 0.0 } else { 1e6 };
+                fv([light; 3], 0.0, [0.0; 3], [0.0; 3])
+            }),
+            test_camera(),
+        ),
+    ];
+    for (what, b, cam) in &cases {
+        for demodulate in [true, false] {
+            for sigma in [1e-6f32, 1e-3, 1.0, 1e3, 1e6] {
+                let s = AtrousSettings {
+                    sigma_color: sigma,
+                    sigma_normal: sigma,
+                    sigma_position: sigma,
+                    demodulate,
+                    ..Default::default()
+                };
+                let got = device(b, cam, &s);
+                assert_finite(
+                    &got,
+                    &format!("{what} sigma {sigma} demodulate {demodulate}"),
+                );
+                let want = reference(b, cam, &s).unwrap();
+                assert_finite(&want, &format!("reference {what} sigma {sigma}"));
+            }
+        }
+    }
+    // All sky: nothing is filtered, every pixel keeps its input bit for bit.
+    let (_, b, cam) = &cases[2];
+    let out = device(b, cam, &AtrousSettings::default());
+    assert_eq!(out.pixels, b.beauty().pixels);
+}
+
+/// The plain à-trous B3-spline blur (no edge weights), out-of-image taps skipped.
+fn b3_blur(img: &RgbImage, iterations: u32) -> RgbImage {
+    let (w, h) = (img.width as i32, img.height as i32);
+    let mut c = img.pixels.clone();
+    for i in 0..iterations {
+        let step = 1 << i;
+        c = (0..w * h)
+            .map(|p| {
+                let (x, y) = (p % w, p / w);
+                let (mut sum, mut wsum) = ([0f64; 3], 0f64);
+                for ky in 0..5 {
+                    for kx in 0..5 {
+                        let (nx, ny) = (x + (kx - 2) * step, y + (ky - 2) * step);
+                        if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                            continue;
+                        }
+                        let wq = (B3[kx as usize] * B3[ky as usize]) as f64;
+                        let q = c[(ny * w + nx) as usize];
+                        for k in 0..3 {
+                            sum[k] += wq * q[k] as f64;
+                        }
+                        wsum += wq;
+                    }
+                }
+                sum.map(|v| (v / wsum) as f32)
+            })
+            .collect();
+    }
+    RgbImage {
+        width: img.width,
+        height: img.height,
+        pixels: c,
+    }
+}
+
+#[test]
+fn huge_sigmas_give_the_b3_blur_and_tiny_sigmas_the_input() {
+    let (b, cam) = render(&cornell_with_spheres(), 48, 40, 4, 9);
+    // The box is closed: no sky, so with every weight 1 the filter is the plain blur.
+    assert!(b.filter_vectors.iter().all(|f| f.depth < SKY_DEPTH));
+    let huge = AtrousSettings {
+        sigma_color: 1e6,
+        sigma_normal: 1e6,
+        sigma_position: 1e6,
+        demodulate: false,
+        ..Default::default()
+    };
+    let blur = b3_blur(&b.beauty(), 5);
+    let got = device(&b, &cam, &huge);
+    let d = max_rel_diff(&got, &blur);
+    assert!(d < 1e-4, "sigma 1e6 vs the B3 blur: {d:e}");
+
+    let tiny = AtrousSettings {
+        sigma_color: 1e-6,
+        sigma_normal: 1e-6,
+        sigma_position: 1e-6,
+        ..Default::default()
+    };
+    for demodulate in [true, false] {
+        let got = device(
+            &b,
+            &cam,
+            &AtrousSettings {
+                demodulate,
+                ..tiny.clone()
+            },
+        );
+        let d = max_rel_diff(&got, &b.beauty());
+        assert!(
+            d < 1e-5,
+            "sigma 1e-6 (demodulate {demodulate}) vs the input: {d:e}"
+        );
+    }
+}
+
+#[test]
+fn sky_passes_through_and_is_never_a_neighbour() {
+    let make = |sky_light: f32| {
+        synthetic(24, 16, move |x, y| {
+            if (x / 3 + y / 2) % 4 == 0 {
+                fv([sky_light, 0.5, 0.25], SKY_DEPTH, [0.0; 3], [0.0; 3])
+            } else {
+                fv(
+                    [((x * 7 + y * 3) % 5) as f32 * 0.1; 3],
+                    4.0,
+                    [0.0, 0.0, 1.0],
+                    [0.6; 3],
+                )
+            }
+        })
+    };
+    let (a, b) = (make(0.123_456_7), make(1000.0));
+    for demodulate in [true, false] {
+        let s = AtrousSettings {
+            sigma_color: 1e6, // no colour edge-stopping: only the sky rule keeps them apart
+            demodulate,
+            ..Default::default()
+        };
+        let (oa, ob) = (
+            device(&a, &test_camera(), &s),
+            device(&b, &test_camera(), &s),
+        );
+        for (i, f) in a.filter_vectors.iter().enumerate() {
+            if f.depth >= SKY_DEPTH {
+                assert_eq!(oa.pixels[i], a.beauty().pixels[i], "sky changed");
+                assert_eq!(ob.pixels[i], b.beauty().pixels[i], "sky changed");
+            } else {
+                assert_eq!(oa.pixels[i], ob.pixels[i], "the sky leaked into a surface");
+            }
+        }
+        // The surfaces were filtered.
+        assert!(max_rel_diff(&oa, &a.beauty()) > 1e-2);
+    }
+}
+
+#[test]
+fn depth_and_normal_edges_are_kept() {
+    // Left and right halves differ in light (0.2 vs 0.8, with a noise pattern) and in one
+    // guide; colour edge-stopping is off, so only that guide can keep the halves apart.
+    let noise = |x: u32, y: u32| ((x * 7 + y * 13) % 5) as f32 * 0.02;
+    let light = move |x: u32, y: u32| [if x < 16 { 0.2 } else { 0.8 } + noise(x, y); 3];
+    let cam = AtrousCamera {
+        origin: Vec3::ZERO,
+        forward: -Vec3::Z,
+        right: Vec3::X,
+        up: Vec3::Y,
+        tan_half_fov: 0.5,
+    };
+    let cases: Vec<(&str, PixelBuffers)> = vec![
+        (
+            "depth",
+            synthetic(32, 16, |x, y| {
+                let depth = if x < 16 { 2.0 } else { 9.0 };
+                fv(light(x, y), depth, [0.0, 0.0, 1.0], [0.5; 3])
+            }),
+        ),
+        (
+            "normal",
+            synthetic(32, 16, |x, y| {
+                let n = if x < 16 {
+                    [0.0, 0.0, 1.0]
+                } else {
+                    [1.0, 0.0, 0.0]
+                };
+                fv(light(x, y), 3.0, n, [0.5; 3])
+            }),
+        ),
+    ];
+    for (what, b) in cases {
+        let s = AtrousSettings {
+            sigma_color: 1e6,
+            ..Default::default()
+        };
+        let out = device(&b, &cam, &s);
+        for y in 0..16 {
+            for x in 0..32u32 {
+                let want = if x < 16 { 0.24 } else { 0.84 };
+                let got = out.pixels[(y * 32 + x) as usize][0];
+                assert!(
+                    (got - want).abs() < 0.05,
+                    "{what} edge bled at ({x},{y}): {got} vs {want}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn reconstructed_positions_lie_on_the_rendered_walls() {
+    // The test box's walls are the planes z = -1 (back, normal +z), y = 0 (floor, +y),
+    // x = -1 (left, +x) and x = 1 (right, -x). Pixels that see only one wall must reconstruct
+    // onto it from their depth and the camera, to a small fraction of a pixel footprint (the
+    // mean depth is over jittered samples, the reconstruction uses the pixel centre).
+    let scene = scene_from_toml(&cornell("max_depth = 1", ""));
+    let (b, cam) = render(&scene, 40, 30, 64, 3);
+    assert_eq!(cam, AtrousCamera::from_scene(&scene));
+    let p = AtrousSettings::default().params(&cam, b.width, b.height, 0);
+    let walls: [([f32; 3], usize, f32); 4] = [
+        ([0.0, 0.0, 1.0], 2, -1.0),
+        ([0.0, 1.0, 0.0], 1, 0.0),
+        ([1.0, 0.0, 0.0], 0, -1.0),
+        ([-1.0, 0.0, 0.0], 0, 1.0),
+    ];
+    let mut seen = [0; 4];
+    for (i, f) in b.filter_vectors.iter().enumerate() {
+        for (k, (n, axis, plane)) in walls.iter().enumerate() {
+            let dot: f32 = (0..3).map(|c| n[c] * f.normal[c]).sum();
+            if dot < 0.9999 {
+                continue;
+            }
+            let d = pixel_direction(&p, i as u32 % b.width, i as u32 / b.width);
+            let coord = cam.origin[*axis] + f.depth * d[*axis];
+            let footprint = f.depth * 2.0 * cam.tan_half_fov / b.height as f32;
+            assert!(
+                (coord - plane).abs() < 0.1 * footprint,
+                "pixel {i} on wall {k}: {coord} instead of {plane} (footprint {footprint})"
+            );
+            seen[k] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&n| n > 20), "wall pixels seen: {seen:?}");
+}
+
+#[test]
+fn settings_are_validated() {
+    let ok = AtrousSettings::default();
+    assert!(ok.validate().is_ok());
+    for bad in [
+        AtrousSettings {
+            iterations: 16,
+            ..ok.clone()
+        },
+        AtrousSettings {
+            sigma_color: 0.0,
+            ..ok.clone()
+        },
+        AtrousSettings {
+            sigma_normal: f32::NAN,
+            ..ok.clone()
+        },
+        AtrousSettings {
+            sigma_position: f32::INFINITY,
+            ..ok.clone()
+        },
+        AtrousSettings {
+            sigma_position: -1.0,
+            ..ok.clone()
+        },
+    ] {
+        assert!(bad.validate().is_err(), "{bad:?} was accepted");
+        assert!(AtrousFilter::new(gpu(), &bad, &test_camera(), 4, 4).is_err());
+    }
+    let b = random_buffers(4, 4, 1);
+    let mut f = AtrousFilter::new(gpu(), &ok, &test_camera(), 5, 4).unwrap();
+    let up = UploadedBuffers::new(&gpu(), &b).unwrap();
+    assert!(f.run(&up.view()).is_err(), "a size mismatch was accepted");
+}
+
+// ---- The bundled Cornell diffuse scene (thesis Fig. 7.1a) at 128 x 128. ----
+
+const SIZE: u32 = 128;
+
+/// The 1024-spp reference of the scene at scale 1 and 1000, each rendered once per binary.
+fn truth_at(scale: f32) -> &'static RgbImage {
+    static TRUTH: OnceLock<RgbImage> = OnceLock::new();
+    static TRUTH_1000: OnceLock<RgbImage> = OnceLock::new();
+    let cell = if scale == 1.0 { &TRUTH } else { &TRUTH_1000 };
+    cell.get_or_init(|| {
+        let scene = cornell_diffuse_scene().scaled(scale);
+        render(&scene, SIZE, SIZE, 1024, 100).0.beauty()
+    })
+}
+
+fn truth() -> &'static RgbImage {
+    truth_at(1.0)
+}
+
+/// (filtered MSE, unfiltered MSE, kernel time) of 8 spp of the scene at `scale` against its
+/// own 1024-spp reference.
+fn filtered_error(scale: f32, s: &AtrousSettings) -> (f64, f64, std::time::Duration) {
+    let scene = cornell_diffuse_scene().scaled(scale);
+    let (noisy, cam) = render(&scene, SIZE, SIZE, 8, 7);
+    let gpu = gpu();
+    let up = UploadedBuffers::new(&gpu, &noisy).unwrap();
+    let mut f = AtrousFilter::new(gpu, s, &cam, SIZE, SIZE).unwrap();
+    let out = f.run(&up.view()).unwrap();
+    let truth = truth_at(scale);
+    (
+        mse_luv(&out.image, truth).unwrap(),
+        mse_luv(&noisy.beauty(), truth).unwrap(),
+        out.kernel_time,
+    )
+}
+
+#[test]
+fn filtering_lowers_the_error_on_cornell_diffuse() {
+    for demodulate in [true, false] {
+        let (e, unfiltered, t) = filtered_error(1.0, &settings(demodulate));
+        eprintln!(
+            "demodulate {demodulate}: filtered MSE {e:.5}, unfiltered {unfiltered:.5}, \
+             kernel time {t:?}"
+        );
+        assert!(t > std::time::Duration::ZERO);
+        let bound = if demodulate { 0.3 } else { 0.6 };
+        assert!(
+            e < bound * unfiltered,
+            "demodulate {demodulate}: filtered MSE {e} vs unfiltered {unfiltered}"
+        );
+    }
+}
+
+#[test]
+fn scaling_the_scene_keeps_the_filtered_error() {
+    // The filter alone: the same buffers with every depth and the camera scaled by 1000
+    // filter to the same image (σ_position is in pixel footprints). The test box is closed:
+    // a pixel partly covered by sky has a mean depth between its surface's and SKY_DEPTH,
+    // which does not scale with the scene.
+    let (a, cam) = render(&cornell_with_spheres(), 64, 48, 8, 4);
+    assert!(a.filter_vectors.iter().all(|f| f.depth < 100.0));
+    let mut big = a.clone();
+    for f in &mut big.filter_vectors {
+        f.depth *= 1000.0;
+    }
+    let big_cam = AtrousCamera {
+        origin: cam.origin * 1000.0,
+        ..cam
+    };
+    for demodulate in [true, false] {
+        let s = settings(demodulate);
+        let d = max_rel_diff(&device(&a, &cam, &s), &device(&big, &big_cam, &s));
+        assert!(
+            d < 1e-4,
+            "demodulate {demodulate}: scaled buffers differ by {d:e}"
+        );
+    }
+    // Rendered: Scene::scaled(1000), each scale against its own 1024-spp reference. (The
+    // renderer's images of the two scales are not the same: at scale 1000 it is about 0.8 %
+    // darker, so the error against the scale-1 reference says more about the renderer.)
+    for demodulate in [true, false] {
+        let s = settings(demodulate);
+        let (e1, u1, _) = filtered_error(1.0, &s);
+        let (e1000, u1000, _) = filtered_error(1000.0, &s);
+        eprintln!(
+            "demodulate {demodulate}: filtered MSE {e1:.5} at scale 1, {e1000:.5} at scale \
+             1000 (unfiltered {u1:.5}, {u1000:.5})"
+        );
+        assert!(
+            (e1000 - e1).abs() < 0.1 * e1,
+            "demodulate {demodulate}: scaling the scene changed the filtered MSE from {e1} \
+             to {e1000}"
+        );
+    }
+}
+
+/// Prints the error for a grid of sigmas (how the defaults were chosen):
+/// `cargo test --release --test atrous -- --ignored sweep --nocapture`.
+#[test]
+#[ignore]
+fn sweep() {
+    let scene = cornell_diffuse_scene();
+    let (noisy, cam) = render(&scene, SIZE, SIZE, 8, 7);
+    let gpu = gpu();
+    let up = UploadedBuffers::new(&gpu, &noisy).unwrap();
+    eprintln!(
+        "unfiltered MSE {:.5}",
+        mse_luv(&noisy.beauty(), truth()).unwrap()
+    );
+    // (demodulate, sigma_color, sigma_normal, sigma_position values)
+    type Grid = Vec<(bool, Vec<f32>, Vec<f32>, Vec<f32>)>;
+    let grid: Grid = vec![
+        (
+            true,
+            vec![0.25, 0.35, 0.5, 0.6, 0.7, 1.0, 2.0],
+            vec![0.1, 0.3, 0.5, 1.0],
+            vec![2.0, 4.0, 5.0, 6.0, 8.0, 16.0],
+        ),
+        (
+            false,
+            vec![0.05, 0.1, 0.15, 0.25],
+            vec![0.3, 1.0],
+            vec![2.0, 4.0, 6.0, 8.0, 16.0],
+        ),
+    ];
+
+    for (demodulate, cs, ns, ps) in grid {
+        for &sigma_color in &cs {
+            for &sigma_normal in &ns {
+                for &sigma_position in &ps {
+                    let s = AtrousSettings {
+                        sigma_color,
+                        sigma_normal,
+                        sigma_position,
+                        demodulate,
+                        ..Default::default()
+                    };
+                    let mut f = AtrousFilter::new(gpu.clone(), &s, &cam, SIZE, SIZE).unwrap();
+                    let out = f.run(&up.view()).unwrap();
+                    let e = mse_luv(&out.image, truth()).unwrap();
+                    eprintln!(
+                        "demodulate {demodulate} colour {sigma_color} normal {sigma_normal} \
+                         position {sigma_position}: {e:.5}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Kernel time at 512 x 512, 5 passes (init + passes + finish), from profiling events:
+/// `cargo test --release --test atrous -- --ignored timing --nocapture`.
+#[test]
+#[ignore]
+fn timing() {
+    let (b, cam) = render(&cornell_diffuse_scene(), 512, 512, 1, 1);
+    let gpu = gpu();
+    let up = UploadedBuffers::new(&gpu, &b).unwrap();
+    for demodulate in [true, false] {
+        let mut f = AtrousFilter::new(gpu.clone(), &settings(demodulate), &cam, 512, 512).unwrap();
+        let times: Vec<_> = (0..7)
+            .map(|_| f.run(&up.view()).unwrap().kernel_time)
+            .collect();
+        let (lo, med, hi) = noisefree::filters::time_summary(&times).unwrap();
+        eprintln!(
+            "{} 512x512 demodulate {demodulate}: min {lo:?} median {med:?} max {hi:?}",
+            gpu.summary.name
+        );
+    }
+}
