@@ -10,8 +10,15 @@
 //!   them, with the feature means, with the variances, side by side.
 //! - `filter-speed`: the data-driven filter's kernel time over kernel widths, resolutions,
 //!   variants and work-group sizes (thesis §7.1-7.2, Figs. 7.2-7.12).
+//! - `quality`: every scene, unfiltered and with each filter, against a cached reference,
+//!   with contact sheets (thesis §7.3, Fig. 7.18).
+//! - `accuracy-time`: error against wall-clock time for every method, and the headline
+//!   figures (equal-quality sample reduction, equal-time error ratio).
+//! - `sweep`: Table 7.1's one-parameter-at-a-time sweep and hypotheses 1-3 (§7.3), plus the
+//!   variance scales s_f the thesis leaves open.
 
 pub mod plot;
+pub mod quality;
 pub mod reference;
 pub mod speed;
 pub mod table;
@@ -29,6 +36,9 @@ pub enum Study {
     RenderSpeed,
     Statistics,
     FilterSpeed,
+    Quality,
+    AccuracyTime,
+    Sweep,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -136,7 +146,14 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         studies.push(Study::Statistics);
     }
     if studies.is_empty() {
-        studies = vec![Study::RenderSpeed, Study::Statistics, Study::FilterSpeed];
+        studies = vec![
+            Study::FilterSpeed,
+            Study::Quality,
+            Study::AccuracyTime,
+            Study::Sweep,
+            Study::RenderSpeed,
+            Study::Statistics,
+        ];
     }
     studies.dedup();
     let gpu = Gpu::open(args.device)?;
@@ -154,7 +171,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         args.scene.clone()
     };
     if args.quick && args.scene.is_empty() {
-        scenes.retain(|p| p.ends_with("cornell_diffuse.toml") || p.ends_with("outside.toml"));
+        scenes.retain(|p| p.ends_with("cornell_diffuse.toml"));
     }
     let ctx = Context {
         gpu,
@@ -173,6 +190,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::RenderSpeed => speed::render_speed(&ctx, args.fresh)?,
             Study::Statistics => speed::statistics_cost(&ctx, args.fresh)?,
             Study::FilterSpeed => speed::filter_speed(&ctx, args.fresh)?,
+            Study::Quality => quality::quality(&ctx, args.fresh)?,
+            Study::AccuracyTime => quality::accuracy_time(&ctx, args.fresh)?,
+            Study::Sweep => quality::sweep(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;

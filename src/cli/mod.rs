@@ -105,7 +105,7 @@ fn devices() -> Result<()> {
 pub(crate) fn print_timings(label: &str, times: &[std::time::Duration]) {
     if let Some((lo, med, hi)) = crate::filters::time_summary(times) {
         println!(
-            "{label} kernel time over {} run(s): min {:.3} ms, median {:.3} ms, max {:.3} ms",
+            "{label} over {} run(s): min {:.3} ms, median {:.3} ms, max {:.3} ms",
             times.len(),
             lo.as_secs_f64() * 1e3,
             med.as_secs_f64() * 1e3,

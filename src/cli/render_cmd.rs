@@ -9,8 +9,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::filter_args::{FilterArgs, Method};
-use crate::filters::ddf::DdfFilter;
+use super::filter_args::FilterArgs;
 use crate::gpu::Gpu;
 use crate::output;
 use crate::render::{RenderOptions, Renderer};
@@ -81,6 +80,10 @@ pub struct RenderArgs {
     /// outputs stay as they were).
     #[arg(long)]
     pub save_partial: bool,
+    /// Also store every sample's Random Parameter Filtering vector (26 floats, thesis §5.1.1)
+    /// in a samples file for `noisefree filter FILE --method rpf`.
+    #[arg(long, value_name = "FILE.bin")]
+    pub save_samples: Option<PathBuf>,
     #[command(flatten)]
     pub filter: FilterArgs,
     /// No progress bar.
@@ -240,24 +243,12 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         eprintln!("warning: {w}");
     }
     let mut options = RenderOptions::for_scene(&scene);
-    if let Some(w) = args.width {
-        options.frame.width = w;
-    }
-    if let Some(h) = args.height {
-        options.frame.height = h;
-    }
-    if let Some(s) = args.seed {
-        options.frame.seed = s;
-    }
-    if let Some(d) = args.max_depth {
-        options.frame.max_depth = d;
-    }
+    options.frame.width = args.width.unwrap_or(options.frame.width);
+    options.frame.height = args.height.unwrap_or(options.frame.height);
+    options.frame.seed = args.seed.unwrap_or(options.frame.seed);
+    options.frame.max_depth = args.max_depth.unwrap_or(options.frame.max_depth);
     if options.frame.width == 0 || options.frame.height == 0 {
-        bail!(
-            "the image must be at least 1x1 pixels (got {}x{})",
-            options.frame.width,
-            options.frame.height
-        );
+        bail!("the image must be at least 1x1 pixels (got {}x{})", options.frame.width, options.frame.height);
     }
     let spp = args.spp.unwrap_or(scene.render.spp);
     if spp == 0 {
@@ -268,77 +259,61 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     {
         bail!("--time-limit must be a positive number of seconds");
     }
-    let method = args
-        .filter
-        .method(scene.filter.as_ref())
-        .with_context(|| format!("in {}", args.scene.display()))?;
-    let ddf = match method {
-        Method::Ddf => Some(
-            args.filter
-                .ddf(scene.filter.as_ref())
-                .with_context(|| format!("in {}", args.scene.display()))?,
-        ),
-        Method::None => None,
-    };
     if let Some(c) = args.clamp {
         if !(c >= 0.0 && c.is_finite()) {
             bail!("--clamp must be >= 0 (0 = off), got {c}");
         }
         options.frame.sample_clamp = c;
     }
+    let context = || format!("in {}", args.scene.display());
+    let method = args.filter.method(scene.filter.as_ref()).with_context(context)?;
+    let filter_method = args.filter.build(method, scene.filter.as_ref(), scene.render.setting).with_context(context)?;
     options.all_features = args.all_features;
     options.local_size = args.local_size;
-    // The statistics stage is compiled in only when something reads it.
-    if ddf.is_some() || args.aovs.is_some() || args.aov_png.is_some() {
+    // The statistics stage and the sample vectors are compiled in only when something reads
+    // them.
+    if let Some(m) = &filter_method {
+        let need = m.outputs(spp);
+        options.outputs.features |= need.features;
+        options.outputs.variance |= need.variance;
+        options.outputs.sample_vectors = need.sample_vectors;
+    }
+    if args.aovs.is_some() || args.aov_png.is_some() {
         options.outputs.features = true;
         options.outputs.variance = true;
     }
+    if args.save_samples.is_some() {
+        options.outputs.features = true;
+        options.outputs.sample_vectors = Some(spp);
+    }
+    if options.outputs.sample_vectors.is_some() {
+        let budget = crate::filters::rpf::samples::available_memory_bytes().unwrap_or(u64::MAX);
+        crate::filters::rpf::samples::check_memory(options.frame.width, options.frame.height, spp, budget)?;
+    }
 
     // Outputs: explicit paths must be writable now, before minutes of rendering.
-    let png_path = args
-        .out
-        .clone()
-        .unwrap_or_else(|| default_output(&args.scene, "png"));
-    let exr_path = if args.no_exr {
-        None
-    } else {
-        Some(
-            args.exr
-                .clone()
-                .unwrap_or_else(|| png_path.with_extension("exr")),
-        )
-    };
-    for (given, path) in [
-        (args.out.is_some(), Some(&png_path)),
-        (args.exr.is_some() || args.out.is_some(), exr_path.as_ref()),
-    ] {
+    let png_path = args.out.clone().unwrap_or_else(|| default_output(&args.scene, "png"));
+    let exr_path = if args.no_exr { None } else { Some(args.exr.clone().unwrap_or_else(|| png_path.with_extension("exr"))) };
+    for (given, path) in [(args.out.is_some(), Some(&png_path)), (args.exr.is_some() || args.out.is_some(), exr_path.as_ref())] {
         if let Some(path) = path {
             if !given && let Some(dir) = path.parent() {
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
             }
             output::check_output_path(path)?;
         }
     }
-    for p in [&args.aovs, &args.exr_unfiltered].into_iter().flatten() {
+    for p in [&args.aovs, &args.exr_unfiltered, &args.save_samples].into_iter().flatten() {
         output::check_output_path(p)?;
     }
 
     let gpu = Gpu::open(args.device)?;
     let compile_start = Instant::now();
     let mut renderer = Renderer::new(gpu.clone(), &scene, &options)?;
-    let mut filter = match &ddf {
-        Some((settings, variant)) => {
-            let mut s = settings.clone();
-            // No pixel can be sky without an environment light: drop the sky branch (§6.3.4).
-            s.sky &= scene.environment.is_some();
-            Some(DdfFilter::new(
-                gpu.clone(),
-                &s,
-                *variant,
-                renderer.width(),
-                renderer.height(),
-            )?)
+    let mut filter = match &filter_method {
+        Some(m) => {
+            let mut f = m.prepare(&gpu, &scene, &renderer)?;
+            f.show_progress(!args.quiet);
+            Some(f)
         }
         None => None,
     };
@@ -352,21 +327,12 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
             renderer.arrays.spheres.len(),
             renderer.arrays.lights.len(),
         );
-        eprintln!(
-            "compiling kernels: {} (ready in {:.2} s)",
-            describe_builds(&gpu.builds()),
-            compile_start.elapsed().as_secs_f64()
-        );
+        eprintln!("compiling kernels: {} (ready in {:.2} s)", describe_builds(&gpu.builds()), compile_start.elapsed().as_secs_f64());
     }
     if args.explain {
         println!("kernel features for {}:", args.scene.display());
         for f in &renderer.features.features {
-            println!(
-                "  {:<24} {:<3}  {}",
-                f.define,
-                if f.on { "on" } else { "off" },
-                f.why
-            );
+            println!("  {:<24} {:<3}  {}", f.define, if f.on { "on" } else { "off" }, f.why);
         }
         println!("  camera: {}", renderer.arrays.focus_note);
     }
@@ -376,9 +342,10 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     progressive(&mut renderer, spp, args.time_limit, args.quiet, |r| {
         if args.timings
             && let Some(f) = filter.as_mut()
+            && f.on_device()
         {
-            let out = f.run(&r.device_buffers())?;
-            filter_times.push(out.kernel_time);
+            let out = f.run(r)?;
+            filter_times.push(out.kernel_time.unwrap_or(out.wall_time));
             last_filtered = Some(out.image);
         }
         Ok(())
@@ -387,10 +354,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         if !args.save_partial || renderer.samples_done() == 0 {
             return Err(Interrupted.into());
         }
-        eprintln!(
-            "interrupted after {} spp: writing what was rendered (--save-partial)",
-            renderer.samples_done()
-        );
+        eprintln!("interrupted after {} spp: writing what was rendered (--save-partial)", renderer.samples_done());
         last_filtered = None; // filter the final state below
     }
     let buffers = renderer.read_buffers()?;
@@ -399,8 +363,8 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         Some(f) => match last_filtered {
             Some(img) => img,
             None => {
-                let out = f.run(&renderer.device_buffers())?;
-                filter_times.push(out.kernel_time);
+                let out = f.run(&renderer)?;
+                filter_times.push(out.kernel_time.unwrap_or(out.wall_time));
                 out.image
             }
         },
@@ -413,10 +377,15 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     if let Some(p) = &args.exr_unfiltered {
         output::write_exr(p, &unfiltered)?;
     }
+    if let Some(p) = &args.save_samples {
+        let (n, samples) = renderer.read_sample_vectors()?;
+        crate::filters::rpf::SampleSet::new(renderer.width(), renderer.height(), n, samples)?.write(p)?;
+    }
     if let Some(p) = &args.aovs {
         let mut meta = std::collections::BTreeMap::new();
         meta.insert("scene".to_string(), args.scene.display().to_string());
         meta.insert("seed".to_string(), renderer.arrays.params.seed.to_string());
+        meta.insert("camera".to_string(), crate::stats::aovs::camera_to_text(&renderer.arrays.params));
         crate::stats::aovs::write_aov_exr(p, &buffers, &meta)?;
     }
     if let Some(dir) = &args.aov_png {
@@ -441,15 +410,11 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         summary.spp_per_second(),
         summary.mrays_per_second(),
         png_path.display(),
-        exr_path
-            .map(|p| format!(", {}", p.display()))
-            .unwrap_or_default()
+        exr_path.map(|p| format!(", {}", p.display())).unwrap_or_default()
     );
-    if let Some(f) = &filter {
-        super::print_timings(
-            &format!("data-driven filter ({})", f.variant().label()),
-            &summary.filter_times,
-        );
+    if let Some(m) = &filter_method {
+        let what = if m.name() == "rpf" { "wall-clock" } else { "kernel" };
+        super::print_timings(&format!("{} filter ({what} time)", m.name()), &summary.filter_times);
     }
     Ok(summary)
 }

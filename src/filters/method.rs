@@ -70,7 +70,7 @@ impl Method {
                 let camera = AtrousCamera::from(&renderer.arrays.params);
                 Prepared::Atrous(AtrousFilter::new(gpu.clone(), settings, &camera, w, h)?)
             }
-            Method::Rpf(settings) => Prepared::Rpf(settings.clone()),
+            Method::Rpf(settings) => Prepared::Rpf { settings: settings.clone(), progress: false },
         })
     }
 }
@@ -89,10 +89,39 @@ pub fn specialise_ddf(s: &mut DdfSettings, scene: &Scene) {
 pub enum Prepared {
     Ddf(DdfFilter),
     Atrous(AtrousFilter),
-    Rpf(RpfSettings),
+    /// RPF runs on the host; `progress` shows a progress bar while it does.
+    Rpf { settings: RpfSettings, progress: bool },
+}
+
+/// RPF on a sample set, with a progress bar if asked.
+pub fn run_rpf(set: &SampleSet, settings: &RpfSettings, progress: bool) -> Result<RgbImage> {
+    if !progress {
+        return rpf::filter(set, settings);
+    }
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg:32} [{elapsed_precise}] {bar:30} ETA {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let callback = rpf::progress_bar_callback(&bar, &settings.box_sizes);
+    let out = rpf::filter_with_progress(set, settings, &callback);
+    bar.finish_and_clear();
+    Ok(out?.image)
 }
 
 impl Prepared {
+    /// Shows a progress bar while slow host filters (RPF) run.
+    pub fn show_progress(&mut self, on: bool) {
+        if let Prepared::Rpf { progress, .. } = self {
+            *progress = on;
+        }
+    }
+
+    /// A device filter, fast enough to run after every frame.
+    pub fn on_device(&self) -> bool {
+        !matches!(self, Prepared::Rpf { .. })
+    }
+
     /// Filters the renderer's current frame.
     pub fn run(&mut self, renderer: &Renderer) -> Result<FilterRun> {
         let start = Instant::now();
@@ -105,10 +134,10 @@ impl Prepared {
                 let out = f.run(&renderer.device_buffers())?;
                 Ok(FilterRun { image: out.image, wall_time: start.elapsed(), kernel_time: Some(out.kernel_time) })
             }
-            Prepared::Rpf(settings) => {
+            Prepared::Rpf { settings, progress } => {
                 let (spp, samples) = renderer.read_sample_vectors()?;
-                let set = SampleSet { width: renderer.width(), height: renderer.height(), spp, samples };
-                let image = rpf::filter(&set, settings)?;
+                let set = SampleSet::new(renderer.width(), renderer.height(), spp, samples)?;
+                let image = run_rpf(&set, settings, *progress)?;
                 Ok(FilterRun { image, wall_time: start.elapsed(), kernel_time: None })
             }
         }

@@ -247,4 +247,16 @@ pub struct FilterSection {
     /// Kernel variant: "naive", "vector" or "rows".
     pub variant: Option<String>,
     pub work_group: Option<u32>,
+    /// RPF: sigma^2_8 of eq. 5.17 [default: from [render] setting: 0.02 indoor, 0.002 outdoor].
+    pub rpf_sigma8: Option<f32>,
+    /// RPF: seed of the neighbourhood sampling.
+    pub rpf_seed: Option<u32>,
+    /// A-trous: passes (default 5).
+    pub atrous_iterations: Option<u32>,
+    /// A-trous: colour, normal and position sigmas.
+    pub atrous_sigma_color: Option<f32>,
+    pub atrous_sigma_normal: Option<f32>,
+    pub atrous_sigma_position: Option<f32>,
+    /// A-trous: filter light divided by albedo (true) or the beauty (false).
+    pub atrous_demodulate: Option<bool>,
 }
