@@ -1,0 +1,51 @@
+//! `noisefree bench --quick` runs every study end to end, so the benchmarks cannot rot. Only
+//! completion and well-formed results are checked: timings are never asserted.
+
+use std::process::Command;
+
+#[test]
+fn quick_benchmark_completes_with_well_formed_results() {
+    let out = std::env::temp_dir().join(format!("noisefree-bench-quick-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let run = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["bench", "--quick", "-q", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "bench --quick failed: {stderr}");
+    for (study, columns) in [
+        ("render-speed", 9),
+        ("statistics", 6),
+        ("filter-speed", 9),
+        ("quality", 8),
+        ("accuracy-time", 6),
+        ("sweep", 5),
+    ] {
+        let csv = std::fs::read_to_string(out.join(format!("{study}.csv"))).unwrap_or_else(|e| panic!("{study}.csv: {e}"));
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(header.len(), columns, "{study}: header {header:?}");
+        let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+        assert!(!rows.is_empty(), "{study}.csv has no rows");
+        for r in &rows {
+            assert_eq!(r.len(), columns, "{study}: row {r:?}");
+            assert!(r.iter().all(|v| !v.is_empty() && *v != "nan"), "{study}: row {r:?}");
+        }
+        assert!(out.join(format!("{study}.md")).exists(), "{study}.md missing");
+    }
+    for png in ["filter-speed-64x48.png", "quality-cornell_diffuse.png", "accuracy-time-cornell_diffuse.png", "sweep-cornell_diffuse.png"] {
+        let bytes = std::fs::read(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+        assert_eq!(&bytes[1..4], b"PNG");
+    }
+    // A second run resumes: every cell is already measured, nothing is added.
+    let before = std::fs::read_to_string(out.join("quality.csv")).unwrap();
+    let again = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["bench", "--quick", "-q", "--study", "quality", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(again.status.success());
+    assert_eq!(std::fs::read_to_string(out.join("quality.csv")).unwrap(), before);
+    let _ = std::fs::remove_dir_all(&out);
+}
