@@ -48,7 +48,7 @@ inline DdfCentre ddf_centre(__constant const DdfParams* p, float16 f, __global c
     for (int i = 0; i < 5; ++i)
         c.sigma2_f[i] = p->sigma2_f[i] * (1.0f - clamp(sums[i] * p->variance_scale[i], 0.0f, 1.0f));
 #if DDF_DIRECTION
-    c.direction = vload3(0, state + pixel * 8u);
+    c.direction = vload3(0, state + pixel * 24u);
 #else
     c.direction = (float3)(0.0f);
 #endif
@@ -105,7 +105,7 @@ inline bool ddf_centre_off_grid(__constant const DdfParams* p) {
 
 inline float3 neighbour_direction(__global const float* state, uint index) {
 #if DDF_DIRECTION
-    return vload3(0, state + index * 8u);
+    return vload3(0, state + index * 24u);
 #else
     return (float3)(0.0f);
 #endif

@@ -26,6 +26,8 @@
 #define ST_DIRECTION 0
 #define ST_DEPTH_SHIFT 3
 #define ST_DEPTH_MEAN 4
+#define ST_COMPENSATION 8
+#define ST_FLOATS 24
 
 // One path's contribution and first-hit features.
 typedef struct {
@@ -65,7 +67,7 @@ typedef struct {
     float mean[16];   // F
 #if OUTPUT_VARIANCE
     float s[16];      // GB: S_n per feature component
-    float state[8];   // StatsState
+    float state[ST_FLOATS];   // StatsState (its last 16 floats: the compensation of s)
 #endif
 } PixelStats;
 
@@ -74,7 +76,9 @@ inline void pixel_stats_load(PixelStats* p, __global const float* f, __global co
     vstore16(vload16(pixel, f), 0, p->mean);
 #if OUTPUT_VARIANCE
     vstore16(vload16(pixel, gb), 0, p->s);
-    vstore8(vload8(pixel, st), 0, p->state);
+    __global const float* sp = st + (size_t)pixel * ST_FLOATS;
+    vstore8(vload8(0, sp), 0, p->state);
+    vstore16(vload16(0, sp + 8), 0, p->state + 8);
 #endif
 }
 
@@ -83,7 +87,9 @@ inline void pixel_stats_store(const PixelStats* p, __global float* f, __global f
     vstore16(vload16(0, p->mean), pixel, f);
 #if OUTPUT_VARIANCE
     vstore16(vload16(0, p->s), pixel, gb);
-    vstore8(vload8(0, p->state), pixel, st);
+    __global float* sp = st + (size_t)pixel * ST_FLOATS;
+    vstore8(vload8(0, p->state), 0, sp);
+    vstore16(vload16(0, p->state + 8), 0, sp + 8);
 #endif
 }
 
@@ -97,26 +103,33 @@ inline void running_mean(float* mean, float x, float n) {
 // This is the one update every statistic uses. Each term is a product of two deviations from
 // the mean, so S_n never goes negative and a constant stream gives exactly 0.
 //
-// Where float32 loses accuracy: the deviations x - mu are small next to mu when the data sit at
-// a large offset (depth in millimetres, or 1e4 with a spread of 0.1). mu then has an absolute
-// rounding error of half an ulp of mu (5e-4 at 1e4), and once (x - mu) / n drops below that,
-// mu stops moving at all ("stagnation", here after a few hundred samples): S_n then grows
-// around a wrong mean and overestimates the variance by (mu - mean)^2 per sample. The cure is
-// to run the recursion on shifted data x - K with K the pixel's first sample (kept in
-// StatsState), which is what film_accumulate does for depth; F.depth = K + mean(x - K).
-// Normals, albedos and directions are bounded by 1 and need no shift. tests/statistics.rs
-// checks both cases against a float64 two-pass computation.
-inline void welford(float* mean, float* s, float x, float n) {
+// Where float32 loses accuracy, and what is done about it:
+// - Large offsets (depth in millimetres, or 1e4 with a spread of 0.1): the deviations x - mu
+//   are small next to mu, mu has an absolute rounding error of half an ulp of mu (5e-4 at 1e4),
+//   and once (x - mu) / n drops below that, mu stops moving ("stagnation", after a few hundred
+//   samples): S_n then grows around a wrong mean and overestimates the variance by
+//   (mu - mean)^2 per sample. So depth runs on shifted data x - K, K the pixel's first sample
+//   (in StatsState); F.depth = K + mean(x - K). Normals, albedos and directions are bounded by
+//   1 and need no shift.
+// - Long runs with outliers (fireflies): after one sample 10^4 times the mean, S_n is ~5e10
+//   and its ulp 4096, so the ordinary terms (~25) that follow vanish when added. S_n is
+//   therefore summed with Kahan's compensation (the compensation lives in StatsState).
+// tests/statistics.rs and tests/hard_cases_statistics.rs check both against float64.
+inline void welford(float* mean, float* s, float* compensation, float x, float n) {
     float delta = x - *mean;
     running_mean(mean, x, n);
-    *s += delta * (x - *mean);
+    float term = delta * (x - *mean) - *compensation;
+    float sum = *s + term;
+    *compensation = (sum - *s) - term;
+    *s = sum;
 }
 
 inline void accumulate3(PixelStats* p, int f_lane, int gb_lane, float3 x, float n) {
 #if OUTPUT_VARIANCE
-    welford(&p->mean[f_lane], &p->s[gb_lane], x.x, n);
-    welford(&p->mean[f_lane + 1], &p->s[gb_lane + 1], x.y, n);
-    welford(&p->mean[f_lane + 2], &p->s[gb_lane + 2], x.z, n);
+    float* c = p->state + ST_COMPENSATION;
+    welford(&p->mean[f_lane], &p->s[gb_lane], &c[gb_lane], x.x, n);
+    welford(&p->mean[f_lane + 1], &p->s[gb_lane + 1], &c[gb_lane + 1], x.y, n);
+    welford(&p->mean[f_lane + 2], &p->s[gb_lane + 2], &c[gb_lane + 2], x.z, n);
 #else
     running_mean(&p->mean[f_lane], x.x, n);
     running_mean(&p->mean[f_lane + 1], x.y, n);
@@ -140,11 +153,12 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
         p->state[ST_DEPTH_SHIFT] = ps->depth;
         p->state[ST_DEPTH_MEAN] = 0.0f;
     }
-    welford(&p->state[ST_DEPTH_MEAN], &p->s[GB_DEPTH], ps->depth - p->state[ST_DEPTH_SHIFT], n);
+    float* c = p->state + ST_COMPENSATION;
+    welford(&p->state[ST_DEPTH_MEAN], &p->s[GB_DEPTH], &c[GB_DEPTH], ps->depth - p->state[ST_DEPTH_SHIFT], n);
     p->mean[F_DEPTH] = p->state[ST_DEPTH_SHIFT] + p->state[ST_DEPTH_MEAN];
-    welford(&p->state[ST_DIRECTION], &p->s[GB_DIRECTION], ps->direction.x, n);
-    welford(&p->state[ST_DIRECTION + 1], &p->s[GB_DIRECTION + 1], ps->direction.y, n);
-    welford(&p->state[ST_DIRECTION + 2], &p->s[GB_DIRECTION + 2], ps->direction.z, n);
+    welford(&p->state[ST_DIRECTION], &p->s[GB_DIRECTION], &c[GB_DIRECTION], ps->direction.x, n);
+    welford(&p->state[ST_DIRECTION + 1], &p->s[GB_DIRECTION + 1], &c[GB_DIRECTION + 1], ps->direction.y, n);
+    welford(&p->state[ST_DIRECTION + 2], &p->s[GB_DIRECTION + 2], &c[GB_DIRECTION + 2], ps->direction.z, n);
 #else
     running_mean(&p->mean[F_DEPTH], ps->depth, n);
 #endif

@@ -139,13 +139,15 @@ typedef struct __attribute__((aligned(64))) {
     float pad[3];
 } GBuffer;
 
-// Running state of the statistics that is neither a FilterVector mean nor an S_n:
-// the mean first-bounce direction, and the depth shift (see kernels/film.cl on float32).
+// Running state of the statistics that is neither a FilterVector mean nor an S_n: the
+// mean first-bounce direction, the depth shift and the Kahan compensation of every S_n
+// (see kernels/film.cl on float32).
 typedef struct __attribute__((aligned(32))) {
     float direction_mean[3];
     float depth_shift; // The pixel's first depth sample K; depth is accumulated as x - K.
     float depth_shifted_mean; // Running mean of x - K; F.depth = K + this.
     float pad[3];
+    float s_compensation[16]; // Kahan compensation of each GBuffer lane's S_n (13 used).
 } StatsState;
 
 // Parameters of the data-driven filter for one run (thesis Tables 6.2, 6.3).

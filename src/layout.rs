@@ -321,8 +321,9 @@ device_structs! {
         pub pad: [f32; 3],
     }
 
-    /// Running state of the statistics that is neither a FilterVector mean nor an S_n:
-    /// the mean first-bounce direction, and the depth shift (see kernels/film.cl on float32).
+    /// Running state of the statistics that is neither a FilterVector mean nor an S_n: the
+    /// mean first-bounce direction, the depth shift and the Kahan compensation of every S_n
+    /// (see kernels/film.cl on float32).
     #[align(32)]
     pub struct StatsState {
         pub direction_mean: [f32; 3],
@@ -331,6 +332,8 @@ device_structs! {
         /// Running mean of x - K; F.depth = K + this.
         pub depth_shifted_mean: f32,
         pub pad: [f32; 3],
+        /// Kahan compensation of each GBuffer lane's S_n (13 used).
+        pub s_compensation: [f32; 16],
     }
 
     /// Parameters of the data-driven filter for one run (thesis Tables 6.2, 6.3).
@@ -515,7 +518,7 @@ mod tests {
         assert_eq!(std::mem::size_of::<FilterVector>(), 64);
         assert_eq!(std::mem::align_of::<FilterVector>(), 64);
         assert_eq!(std::mem::size_of::<GBuffer>(), 64);
-        assert_eq!(std::mem::size_of::<StatsState>(), 32);
+        assert_eq!(std::mem::size_of::<StatsState>(), 96);
     }
 
     #[test]

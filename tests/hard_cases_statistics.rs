@@ -1,0 +1,169 @@
+//! Hard cases of the statistics and the filters: a million progressive samples in float32,
+//! fireflies, and the data-driven filter at extreme sigmas (σ → ∞ is the box mean, σ → 0 the
+//! input), with zero-variance features and an all-sky image.
+
+mod common;
+
+use common::*;
+use noisefree::filters::UploadedBuffers;
+use noisefree::filters::ddf::{DdfFilter, DdfSettings, Variant};
+use noisefree::layout::{FilterVector, GBuffer, SKY_DEPTH, StatsState};
+use noisefree::stats::{PixelBuffers, variances_from_sums};
+
+/// Feeds one stream per pixel through the kernel's statistics stage in launches of `chunk`.
+fn device_welford(streams: &[Vec<f32>], chunk: usize) -> (Vec<FilterVector>, Vec<GBuffer>) {
+    let gpu = gpu();
+    let program = gpu.program("probes.cl", &generic_defines(), "").unwrap();
+    let (pixels, len) = (streams.len(), streams[0].len());
+    let flat: Vec<f32> = streams.iter().flatten().copied().collect();
+    let stream = gpu.upload(&flat).unwrap();
+    let f = gpu.zeroed::<FilterVector>(pixels, "F").unwrap();
+    let gb = gpu.zeroed::<GBuffer>(pixels, "GB").unwrap();
+    let st = gpu.zeroed::<StatsState>(pixels, "state").unwrap();
+    let kernel = ocl::Kernel::builder()
+        .program(&program)
+        .name("probe_film")
+        .queue(gpu.queue.clone())
+        .global_work_size(pixels)
+        .arg(&stream)
+        .arg(len as u32)
+        .arg(0u32)
+        .arg(0u32)
+        .arg(&f)
+        .arg(&gb)
+        .arg(&st)
+        .arg(pixels as u32)
+        .build()
+        .unwrap();
+    let mut first = 0;
+    while first < len {
+        let count = chunk.min(len - first);
+        kernel.set_arg(2, first as u32).unwrap();
+        kernel.set_arg(3, count as u32).unwrap();
+        unsafe { kernel.enq().unwrap() };
+        first += count;
+    }
+    let mut fv = vec![FilterVector::default(); pixels];
+    let mut s = vec![GBuffer::default(); pixels];
+    f.read(&mut fv).enq().unwrap();
+    gb.read(&mut s).enq().unwrap();
+    (fv, s)
+}
+
+fn two_pass(x: &[f32]) -> f64 {
+    let n = x.len() as f64;
+    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n;
+    x.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0)
+}
+
+#[test]
+fn a_million_progressive_samples_in_float32() {
+    let n = 1_000_000;
+    let mut rng = TestRng(99);
+    let gauss = |rng: &mut TestRng| {
+        let (u1, u2) = (rng.uniform().max(1e-7), rng.uniform());
+        (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+    };
+    let depth_like: Vec<f32> = (0..n).map(|_| 1.0e4 + 0.1 * gauss(&mut rng)).collect();
+    // Fireflies: mostly around 0.5, one sample in a thousand 10^4 times brighter.
+    let fireflies: Vec<f32> =
+        (0..n).map(|_| if rng.uniform() < 1e-3 { 5.0e3 } else { 0.5 + 0.05 * gauss(&mut rng) }).collect();
+    let (_, s) = device_welford(&[depth_like.clone(), fireflies.clone()], 50_000);
+    let var = variances_from_sums(&s, n as u32);
+    let rel = |a: f32, b: f64| ((a as f64) - b).abs() / b;
+    let v_depth = two_pass(&depth_like);
+    assert!(rel(var[0].depth, v_depth) < 1e-3, "depth-like: {} vs {v_depth}", var[0].depth);
+    let v_fire = two_pass(&fireflies);
+    for (got, lane) in [(var[1].albedo[0], "albedo"), (var[1].depth, "depth (shifted)"), (var[1].direction[1], "direction")] {
+        assert!(got.is_finite() && got >= 0.0, "{lane}: {got}");
+        assert!(rel(got, v_fire) < 1e-3, "fireflies, {lane}: {got} vs {v_fire}");
+    }
+}
+
+fn buffers(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffers {
+    let filter_vectors: Vec<_> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect();
+    let n = filter_vectors.len();
+    PixelBuffers { width: w, height: h, spp: 8, filter_vectors, variances: Some(vec![GBuffer::default(); n]), directions: Some(vec![[0.0; 3]; n]) }
+}
+
+fn run(b: &PixelBuffers, s: &DdfSettings) -> Vec<[f32; 3]> {
+    let gpu = gpu();
+    let up = UploadedBuffers::new(&gpu, b).unwrap();
+    let mut f = DdfFilter::new(gpu, s, Variant::Rows { work_group: 64 }, b.width, b.height).unwrap();
+    let img = f.run(&up.view()).unwrap().image;
+    assert!(img.pixels.iter().flatten().all(|v| v.is_finite()), "non-finite output");
+    img.pixels
+}
+
+/// Every feature differs from pixel to pixel (noise everywhere).
+fn noisy(w: u32, h: u32) -> PixelBuffers {
+    let mut rng = TestRng(12);
+    let values: Vec<[f32; 6]> = (0..w * h).map(|_| std::array::from_fn(|_| rng.uniform())).collect();
+    buffers(w, h, |x, y| {
+        let v = values[(y * w + x) as usize];
+        FilterVector {
+            direct: [v[0]; 3],
+            indirect: [v[1]; 3],
+            depth: 1.0 + v[2],
+            normal: [v[3], 0.5, 0.5],
+            albedo: [v[4]; 3],
+            albedo2: [v[5]; 3],
+        }
+    })
+}
+
+#[test]
+fn huge_sigmas_give_the_box_mean_and_tiny_sigmas_the_input() {
+    let (w, h) = (23u32, 17u32);
+    let b = noisy(w, h);
+    let huge = DdfSettings { sigma_dc: 1e6, sigma_ic: 1e6, sigma_f: [1e6; 5], kw: 7, ..Default::default() };
+    let out = run(&b, &huge);
+    for y in 0..h as i32 {
+        for x in 0..w as i32 {
+            let (mut d, mut i, mut n) = (0.0f64, 0.0f64, 0.0f64);
+            for dy in -3..=3 {
+                for dx in -3..=3 {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx >= 0 && ny >= 0 && nx < w as i32 && ny < h as i32 {
+                        let f = &b.filter_vectors[(ny as u32 * w + nx as u32) as usize];
+                        d += f.direct[0] as f64;
+                        i += f.indirect[0] as f64;
+                        n += 1.0;
+                    }
+                }
+            }
+            let want = (d + i) / n;
+            let got = out[(y as u32 * w + x as u32) as usize][0] as f64;
+            assert!((got - want).abs() < 1e-4, "({x},{y}): {got} vs box mean {want}");
+        }
+    }
+    let tiny = DdfSettings { sigma_dc: 1e-6, sigma_ic: 1e-6, sigma_f: [1e-6; 5], ..Default::default() };
+    let out = run(&b, &tiny);
+    for (o, want) in out.iter().zip(&b.beauty().pixels) {
+        assert_eq!(o, want, "σ → 0 must return the input");
+    }
+}
+
+#[test]
+fn zero_variance_features_and_an_all_sky_image() {
+    // Identical features everywhere, noisy light: with zero variance the sigmas stay at their
+    // full values (eq. 6.10); the output is finite and smoother than the input.
+    let mut rng = TestRng(5);
+    let light: Vec<f32> = (0..32 * 32).map(|_| rng.uniform()).collect();
+    let b = buffers(32, 32, |x, y| {
+        let v = light[(y * 32 + x) as usize];
+        FilterVector { direct: [v; 3], indirect: [0.1; 3], depth: 2.0, normal: [0.0, 1.0, 0.0], albedo: [0.5; 3], albedo2: [0.5; 3] }
+    });
+    let out = run(&b, &DdfSettings::default());
+    let spread = |v: &[f32]| {
+        let m = v.iter().sum::<f32>() / v.len() as f32;
+        v.iter().map(|x| (x - m).powi(2)).sum::<f32>() / v.len() as f32
+    };
+    let before = spread(&b.beauty().pixels.iter().map(|p| p[0]).collect::<Vec<_>>());
+    let after = spread(&out.iter().map(|p| p[0]).collect::<Vec<_>>());
+    assert!(after < 0.5 * before, "no smoothing: {after} vs {before}");
+    // All sky: every pixel keeps its colour, bit for bit.
+    let sky = buffers(16, 8, |x, y| FilterVector { direct: [0.01 * x as f32; 3], indirect: [0.02 * y as f32; 3], depth: SKY_DEPTH, ..Default::default() });
+    let out = run(&sky, &DdfSettings::default());
+    assert_eq!(out, sky.beauty().pixels);
+}
