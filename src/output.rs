@@ -176,9 +176,71 @@ pub fn read_exr_metadata(path: &Path) -> Result<std::collections::BTreeMap<Strin
     Ok(out)
 }
 
+/// `MemAvailable` of /proc/meminfo in bytes, where the system has one.
+fn available_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// Reads only the header of the OpenEXR file at `path` and checks, before any pixel is
+/// allocated, that decoding its largest layer fits in the memory available (16 GiB where that
+/// is unknown). A damaged or hostile header can claim up to 2^30 x 2^30 pixels, and the exr
+/// crate's readers allocate the whole image before they find that the pixel data is missing;
+/// an allocation that large aborts the process instead of returning an error.
+/// `bytes_per_pixel` is what the caller keeps per pixel; 4 bytes per channel sample are added.
+/// The message does not name the file: the callers put their own prefix in front.
+pub(crate) fn check_exr_memory(path: &Path, bytes_per_pixel: u64) -> Result<(), String> {
+    use exr::prelude::*;
+    let meta = MetaData::read_from_file(path, false)
+        .map_err(|e| format!("cannot read OpenEXR header: {e}"))?;
+    let mut need = 0u64;
+    let mut size = (0, 0);
+    for h in &meta.headers {
+        let (w, hgt) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
+        let per_pixel = bytes_per_pixel.saturating_add(4 * h.channels.list.len() as u64);
+        let bytes = w.saturating_mul(hgt).saturating_mul(per_pixel);
+        if bytes > need {
+            need = bytes;
+            size = (w, hgt);
+        }
+    }
+    let available = available_memory_bytes().unwrap_or(16 << 30);
+    if need > available {
+        return Err(format!(
+            "the OpenEXR header says {}x{} pixels, which would take {} to read, but only {} of \
+             memory is available (a damaged file, or an image too large for this machine)",
+            size.0,
+            size.1,
+            human_bytes(need),
+            human_bytes(available)
+        ));
+    }
+    Ok(())
+}
+
+/// `b` bytes as "1.23 GiB".
+fn human_bytes(b: u64) -> String {
+    const UNITS: [&str; 6] = ["bytes", "KiB", "MiB", "GiB", "TiB", "PiB"];
+    let mut v = b as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{b} bytes")
+    } else {
+        format!("{v:.2} {}", UNITS[u])
+    }
+}
+
 /// Reads the RGB channels of an OpenEXR file (the first RGBA layer).
 pub fn read_exr_rgb(path: &Path) -> Result<RgbImage> {
     use exr::prelude::*;
+    check_exr_memory(path, 3 * 4)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read OpenEXR: {e}", path.display()))?;
     let image = read_first_rgba_layer_from_file(
         path,
         |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),

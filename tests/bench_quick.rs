@@ -22,7 +22,8 @@ fn quick_benchmark_completes_with_well_formed_results() {
         ("accuracy-time", 6),
         ("sweep", 5),
     ] {
-        let csv = std::fs::read_to_string(out.join(format!("{study}.csv"))).unwrap_or_else(|e| panic!("{study}.csv: {e}"));
+        let csv = std::fs::read_to_string(out.join(format!("{study}.csv")))
+            .unwrap_or_else(|e| panic!("{study}.csv: {e}"));
         let mut lines = csv.lines();
         let header: Vec<&str> = lines.next().unwrap().split(',').collect();
         assert_eq!(header.len(), columns, "{study}: header {header:?}");
@@ -30,11 +31,22 @@ fn quick_benchmark_completes_with_well_formed_results() {
         assert!(!rows.is_empty(), "{study}.csv has no rows");
         for r in &rows {
             assert_eq!(r.len(), columns, "{study}: row {r:?}");
-            assert!(r.iter().all(|v| !v.is_empty() && *v != "nan"), "{study}: row {r:?}");
+            assert!(
+                r.iter().all(|v| !v.is_empty() && *v != "nan"),
+                "{study}: row {r:?}"
+            );
         }
-        assert!(out.join(format!("{study}.md")).exists(), "{study}.md missing");
+        assert!(
+            out.join(format!("{study}.md")).exists(),
+            "{study}.md missing"
+        );
     }
-    for png in ["filter-speed-64x48.png", "quality-cornell_diffuse.png", "accuracy-time-cornell_diffuse.png", "sweep-cornell_diffuse.png"] {
+    for png in [
+        "filter-speed-64x48.png",
+        "quality-cornell_diffuse.png",
+        "accuracy-time-cornell_diffuse.png",
+        "sweep-cornell_diffuse.png",
+    ] {
         let bytes = std::fs::read(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert_eq!(&bytes[1..4], b"PNG");
     }
@@ -42,10 +54,21 @@ fn quick_benchmark_completes_with_well_formed_results() {
     let before = std::fs::read_to_string(out.join("quality.csv")).unwrap();
     let again = Command::new(env!("CARGO_BIN_EXE_noisefree"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["bench", "--quick", "-q", "--study", "quality", "--out", out.to_str().unwrap()])
+        .args([
+            "bench",
+            "--quick",
+            "-q",
+            "--study",
+            "quality",
+            "--out",
+            out.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert!(again.status.success());
-    assert_eq!(std::fs::read_to_string(out.join("quality.csv")).unwrap(), before);
+    assert_eq!(
+        std::fs::read_to_string(out.join("quality.csv")).unwrap(),
+        before
+    );
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -247,29 +247,57 @@ fn devices_lists_the_device_and_bad_device_numbers_are_explained() {
 fn ctrl_c_keeps_outputs_or_saves_partial() {
     let dir = temp_dir("ctrlc");
     let scene = dir.join("scene.toml");
-    std::fs::write(&scene, GOOD.replace("width = 8", "width = 64").replace("height = 8", "height = 64")).unwrap();
+    std::fs::write(
+        &scene,
+        GOOD.replace("width = 8", "width = 64")
+            .replace("height = 8", "height = 64"),
+    )
+    .unwrap();
     let png = dir.join("x.png");
     for save_partial in [false, true] {
         std::fs::write(&png, b"precious").unwrap();
-        let mut args = vec!["render", scene.to_str().unwrap(), "--out", png.to_str().unwrap(), "--spp", "100000000", "-q"];
+        let mut args = vec![
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            png.to_str().unwrap(),
+            "--spp",
+            "100000000",
+            "-q",
+        ];
         if save_partial {
             args.push("--save-partial");
         }
-        let child = noisefree().args(&args).stderr(std::process::Stdio::piped()).spawn().unwrap();
+        let child = noisefree()
+            .args(&args)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
         // Give it time to build its kernels and start rendering.
         std::thread::sleep(std::time::Duration::from_secs(4));
-        let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+        let status = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap();
         assert!(status.success());
         let out = child.wait_with_output().unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!stderr.contains("panicked"), "{stderr}");
         if save_partial {
             assert_eq!(out.status.code(), Some(0), "{stderr}");
-            assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG", "the partial image was not written");
+            assert_eq!(
+                &std::fs::read(&png).unwrap()[1..4],
+                b"PNG",
+                "the partial image was not written"
+            );
             assert!(png.with_extension("exr").exists());
         } else {
             assert_eq!(out.status.code(), Some(130), "{stderr}");
-            assert_eq!(std::fs::read(&png).unwrap(), b"precious", "an interrupted render overwrote its output");
+            assert_eq!(
+                std::fs::read(&png).unwrap(),
+                b"precious",
+                "an interrupted render overwrote its output"
+            );
         }
     }
 }

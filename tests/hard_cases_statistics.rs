@@ -66,39 +66,73 @@ fn a_million_progressive_samples_in_float32() {
     };
     let depth_like: Vec<f32> = (0..n).map(|_| 1.0e4 + 0.1 * gauss(&mut rng)).collect();
     // Fireflies: mostly around 0.5, one sample in a thousand 10^4 times brighter.
-    let fireflies: Vec<f32> =
-        (0..n).map(|_| if rng.uniform() < 1e-3 { 5.0e3 } else { 0.5 + 0.05 * gauss(&mut rng) }).collect();
+    let fireflies: Vec<f32> = (0..n)
+        .map(|_| {
+            if rng.uniform() < 1e-3 {
+                5.0e3
+            } else {
+                0.5 + 0.05 * gauss(&mut rng)
+            }
+        })
+        .collect();
     let (_, s) = device_welford(&[depth_like.clone(), fireflies.clone()], 50_000);
     let var = variances_from_sums(&s, n as u32);
     let rel = |a: f32, b: f64| ((a as f64) - b).abs() / b;
     let v_depth = two_pass(&depth_like);
-    assert!(rel(var[0].depth, v_depth) < 1e-3, "depth-like: {} vs {v_depth}", var[0].depth);
+    assert!(
+        rel(var[0].depth, v_depth) < 1e-3,
+        "depth-like: {} vs {v_depth}",
+        var[0].depth
+    );
     let v_fire = two_pass(&fireflies);
-    for (got, lane) in [(var[1].albedo[0], "albedo"), (var[1].depth, "depth (shifted)"), (var[1].direction[1], "direction")] {
+    for (got, lane) in [
+        (var[1].albedo[0], "albedo"),
+        (var[1].depth, "depth (shifted)"),
+        (var[1].direction[1], "direction"),
+    ] {
         assert!(got.is_finite() && got >= 0.0, "{lane}: {got}");
-        assert!(rel(got, v_fire) < 1e-3, "fireflies, {lane}: {got} vs {v_fire}");
+        assert!(
+            rel(got, v_fire) < 1e-3,
+            "fireflies, {lane}: {got} vs {v_fire}"
+        );
     }
 }
 
 fn buffers(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffers {
-    let filter_vectors: Vec<_> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect();
+    let filter_vectors: Vec<_> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| f(x, y))
+        .collect();
     let n = filter_vectors.len();
-    PixelBuffers { width: w, height: h, spp: 8, filter_vectors, variances: Some(vec![GBuffer::default(); n]), directions: Some(vec![[0.0; 3]; n]) }
+    PixelBuffers {
+        width: w,
+        height: h,
+        spp: 8,
+        filter_vectors,
+        variances: Some(vec![GBuffer::default(); n]),
+        directions: Some(vec![[0.0; 3]; n]),
+    }
 }
 
 fn run(b: &PixelBuffers, s: &DdfSettings) -> Vec<[f32; 3]> {
     let gpu = gpu();
     let up = UploadedBuffers::new(&gpu, b).unwrap();
-    let mut f = DdfFilter::new(gpu, s, Variant::Rows { work_group: 64 }, b.width, b.height).unwrap();
+    let mut f =
+        DdfFilter::new(gpu, s, Variant::Rows { work_group: 64 }, b.width, b.height).unwrap();
     let img = f.run(&up.view()).unwrap().image;
-    assert!(img.pixels.iter().flatten().all(|v| v.is_finite()), "non-finite output");
+    assert!(
+        img.pixels.iter().flatten().all(|v| v.is_finite()),
+        "non-finite output"
+    );
     img.pixels
 }
 
 /// Every feature differs from pixel to pixel (noise everywhere).
 fn noisy(w: u32, h: u32) -> PixelBuffers {
     let mut rng = TestRng(12);
-    let values: Vec<[f32; 6]> = (0..w * h).map(|_| std::array::from_fn(|_| rng.uniform())).collect();
+    let values: Vec<[f32; 6]> = (0..w * h)
+        .map(|_| std::array::from_fn(|_| rng.uniform()))
+        .collect();
     buffers(w, h, |x, y| {
         let v = values[(y * w + x) as usize];
         FilterVector {
@@ -116,7 +150,13 @@ fn noisy(w: u32, h: u32) -> PixelBuffers {
 fn huge_sigmas_give_the_box_mean_and_tiny_sigmas_the_input() {
     let (w, h) = (23u32, 17u32);
     let b = noisy(w, h);
-    let huge = DdfSettings { sigma_dc: 1e6, sigma_ic: 1e6, sigma_f: [1e6; 5], kw: 7, ..Default::default() };
+    let huge = DdfSettings {
+        sigma_dc: 1e6,
+        sigma_ic: 1e6,
+        sigma_f: [1e6; 5],
+        kw: 7,
+        ..Default::default()
+    };
     let out = run(&b, &huge);
     for y in 0..h as i32 {
         for x in 0..w as i32 {
@@ -134,10 +174,18 @@ fn huge_sigmas_give_the_box_mean_and_tiny_sigmas_the_input() {
             }
             let want = (d + i) / n;
             let got = out[(y as u32 * w + x as u32) as usize][0] as f64;
-            assert!((got - want).abs() < 1e-4, "({x},{y}): {got} vs box mean {want}");
+            assert!(
+                (got - want).abs() < 1e-4,
+                "({x},{y}): {got} vs box mean {want}"
+            );
         }
     }
-    let tiny = DdfSettings { sigma_dc: 1e-6, sigma_ic: 1e-6, sigma_f: [1e-6; 5], ..Default::default() };
+    let tiny = DdfSettings {
+        sigma_dc: 1e-6,
+        sigma_ic: 1e-6,
+        sigma_f: [1e-6; 5],
+        ..Default::default()
+    };
     let out = run(&b, &tiny);
     for (o, want) in out.iter().zip(&b.beauty().pixels) {
         assert_eq!(o, want, "σ → 0 must return the input");
@@ -152,7 +200,14 @@ fn zero_variance_features_and_an_all_sky_image() {
     let light: Vec<f32> = (0..32 * 32).map(|_| rng.uniform()).collect();
     let b = buffers(32, 32, |x, y| {
         let v = light[(y * 32 + x) as usize];
-        FilterVector { direct: [v; 3], indirect: [0.1; 3], depth: 2.0, normal: [0.0, 1.0, 0.0], albedo: [0.5; 3], albedo2: [0.5; 3] }
+        FilterVector {
+            direct: [v; 3],
+            indirect: [0.1; 3],
+            depth: 2.0,
+            normal: [0.0, 1.0, 0.0],
+            albedo: [0.5; 3],
+            albedo2: [0.5; 3],
+        }
     });
     let out = run(&b, &DdfSettings::default());
     let spread = |v: &[f32]| {
@@ -163,7 +218,12 @@ fn zero_variance_features_and_an_all_sky_image() {
     let after = spread(&out.iter().map(|p| p[0]).collect::<Vec<_>>());
     assert!(after < 0.5 * before, "no smoothing: {after} vs {before}");
     // All sky: every pixel keeps its colour, bit for bit.
-    let sky = buffers(16, 8, |x, y| FilterVector { direct: [0.01 * x as f32; 3], indirect: [0.02 * y as f32; 3], depth: SKY_DEPTH, ..Default::default() });
+    let sky = buffers(16, 8, |x, y| FilterVector {
+        direct: [0.01 * x as f32; 3],
+        indirect: [0.02 * y as f32; 3],
+        depth: SKY_DEPTH,
+        ..Default::default()
+    });
     let out = run(&sky, &DdfSettings::default());
     assert_eq!(out, sky.beauty().pixels);
 }

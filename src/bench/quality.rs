@@ -29,22 +29,39 @@ pub struct Sizes {
 
 pub fn sizes(ctx: &Context) -> Sizes {
     if ctx.quick {
-        Sizes { width: 64, height: 64, reference_spp: 256 }
+        Sizes {
+            width: 64,
+            height: 64,
+            reference_spp: 256,
+        }
     } else {
-        Sizes { width: 512, height: 512, reference_spp: reference::DEFAULT_REFERENCE_SPP }
+        Sizes {
+            width: 512,
+            height: 512,
+            reference_spp: reference::DEFAULT_REFERENCE_SPP,
+        }
     }
 }
 
 fn scene_name(p: &Path) -> String {
-    p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+    p.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 /// The filters compared, with the thesis's defaults (Table 7.2 for ours; RPF's sigma^2_8 from
 /// the scene's setting).
 pub fn methods(scene: &Scene) -> Vec<Method> {
-    let kind = if scene.render.setting == Setting::Outdoor { SceneKind::Outdoor } else { SceneKind::Indoor };
+    let kind = if scene.render.setting == Setting::Outdoor {
+        SceneKind::Outdoor
+    } else {
+        SceneKind::Indoor
+    };
     vec![
-        Method::Ddf { settings: DdfSettings::default(), variant: Variant::Rows { work_group: 64 } },
+        Method::Ddf {
+            settings: DdfSettings::default(),
+            variant: Variant::Rows { work_group: 64 },
+        },
         Method::Rpf(RpfSettings::for_scene(kind)),
         Method::Atrous(AtrousSettings::default()),
     ]
@@ -58,17 +75,32 @@ fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
         spp: s.reference_spp,
         seed: reference::REFERENCE_SEED,
     };
-    ctx.say(&format!("reference: {} ({} spp)", path.display(), s.reference_spp));
+    ctx.say(&format!(
+        "reference: {} ({} spp)",
+        path.display(),
+        s.reference_spp
+    ));
     Ok(reference::get_or_render(&ctx.gpu, &req, &reference::default_cache(), ctx.quiet)?.0)
 }
 
 /// Metrics of `img` against `reference` as table cells: mse_luv, rel_mse, mse_rgb, ssim.
 fn metric_cells(img: &RgbImage, reference: &RgbImage) -> Result<Vec<String>> {
     let m = metrics::compare(img, reference)?;
-    Ok(vec![num(m.mse_luv), num(m.rel_mse), num(m.mse_rgb), num(m.ssim)])
+    Ok(vec![
+        num(m.mse_luv),
+        num(m.rel_mse),
+        num(m.mse_rgb),
+        num(m.ssim),
+    ])
 }
 
-fn renderer_for(ctx: &Context, scene: &Scene, s: &Sizes, seed: u32, outputs: Outputs) -> Result<Renderer> {
+fn renderer_for(
+    ctx: &Context,
+    scene: &Scene,
+    s: &Sizes,
+    seed: u32,
+    outputs: Outputs,
+) -> Result<Renderer> {
     let mut o = RenderOptions::for_scene(scene);
     o.frame.width = s.width;
     o.frame.height = s.height;
@@ -84,7 +116,9 @@ const STUDY_SEED: u32 = 7;
 /// reference; a contact sheet per scene.
 pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
-    let columns = ["scene", "method", "spp", "mse_luv", "rel_mse", "mse_rgb", "ssim", "filter_s"];
+    let columns = [
+        "scene", "method", "spp", "mse_luv", "rel_mse", "mse_rgb", "ssim", "filter_s",
+    ];
     let mut t = ctx.table("quality", &columns, 3, fresh)?;
     let images = ctx.out.join("images");
     std::fs::create_dir_all(&images)?;
@@ -93,11 +127,18 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
         let name = scene_name(path);
         let scene = scene::load_scene(path)?;
         let reference = reference_image(ctx, path, &s)?;
-        let mut tiles: Vec<(String, RgbImage)> = vec![(format!("reference {} spp", s.reference_spp), reference.clone())];
+        let mut tiles: Vec<(String, RgbImage)> = vec![(
+            format!("reference {} spp", s.reference_spp),
+            reference.clone(),
+        )];
         // (method, spp) cells: unfiltered at 8, ours at 8/16/32, RPF and à-trous at 8.
         let mut cells: Vec<(Option<Method>, u32)> = vec![(None, 8)];
         for m in methods(&scene) {
-            let spps: Vec<u32> = if m.name() == "ddf" { ddf_spp.to_vec() } else { vec![8] };
+            let spps: Vec<u32> = if m.name() == "ddf" {
+                ddf_spp.to_vec()
+            } else {
+                vec![8]
+            };
             for spp in spps {
                 cells.push((Some(m.clone()), spp));
             }
@@ -108,11 +149,16 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
             let png = images.join(format!("{name}-{label}-{spp}spp.png"));
             let exr = png.with_extension("exr");
             if t.has(&key) && exr.exists() {
-                tiles.push((format!("{label} {spp} spp"), crate::output::read_exr_rgb(&exr)?));
+                tiles.push((
+                    format!("{label} {spp} spp"),
+                    crate::output::read_exr_rgb(&exr)?,
+                ));
                 continue;
             }
             ctx.say(&format!("quality: {name} {label} {spp} spp"));
-            let outputs = method.as_ref().map_or(Outputs::default(), |m| m.outputs(spp));
+            let outputs = method
+                .as_ref()
+                .map_or(Outputs::default(), |m| m.outputs(spp));
             let mut r = renderer_for(ctx, &scene, &s, STUDY_SEED, outputs)?;
             r.render_samples(spp)?;
             let (img, secs) = match &method {
@@ -161,7 +207,11 @@ struct Point {
 /// Interpolates y at x on a curve given as (x, y) pairs, in log-log; outside the curve, a
 /// straight log-log extension with `slope` from the nearest end. Returns (y, extrapolated).
 fn loglog_at(points: &[(f64, f64)], x: f64, slope: f64) -> Option<(f64, bool)> {
-    let pts: Vec<(f64, f64)> = points.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
+    let pts: Vec<(f64, f64)> = points
+        .iter()
+        .copied()
+        .filter(|p| p.0 > 0.0 && p.1 > 0.0)
+        .collect();
     let (first, last) = (pts.first()?, pts.last()?);
     let lx = x.ln();
     if x < first.0 {
@@ -173,7 +223,11 @@ fn loglog_at(points: &[(f64, f64)], x: f64, slope: f64) -> Option<(f64, bool)> {
     for w in pts.windows(2) {
         let ((x0, y0), (x1, y1)) = (w[0], w[1]);
         if x >= x0 && x <= x1 {
-            let f = if x1 > x0 { (lx - x0.ln()) / (x1.ln() - x0.ln()) } else { 0.0 };
+            let f = if x1 > x0 {
+                (lx - x0.ln()) / (x1.ln() - x0.ln())
+            } else {
+                0.0
+            };
             return Some(((y0.ln() + f * (y1.ln() - y0.ln())).exp(), false));
         }
     }
@@ -219,12 +273,24 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
             (Some(m), max)
         }));
         for (method, max_spp) in entries {
-            let label = method.as_ref().map_or("unfiltered", |m| m.name()).to_string();
-            let checkpoints: Vec<u32> = (0..).map(|i| 1u32 << i).take_while(|&n| n <= max_spp).collect();
-            let done = checkpoints.iter().all(|spp| t.has(&vec![name.clone(), label.clone(), spp.to_string()]));
+            let label = method
+                .as_ref()
+                .map_or("unfiltered", |m| m.name())
+                .to_string();
+            let checkpoints: Vec<u32> = (0..)
+                .map(|i| 1u32 << i)
+                .take_while(|&n| n <= max_spp)
+                .collect();
+            let done = checkpoints
+                .iter()
+                .all(|spp| t.has(&vec![name.clone(), label.clone(), spp.to_string()]));
             if !done {
-                ctx.say(&format!("accuracy-time: {name} {label} up to {max_spp} spp"));
-                let outputs = method.as_ref().map_or(Outputs::default(), |m| m.outputs(max_spp));
+                ctx.say(&format!(
+                    "accuracy-time: {name} {label} up to {max_spp} spp"
+                ));
+                let outputs = method
+                    .as_ref()
+                    .map_or(Outputs::default(), |m| m.outputs(max_spp));
                 let mut r = renderer_for(ctx, &scene, &s, STUDY_SEED, outputs)?;
                 let mut prepared = match &method {
                     Some(m) => Some(m.prepare(&ctx.gpu, &scene, &r)?),
@@ -252,7 +318,11 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                     if !t.has(&key) {
                         let m = metrics::compare(&img, &reference)?;
                         let mut row = key;
-                        row.extend([num((render_time + filter_time).as_secs_f64()), num(m.mse_luv), num(m.rel_mse)]);
+                        row.extend([
+                            num((render_time + filter_time).as_secs_f64()),
+                            num(m.mse_luv),
+                            num(m.rel_mse),
+                        ]);
                         t.push(row)?;
                     }
                 }
@@ -272,7 +342,10 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         }
         let series: Vec<Series> = curves
             .iter()
-            .map(|(l, p)| Series { label: l.clone(), points: p.iter().map(|q| (q.seconds, q.error)).collect() })
+            .map(|(l, p)| Series {
+                label: l.clone(),
+                points: p.iter().map(|q| (q.seconds, q.error)).collect(),
+            })
             .collect();
         line_chart(
             &ctx.out.join(format!("accuracy-time-{name}.png")),
@@ -294,9 +367,12 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
             v
         };
         for (label, pts) in curves.iter().skip(1) {
-            let Some(at8) = pts.iter().find(|p| p.spp == 8) else { continue };
+            let Some(at8) = pts.iter().find(|p| p.spp == 8) else {
+                continue;
+            };
             let (spp_equal, ex1) = loglog_where(&by_spp, at8.error).unwrap_or((f64::NAN, true));
-            let (err_equal_time, ex2) = loglog_at(&by_time, at8.seconds, -1.0).unwrap_or((f64::NAN, true));
+            let (err_equal_time, ex2) =
+                loglog_at(&by_time, at8.seconds, -1.0).unwrap_or((f64::NAN, true));
             let mark = |e: bool| if e { " (extrapolated)" } else { "" };
             headline.push_str(&format!(
                 "| {name} | {label} | {} | {} | {}{} | {}x | {}{} | {}x |\n",
@@ -340,26 +416,84 @@ struct Param {
 
 /// Table 7.1's base values.
 fn sweep_base() -> DdfSettings {
-    DdfSettings { kw: 21, sigma_dc: 0.5, sigma_ic: 0.3, sigma_f: [1.0, 0.1, 0.1, 0.5, 0.1], ..Default::default() }
+    DdfSettings {
+        kw: 21,
+        sigma_dc: 0.5,
+        sigma_ic: 0.3,
+        sigma_f: [1.0, 0.1, 0.1, 0.5, 0.1],
+        ..Default::default()
+    }
 }
 
 fn sweep_params(quick: bool) -> Vec<Param> {
     let v = |x: &[f64]| x.to_vec();
     let mut p = vec![
-        Param { name: "kw", values: v(&[11.0, 15.0, 21.0]), set: |s, x| s.kw = x as u32 },
-        Param { name: "sigma_dc", values: v(&[0.10, 0.25, 0.5, 1.00, 2.50]), set: |s, x| s.sigma_dc = x as f32 },
-        Param { name: "sigma_ic", values: v(&[0.10, 0.25, 0.3, 1.00, 2.50]), set: |s, x| s.sigma_ic = x as f32 },
-        Param { name: "sigma_depth", values: v(&[0.25, 0.50, 1.0, 2.50, 5.00]), set: |s, x| s.sigma_f[0] = x as f32 },
-        Param { name: "sigma_normal", values: v(&[0.05, 0.1, 0.25, 0.50, 1.00]), set: |s, x| s.sigma_f[1] = x as f32 },
-        Param { name: "sigma_texture", values: v(&[0.05, 0.1, 0.25, 0.50, 1.00]), set: |s, x| s.sigma_f[2] = x as f32 },
-        Param { name: "sigma_direction", values: v(&[0.10, 0.25, 0.5, 1.00, 2.50]), set: |s, x| s.sigma_f[3] = x as f32 },
-        Param { name: "sigma_texture2", values: v(&[0.05, 0.1, 0.25, 0.50, 1.00]), set: |s, x| s.sigma_f[4] = x as f32 },
+        Param {
+            name: "kw",
+            values: v(&[11.0, 15.0, 21.0]),
+            set: |s, x| s.kw = x as u32,
+        },
+        Param {
+            name: "sigma_dc",
+            values: v(&[0.10, 0.25, 0.5, 1.00, 2.50]),
+            set: |s, x| s.sigma_dc = x as f32,
+        },
+        Param {
+            name: "sigma_ic",
+            values: v(&[0.10, 0.25, 0.3, 1.00, 2.50]),
+            set: |s, x| s.sigma_ic = x as f32,
+        },
+        Param {
+            name: "sigma_depth",
+            values: v(&[0.25, 0.50, 1.0, 2.50, 5.00]),
+            set: |s, x| s.sigma_f[0] = x as f32,
+        },
+        Param {
+            name: "sigma_normal",
+            values: v(&[0.05, 0.1, 0.25, 0.50, 1.00]),
+            set: |s, x| s.sigma_f[1] = x as f32,
+        },
+        Param {
+            name: "sigma_texture",
+            values: v(&[0.05, 0.1, 0.25, 0.50, 1.00]),
+            set: |s, x| s.sigma_f[2] = x as f32,
+        },
+        Param {
+            name: "sigma_direction",
+            values: v(&[0.10, 0.25, 0.5, 1.00, 2.50]),
+            set: |s, x| s.sigma_f[3] = x as f32,
+        },
+        Param {
+            name: "sigma_texture2",
+            values: v(&[0.05, 0.1, 0.25, 0.50, 1.00]),
+            set: |s, x| s.sigma_f[4] = x as f32,
+        },
         // The variance scales s_f the thesis leaves open (our defaults come from these rows).
-        Param { name: "scale_depth", values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]), set: |s, x| s.variance_scale[0] = x as f32 },
-        Param { name: "scale_normal", values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]), set: |s, x| s.variance_scale[1] = x as f32 },
-        Param { name: "scale_texture", values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]), set: |s, x| s.variance_scale[2] = x as f32 },
-        Param { name: "scale_direction", values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]), set: |s, x| s.variance_scale[3] = x as f32 },
-        Param { name: "scale_texture2", values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]), set: |s, x| s.variance_scale[4] = x as f32 },
+        Param {
+            name: "scale_depth",
+            values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]),
+            set: |s, x| s.variance_scale[0] = x as f32,
+        },
+        Param {
+            name: "scale_normal",
+            values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]),
+            set: |s, x| s.variance_scale[1] = x as f32,
+        },
+        Param {
+            name: "scale_texture",
+            values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]),
+            set: |s, x| s.variance_scale[2] = x as f32,
+        },
+        Param {
+            name: "scale_direction",
+            values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]),
+            set: |s, x| s.variance_scale[3] = x as f32,
+        },
+        Param {
+            name: "scale_texture2",
+            values: v(&[0.0, 0.1, 1.0, 10.0, 100.0]),
+            set: |s, x| s.variance_scale[4] = x as f32,
+        },
     ];
     if quick {
         for q in &mut p {
@@ -380,16 +514,48 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
     let plan: Vec<(&str, u32, Vec<&str>)> = vec![
         ("scenes/cornell_diffuse.toml", 8, vec![]),
         ("scenes/cornell_diffuse_dof.toml", 16, vec![]),
-        ("scenes/cornell_glossy.toml", 8, vec!["sigma_direction", "sigma_texture2", "scale_direction", "scale_texture2"]),
-        ("scenes/outside.toml", 8, vec!["sigma_direction", "sigma_texture2", "scale_direction", "scale_texture2"]),
+        (
+            "scenes/cornell_glossy.toml",
+            8,
+            vec![
+                "sigma_direction",
+                "sigma_texture2",
+                "scale_direction",
+                "scale_texture2",
+            ],
+        ),
+        (
+            "scenes/outside.toml",
+            8,
+            vec![
+                "sigma_direction",
+                "sigma_texture2",
+                "scale_direction",
+                "scale_texture2",
+            ],
+        ),
     ];
-    let plan: Vec<_> = if ctx.quick { plan.into_iter().take(1).collect() } else { plan };
+    let plan: Vec<_> = if ctx.quick {
+        plan.into_iter().take(1).collect()
+    } else {
+        plan
+    };
     for (path, spp, only) in &plan {
         let path = PathBuf::from(path);
         let name = scene_name(&path);
         let scene = scene::load_scene(&path)?;
         let reference = reference_image(ctx, &path, &s)?;
-        let mut r = renderer_for(ctx, &scene, &s, STUDY_SEED, Outputs { features: true, variance: true, sample_vectors: None })?;
+        let mut r = renderer_for(
+            ctx,
+            &scene,
+            &s,
+            STUDY_SEED,
+            Outputs {
+                features: true,
+                variance: true,
+                sample_vectors: None,
+            },
+        )?;
         let mut rendered = false;
         let mut runs: Vec<(String, String, DdfSettings)> = Vec::new();
         for p in sweep_params(ctx.quick) {
@@ -402,8 +568,19 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
                 runs.push((p.name.to_string(), num(v), st));
             }
         }
-        for kw in if ctx.quick { vec![11, 21] } else { vec![11, 15, 21, 55] } {
-            runs.push(("kw_final".into(), kw.to_string(), DdfSettings { kw, ..Default::default() }));
+        for kw in if ctx.quick {
+            vec![11, 21]
+        } else {
+            vec![11, 15, 21, 55]
+        } {
+            runs.push((
+                "kw_final".into(),
+                kw.to_string(),
+                DdfSettings {
+                    kw,
+                    ..Default::default()
+                },
+            ));
         }
         for (param, value, st) in runs {
             let key = vec![name.clone(), param.clone(), value.clone()];
@@ -415,7 +592,10 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
                 r.render_samples(*spp)?;
                 rendered = true;
             }
-            let m = Method::Ddf { settings: st, variant: Variant::Rows { work_group: 64 } };
+            let m = Method::Ddf {
+                settings: st,
+                variant: Variant::Rows { work_group: 64 },
+            };
             let img = m.prepare(&ctx.gpu, &scene, &r)?.run(&r)?.image;
             let mut row = key;
             let cells = metric_cells(&img, &reference)?;
@@ -441,7 +621,12 @@ fn write_sweep_report(ctx: &Context, t: &ResultTable) -> Result<()> {
         let mut v: Vec<(f64, f64)> = recs
             .iter()
             .filter(|r| r["scene"] == scene && r["parameter"] == param)
-            .map(|r| (r["value"].parse().unwrap_or(f64::NAN), r["mse_luv"].parse().unwrap_or(f64::NAN)))
+            .map(|r| {
+                (
+                    r["value"].parse().unwrap_or(f64::NAN),
+                    r["mse_luv"].parse().unwrap_or(f64::NAN),
+                )
+            })
             .collect();
         v.sort_by(|a, b| a.0.total_cmp(&b.0));
         v
@@ -451,13 +636,20 @@ fn write_sweep_report(ctx: &Context, t: &ResultTable) -> Result<()> {
     let mut h2 = Vec::new();
     let mut h3 = Vec::new();
     for scene in &scenes {
-        let mut params: Vec<&str> = recs.iter().filter(|r| r["scene"] == *scene).map(|r| r["parameter"]).collect();
+        let mut params: Vec<&str> = recs
+            .iter()
+            .filter(|r| r["scene"] == *scene)
+            .map(|r| r["parameter"])
+            .collect();
         params.sort();
         params.dedup();
         let series: Vec<Series> = params
             .iter()
             .filter(|p| p.starts_with("sigma"))
-            .map(|p| Series { label: p.to_string(), points: series_of(scene, p) })
+            .map(|p| Series {
+                label: p.to_string(),
+                points: series_of(scene, p),
+            })
             .collect();
         let file = format!("sweep-{scene}.png");
         line_chart(
@@ -475,10 +667,23 @@ fn write_sweep_report(ctx: &Context, t: &ResultTable) -> Result<()> {
         for p in ["sigma_dc", "sigma_ic"] {
             let v = series_of(scene, p);
             if !v.is_empty() {
-                h1.push(format!("{scene} {p}: {}", if decreasing(&v) { "MSE falls at every step" } else { "MSE does not fall at every step" }));
+                h1.push(format!(
+                    "{scene} {p}: {}",
+                    if decreasing(&v) {
+                        "MSE falls at every step"
+                    } else {
+                        "MSE does not fall at every step"
+                    }
+                ));
             }
         }
-        for p in ["sigma_depth", "sigma_normal", "sigma_texture", "sigma_direction", "sigma_texture2"] {
+        for p in [
+            "sigma_depth",
+            "sigma_normal",
+            "sigma_texture",
+            "sigma_direction",
+            "sigma_texture2",
+        ] {
             let v = series_of(scene, p);
             if !v.is_empty() {
                 h2.push((decreasing(&v), format!("{scene} {p}")));
@@ -486,7 +691,14 @@ fn write_sweep_report(ctx: &Context, t: &ResultTable) -> Result<()> {
         }
         let kw = series_of(scene, "kw_final");
         if !kw.is_empty() {
-            h3.push((decreasing(&kw), format!("{scene}: kw {} -> MSE {}", kw.iter().map(|p| num(p.0)).collect::<Vec<_>>().join("/"), kw.iter().map(|p| num(p.1)).collect::<Vec<_>>().join("/"))));
+            h3.push((
+                decreasing(&kw),
+                format!(
+                    "{scene}: kw {} -> MSE {}",
+                    kw.iter().map(|p| num(p.0)).collect::<Vec<_>>().join("/"),
+                    kw.iter().map(|p| num(p.1)).collect::<Vec<_>>().join("/")
+                ),
+            ));
         }
     }
     let h1_holds = h1.iter().all(|s| s.contains("falls at every"));

@@ -8,8 +8,8 @@ use crate::filters::atrous::AtrousSettings;
 use crate::filters::ddf::{DdfSettings, DirectionTerm, Variant};
 use crate::filters::method::Method as FilterMethod;
 use crate::filters::rpf::{RpfSettings, SceneKind};
-use crate::scene::file::FilterSection;
 use crate::scene::Setting;
+use crate::scene::file::FilterSection;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Method {
@@ -101,7 +101,10 @@ fn five(v: &Option<Vec<f32>>, flag: &str) -> Result<Option<[f32; 5]>> {
     match v {
         None => Ok(None),
         Some(v) if v.len() == 5 => Ok(Some([v[0], v[1], v[2], v[3], v[4]])),
-        Some(v) => bail!("--{flag} takes 5 comma-separated values (depth,normal,texture,direction,texture2), got {}", v.len()),
+        Some(v) => bail!(
+            "--{flag} takes 5 comma-separated values (depth,normal,texture,direction,texture2), got {}",
+            v.len()
+        ),
     }
 }
 
@@ -116,13 +119,20 @@ impl FilterArgs {
             Some("ddf") => Ok(Method::Ddf),
             Some("rpf") => Ok(Method::Rpf),
             Some("atrous") => Ok(Method::Atrous),
-            Some(other) => bail!("[filter] method {other:?} is not a filter noisefree has (none, ddf, rpf, atrous)"),
+            Some(other) => bail!(
+                "[filter] method {other:?} is not a filter noisefree has (none, ddf, rpf, atrous)"
+            ),
         }
     }
 
     /// The filter with its settings: defaults, then the scene's `[filter]`, then the flags.
     /// `setting` picks RPF's sigma^2_8 when nothing sets it.
-    pub fn build(&self, method: Method, section: Option<&FilterSection>, setting: Setting) -> Result<Option<FilterMethod>> {
+    pub fn build(
+        &self,
+        method: Method,
+        section: Option<&FilterSection>,
+        setting: Setting,
+    ) -> Result<Option<FilterMethod>> {
         Ok(match method {
             Method::None => None,
             Method::Ddf => {
@@ -135,7 +145,11 @@ impl FilterArgs {
     }
 
     pub fn rpf(&self, section: Option<&FilterSection>, setting: Setting) -> Result<RpfSettings> {
-        let kind = if setting == Setting::Outdoor { SceneKind::Outdoor } else { SceneKind::Indoor };
+        let kind = if setting == Setting::Outdoor {
+            SceneKind::Outdoor
+        } else {
+            SceneKind::Indoor
+        };
         let mut s = RpfSettings::for_scene(kind);
         if let Some(sec) = section {
             if let Some(v) = sec.rpf_sigma8 {
@@ -156,11 +170,12 @@ impl FilterArgs {
     }
 
     pub fn atrous(&self, section: Option<&FilterSection>) -> Result<AtrousSettings> {
-        let mut s = if self.atrous_beauty || section.and_then(|x| x.atrous_demodulate) == Some(false) {
-            AtrousSettings::for_beauty()
-        } else {
-            AtrousSettings::default()
-        };
+        let mut s =
+            if self.atrous_beauty || section.and_then(|x| x.atrous_demodulate) == Some(false) {
+                AtrousSettings::for_beauty()
+            } else {
+                AtrousSettings::default()
+            };
         if let Some(sec) = section {
             s.iterations = sec.atrous_iterations.unwrap_or(s.iterations);
             s.sigma_color = sec.atrous_sigma_color.unwrap_or(s.sigma_color);
@@ -184,7 +199,9 @@ impl FilterArgs {
         let direction = |d: &str| match d {
             "thesis" => Ok(DirectionTerm::Thesis),
             "difference" => Ok(DirectionTerm::Difference),
-            other => bail!("[filter] direction must be \"thesis\" or \"difference\", got {other:?}"),
+            other => {
+                bail!("[filter] direction must be \"thesis\" or \"difference\", got {other:?}")
+            }
         };
         s.kw = sec.kw.unwrap_or(s.kw);
         s.holes = sec.holes.unwrap_or(s.holes);
@@ -229,7 +246,9 @@ impl FilterArgs {
         let variant = match variant {
             VariantArg::Naive => Variant::Naive,
             VariantArg::Vector => Variant::Vector,
-            VariantArg::Rows => Variant::Rows { work_group: work_group as usize },
+            VariantArg::Rows => Variant::Rows {
+                work_group: work_group as usize,
+            },
         };
         Ok((s, variant))
     }

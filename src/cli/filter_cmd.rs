@@ -58,23 +58,46 @@ pub fn run(args: &FilterCommandArgs) -> Result<()> {
         bail!("{}: no such file", args.input.display());
     }
     let samples_file = is_sample_file(&args.input);
-    let method = args.method.or(args.filter.filter).unwrap_or(if samples_file { Method::Rpf } else { Method::Ddf });
-    let setting = if args.outdoor { Setting::Outdoor } else { Setting::Indoor };
+    let method = args
+        .method
+        .or(args.filter.filter)
+        .unwrap_or(if samples_file {
+            Method::Rpf
+        } else {
+            Method::Ddf
+        });
+    let setting = if args.outdoor {
+        Setting::Outdoor
+    } else {
+        Setting::Indoor
+    };
     let (image, what) = match method {
         Method::Rpf => {
             if !samples_file {
-                bail!("{}: RPF filters a samples file (write one with `render --save-samples FILE`)", args.input.display());
+                bail!(
+                    "{}: RPF filters a samples file (write one with `render --save-samples FILE`)",
+                    args.input.display()
+                );
             }
             let set = SampleSet::read(&args.input)?;
             let settings = args.filter.rpf(None, setting)?;
             let start = std::time::Instant::now();
             let image = run_rpf(&set, &settings, !args.quiet)?;
-            println!("RPF filtered {}x{} ({} spp) in {:.1} s", set.width, set.height, set.spp, start.elapsed().as_secs_f64());
+            println!(
+                "RPF filtered {}x{} ({} spp) in {:.1} s",
+                set.width,
+                set.height,
+                set.spp,
+                start.elapsed().as_secs_f64()
+            );
             (image, args.input.display().to_string())
         }
         m => {
             if samples_file {
-                bail!("{}: a samples file holds no per-pixel buffers; use --method rpf, or an AOV file", args.input.display());
+                bail!(
+                    "{}: a samples file holds no per-pixel buffers; use --method rpf, or an AOV file",
+                    args.input.display()
+                );
             }
             let (buffers, meta) = crate::stats::aovs::read_aov_exr(&args.input)?;
             let image = match m {
@@ -86,16 +109,33 @@ pub fn run(args: &FilterCommandArgs) -> Result<()> {
                     let mut image = None;
                     let mut ddf;
                     let mut atrous;
-                    let run: &mut dyn FnMut() -> Result<crate::filters::Filtered> = if m == Method::Ddf {
+                    let run: &mut dyn FnMut() -> Result<crate::filters::Filtered> = if m
+                        == Method::Ddf
+                    {
                         let (settings, variant) = args.filter.ddf(None)?;
-                        ddf = DdfFilter::new(gpu.clone(), &settings, variant, buffers.width, buffers.height)?;
+                        ddf = DdfFilter::new(
+                            gpu.clone(),
+                            &settings,
+                            variant,
+                            buffers.width,
+                            buffers.height,
+                        )?;
                         &mut || ddf.run(&up.view())
                     } else {
                         let camera_text = meta.get("camera").with_context(|| {
-                            format!("{}: no camera in the AOV file (re-render it with this version)", args.input.display())
+                            format!(
+                                "{}: no camera in the AOV file (re-render it with this version)",
+                                args.input.display()
+                            )
                         })?;
                         let camera = crate::stats::aovs::camera_from_text(camera_text)?;
-                        atrous = AtrousFilter::new(gpu.clone(), &args.filter.atrous(None)?, &camera, buffers.width, buffers.height)?;
+                        atrous = AtrousFilter::new(
+                            gpu.clone(),
+                            &args.filter.atrous(None)?,
+                            &camera,
+                            buffers.width,
+                            buffers.height,
+                        )?;
                         &mut || atrous.run(&up.view())
                     };
                     for _ in 0..args.repeat.max(1) {
@@ -103,12 +143,18 @@ pub fn run(args: &FilterCommandArgs) -> Result<()> {
                         times.push(out.kernel_time);
                         image = Some(out.image);
                     }
-                    super::print_timings(&format!("{m:?} filter kernel time").to_lowercase(), &times);
+                    super::print_timings(
+                        &format!("{m:?} filter kernel time").to_lowercase(),
+                        &times,
+                    );
                     image.expect("at least one run")
                 }
                 Method::Rpf => unreachable!("handled above"),
             };
-            (image, format!("{} ({} spp)", args.input.display(), buffers.spp))
+            (
+                image,
+                format!("{} ({} spp)", args.input.display(), buffers.spp),
+            )
         }
     };
     if let Some(p) = &args.out {

@@ -247,8 +247,13 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     options.frame.height = args.height.unwrap_or(options.frame.height);
     options.frame.seed = args.seed.unwrap_or(options.frame.seed);
     options.frame.max_depth = args.max_depth.unwrap_or(options.frame.max_depth);
-    if options.frame.width == 0 || options.frame.height == 0 {
-        bail!("the image must be at least 1x1 pixels (got {}x{})", options.frame.width, options.frame.height);
+    for (v, flag) in [
+        (options.frame.width, "--width"),
+        (options.frame.height, "--height"),
+    ] {
+        if v == 0 {
+            bail!("{flag} 0: the image must be at least 1x1 pixels");
+        }
     }
     let spp = args.spp.unwrap_or(scene.render.spp);
     if spp == 0 {
@@ -266,8 +271,14 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         options.frame.sample_clamp = c;
     }
     let context = || format!("in {}", args.scene.display());
-    let method = args.filter.method(scene.filter.as_ref()).with_context(context)?;
-    let filter_method = args.filter.build(method, scene.filter.as_ref(), scene.render.setting).with_context(context)?;
+    let method = args
+        .filter
+        .method(scene.filter.as_ref())
+        .with_context(context)?;
+    let filter_method = args
+        .filter
+        .build(method, scene.filter.as_ref(), scene.render.setting)
+        .with_context(context)?;
     options.all_features = args.all_features;
     options.local_size = args.local_size;
     // The statistics stage and the sample vectors are compiled in only when something reads
@@ -288,21 +299,44 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     }
     if options.outputs.sample_vectors.is_some() {
         let budget = crate::filters::rpf::samples::available_memory_bytes().unwrap_or(u64::MAX);
-        crate::filters::rpf::samples::check_memory(options.frame.width, options.frame.height, spp, budget)?;
+        crate::filters::rpf::samples::check_memory(
+            options.frame.width,
+            options.frame.height,
+            spp,
+            budget,
+        )?;
     }
 
     // Outputs: explicit paths must be writable now, before minutes of rendering.
-    let png_path = args.out.clone().unwrap_or_else(|| default_output(&args.scene, "png"));
-    let exr_path = if args.no_exr { None } else { Some(args.exr.clone().unwrap_or_else(|| png_path.with_extension("exr"))) };
-    for (given, path) in [(args.out.is_some(), Some(&png_path)), (args.exr.is_some() || args.out.is_some(), exr_path.as_ref())] {
+    let png_path = args
+        .out
+        .clone()
+        .unwrap_or_else(|| default_output(&args.scene, "png"));
+    let exr_path = if args.no_exr {
+        None
+    } else {
+        Some(
+            args.exr
+                .clone()
+                .unwrap_or_else(|| png_path.with_extension("exr")),
+        )
+    };
+    for (given, path) in [
+        (args.out.is_some(), Some(&png_path)),
+        (args.exr.is_some() || args.out.is_some(), exr_path.as_ref()),
+    ] {
         if let Some(path) = path {
             if !given && let Some(dir) = path.parent() {
-                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("creating {}", dir.display()))?;
             }
             output::check_output_path(path)?;
         }
     }
-    for p in [&args.aovs, &args.exr_unfiltered, &args.save_samples].into_iter().flatten() {
+    for p in [&args.aovs, &args.exr_unfiltered, &args.save_samples]
+        .into_iter()
+        .flatten()
+    {
         output::check_output_path(p)?;
     }
 
@@ -327,12 +361,21 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
             renderer.arrays.spheres.len(),
             renderer.arrays.lights.len(),
         );
-        eprintln!("compiling kernels: {} (ready in {:.2} s)", describe_builds(&gpu.builds()), compile_start.elapsed().as_secs_f64());
+        eprintln!(
+            "compiling kernels: {} (ready in {:.2} s)",
+            describe_builds(&gpu.builds()),
+            compile_start.elapsed().as_secs_f64()
+        );
     }
     if args.explain {
         println!("kernel features for {}:", args.scene.display());
         for f in &renderer.features.features {
-            println!("  {:<24} {:<3}  {}", f.define, if f.on { "on" } else { "off" }, f.why);
+            println!(
+                "  {:<24} {:<3}  {}",
+                f.define,
+                if f.on { "on" } else { "off" },
+                f.why
+            );
         }
         println!("  camera: {}", renderer.arrays.focus_note);
     }
@@ -354,7 +397,10 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         if !args.save_partial || renderer.samples_done() == 0 {
             return Err(Interrupted.into());
         }
-        eprintln!("interrupted after {} spp: writing what was rendered (--save-partial)", renderer.samples_done());
+        eprintln!(
+            "interrupted after {} spp: writing what was rendered (--save-partial)",
+            renderer.samples_done()
+        );
         last_filtered = None; // filter the final state below
     }
     let buffers = renderer.read_buffers()?;
@@ -379,13 +425,17 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     }
     if let Some(p) = &args.save_samples {
         let (n, samples) = renderer.read_sample_vectors()?;
-        crate::filters::rpf::SampleSet::new(renderer.width(), renderer.height(), n, samples)?.write(p)?;
+        crate::filters::rpf::SampleSet::new(renderer.width(), renderer.height(), n, samples)?
+            .write(p)?;
     }
     if let Some(p) = &args.aovs {
         let mut meta = std::collections::BTreeMap::new();
         meta.insert("scene".to_string(), args.scene.display().to_string());
         meta.insert("seed".to_string(), renderer.arrays.params.seed.to_string());
-        meta.insert("camera".to_string(), crate::stats::aovs::camera_to_text(&renderer.arrays.params));
+        meta.insert(
+            "camera".to_string(),
+            crate::stats::aovs::camera_to_text(&renderer.arrays.params),
+        );
         crate::stats::aovs::write_aov_exr(p, &buffers, &meta)?;
     }
     if let Some(dir) = &args.aov_png {
@@ -410,11 +460,20 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         summary.spp_per_second(),
         summary.mrays_per_second(),
         png_path.display(),
-        exr_path.map(|p| format!(", {}", p.display())).unwrap_or_default()
+        exr_path
+            .map(|p| format!(", {}", p.display()))
+            .unwrap_or_default()
     );
     if let Some(m) = &filter_method {
-        let what = if m.name() == "rpf" { "wall-clock" } else { "kernel" };
-        super::print_timings(&format!("{} filter ({what} time)", m.name()), &summary.filter_times);
+        let what = if m.name() == "rpf" {
+            "wall-clock"
+        } else {
+            "kernel"
+        };
+        super::print_timings(
+            &format!("{} filter ({what} time)", m.name()),
+            &summary.filter_times,
+        );
     }
     Ok(summary)
 }

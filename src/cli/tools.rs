@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
 use crate::bench::reference::{self, ReferenceRequest};
@@ -30,7 +30,13 @@ pub fn compare(args: &CompareArgs) -> Result<()> {
     }
     let test = output::read_exr_rgb(&args.test)?;
     let reference = output::read_exr_rgb(&args.reference)?;
-    let m = metrics::compare(&test, &reference)?;
+    let m = metrics::compare(&test, &reference).with_context(|| {
+        format!(
+            "comparing {} with {}",
+            args.test.display(),
+            args.reference.display()
+        )
+    })?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&m)?);
     } else {
@@ -38,6 +44,7 @@ pub fn compare(args: &CompareArgs) -> Result<()> {
     }
     if let Some(p) = &args.error_map {
         let map = metrics::error_map(&test, &reference, ErrorScale::default())?;
+
         output::write_atomically(p, |tmp| {
             image::save_buffer_with_format(
                 tmp,

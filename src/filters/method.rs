@@ -19,7 +19,10 @@ use crate::scene::{MaterialKind, Scene};
 #[derive(Clone, Debug)]
 pub enum Method {
     /// The data-driven filter (thesis ch. 6).
-    Ddf { settings: DdfSettings, variant: Variant },
+    Ddf {
+        settings: DdfSettings,
+        variant: Variant,
+    },
     /// Random Parameter Filtering (thesis ch. 5), on the host.
     Rpf(RpfSettings),
     /// The edge-avoiding à-trous wavelet filter (Dammertz et al. 2010).
@@ -47,9 +50,21 @@ impl Method {
     /// What the renderer must gather for this filter, rendering `spp` samples per pixel.
     pub fn outputs(&self, spp: u32) -> Outputs {
         match self {
-            Method::Ddf { .. } => Outputs { features: true, variance: true, sample_vectors: None },
-            Method::Atrous(_) => Outputs { features: true, variance: false, sample_vectors: None },
-            Method::Rpf(_) => Outputs { features: true, variance: false, sample_vectors: Some(spp) },
+            Method::Ddf { .. } => Outputs {
+                features: true,
+                variance: true,
+                sample_vectors: None,
+            },
+            Method::Atrous(_) => Outputs {
+                features: true,
+                variance: false,
+                sample_vectors: None,
+            },
+            Method::Rpf(_) => Outputs {
+                features: true,
+                variance: false,
+                sample_vectors: Some(spp),
+            },
         }
     }
 
@@ -70,7 +85,10 @@ impl Method {
                 let camera = AtrousCamera::from(&renderer.arrays.params);
                 Prepared::Atrous(AtrousFilter::new(gpu.clone(), settings, &camera, w, h)?)
             }
-            Method::Rpf(settings) => Prepared::Rpf { settings: settings.clone(), progress: false },
+            Method::Rpf(settings) => Prepared::Rpf {
+                settings: settings.clone(),
+                progress: false,
+            },
         })
     }
 }
@@ -80,7 +98,12 @@ pub fn specialise_ddf(s: &mut DdfSettings, scene: &Scene) {
     s.sky &= scene.environment.is_some();
     let reflects = scene.materials.iter().any(|m| {
         !m.is_emissive()
-            && matches!(m.kind, MaterialKind::Specular { .. } | MaterialKind::Glass { .. } | MaterialKind::Metal { .. })
+            && matches!(
+                m.kind,
+                MaterialKind::Specular { .. }
+                    | MaterialKind::Glass { .. }
+                    | MaterialKind::Metal { .. }
+            )
     });
     s.texture2 &= reflects;
 }
@@ -90,7 +113,10 @@ pub enum Prepared {
     Ddf(DdfFilter),
     Atrous(AtrousFilter),
     /// RPF runs on the host; `progress` shows a progress bar while it does.
-    Rpf { settings: RpfSettings, progress: bool },
+    Rpf {
+        settings: RpfSettings,
+        progress: bool,
+    },
 }
 
 /// RPF on a sample set, with a progress bar if asked.
@@ -100,8 +126,10 @@ pub fn run_rpf(set: &SampleSet, settings: &RpfSettings, progress: bool) -> Resul
     }
     let bar = indicatif::ProgressBar::new(1000);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {msg:32} [{elapsed_precise}] {bar:30} ETA {eta}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {msg:32} [{elapsed_precise}] {bar:30} ETA {eta}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let callback = rpf::progress_bar_callback(&bar, &settings.box_sizes);
     let out = rpf::filter_with_progress(set, settings, &callback);
@@ -128,17 +156,29 @@ impl Prepared {
         match self {
             Prepared::Ddf(f) => {
                 let out = f.run(&renderer.device_buffers())?;
-                Ok(FilterRun { image: out.image, wall_time: start.elapsed(), kernel_time: Some(out.kernel_time) })
+                Ok(FilterRun {
+                    image: out.image,
+                    wall_time: start.elapsed(),
+                    kernel_time: Some(out.kernel_time),
+                })
             }
             Prepared::Atrous(f) => {
                 let out = f.run(&renderer.device_buffers())?;
-                Ok(FilterRun { image: out.image, wall_time: start.elapsed(), kernel_time: Some(out.kernel_time) })
+                Ok(FilterRun {
+                    image: out.image,
+                    wall_time: start.elapsed(),
+                    kernel_time: Some(out.kernel_time),
+                })
             }
             Prepared::Rpf { settings, progress } => {
                 let (spp, samples) = renderer.read_sample_vectors()?;
                 let set = SampleSet::new(renderer.width(), renderer.height(), spp, samples)?;
                 let image = run_rpf(&set, settings, *progress)?;
-                Ok(FilterRun { image, wall_time: start.elapsed(), kernel_time: None })
+                Ok(FilterRun {
+                    image,
+                    wall_time: start.elapsed(),
+                    kernel_time: None,
+                })
             }
         }
     }

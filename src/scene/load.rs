@@ -64,6 +64,7 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
             "is a directory, expected a scene file (.toml)",
         ));
     }
+    super::check_file_kind(path, &meta, "a scene file (.toml)")?;
     let bytes = std::fs::read(path)
         .map_err(|e| SceneError::new(path, format!("cannot read scene file: {e}")))?;
     let text = String::from_utf8(bytes).map_err(|e| {
@@ -568,7 +569,18 @@ impl Resolver<'_> {
                 },
                 "metal" => MaterialKind::Metal {
                     color: self.color(&sec.color, "color", Some([1.0; 3]))?,
-                    exponent: f(&sec.exponent, "exponent", 100.0, -1.0)?,
+                    exponent: match &sec.exponent {
+                        // A cos^n lobe needs n >= 0 (negative n is infinite at grazing angles).
+                        Some(x) if !(*x.get_ref() >= 0.0 && x.get_ref().is_finite()) => {
+                            return Err(self.src.at(
+                                x,
+                                "exponent",
+                                format!("exponent must be a number >= 0, got {}", x.get_ref()),
+                            ));
+                        }
+                        Some(x) => *x.get_ref(),
+                        None => 100.0,
+                    },
                 },
                 _ => MaterialKind::Emitter,
             };
@@ -704,7 +716,7 @@ impl Resolver<'_> {
             repaired += r;
         }
         if skipped > 0 {
-            self.warnings.push(format!("{origin}: skipped {skipped} degenerate triangle(s) (zero area or non-finite vertices)"));
+            self.warnings.push(format!("{origin}: skipped {skipped} degenerate triangle(s) (zero or overflowing area, or non-finite vertices)"));
         }
         if repaired > 0 {
             self.warnings.push(format!(
@@ -764,6 +776,16 @@ impl Resolver<'_> {
                 .at(l, "light.emission", "a sphere light needs `emission`"));
         }
         let emission = self.color(&sec.emission, "emission", None)?;
+        // Like an emitter material: a light that emits nothing is a mistake, not a light.
+        if let Some(e) = &sec.emission
+            && emission.max_element() <= 0.0
+        {
+            return Err(self.src.at(
+                e,
+                "light.emission",
+                "a sphere light needs a positive emission",
+            ));
+        }
         let id = materials.len() as u32;
         materials.push(Material {
             name: format!("sphere light {id}"),
@@ -908,8 +930,8 @@ impl Resolver<'_> {
 }
 
 /// Transforms a mesh part into world space and appends its triangles. Triangles with a
-/// non-finite vertex or zero area are skipped; non-finite or zero normals are replaced by the
-/// face normal. Returns (skipped, repaired).
+/// non-finite vertex, zero area or an area too large for f32 are skipped; non-finite or zero
+/// normals are replaced by the face normal. Returns (skipped, repaired).
 fn append_part(
     part: &MeshPart,
     material: u32,
@@ -923,7 +945,10 @@ fn append_part(
     for idx in &part.indices {
         let p = idx.map(|i| *linear * part.positions[i as usize] + translate);
         let face = (p[1] - p[0]).cross(p[2] - p[0]);
-        if !p.iter().all(|v| v.is_finite()) || !(face.length_squared() > 0.0) || !face.is_finite() {
+        // |face|^2 must be finite too: with coordinates near 1e19 the cross product is finite
+        // but its squared length overflows, and the normal would normalise to zero.
+        let area2 = face.length_squared();
+        if !p.iter().all(|v| v.is_finite()) || !(area2 > 0.0 && area2.is_finite()) {
             skipped += 1;
             continue;
         }

@@ -50,11 +50,20 @@ pub fn load_obj(path: &Path) -> Result<Vec<MeshPart>, SceneError> {
             "is a directory, expected an OBJ mesh file",
         ));
     }
+    super::check_file_kind(path, &meta, "an OBJ mesh file")?;
     let text = std::fs::read(path)
         .map_err(|e| SceneError::new(path, format!("cannot read mesh file: {e}")))?;
     let folder = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     load_obj_bytes(path, &text, &|name: &Path| {
         let mtl_path = folder.join(name);
+        if let Ok(meta) = std::fs::metadata(&mtl_path) {
+            super::check_file_kind(&mtl_path, &meta, "a material library (.mtl)").map_err(|e| {
+                SceneError {
+                    message: format!("{} (named by {})", e.message, path.display()),
+                    ..e
+                }
+            })?;
+        }
         let file = std::fs::File::open(&mtl_path).map_err(|e| {
             SceneError::new(
                 &mtl_path,
@@ -72,29 +81,74 @@ type MtlOpener<'a> =
     dyn Fn(&Path) -> Result<(PathBuf, std::io::BufReader<std::fs::File>), SceneError> + 'a;
 
 /// Parses OBJ text (from `path`, for messages); `open_mtl` opens the libraries it names.
+///
+/// The text is checked first (UTF-8, face indices; MTL statements before tobj reads them), so
+/// that errors name the offending line and so that input tobj mishandles never reaches it:
+/// tobj 4.0.5 panics on an MTL colour with fewer than three numbers (`Kd 1 1`), and computes
+/// `3 * index` without an overflow check for texture-coordinate and normal indices, which
+/// panics in debug builds and wraps to a wrong but valid-looking index in release builds.
 pub fn load_obj_bytes(
     path: &Path,
     text: &[u8],
     open_mtl: &MtlOpener,
 ) -> Result<Vec<MeshPart>, SceneError> {
+    check_obj_text(text).map_err(|(line, message)| SceneError {
+        path: path.to_path_buf(),
+        position: Some((line, 1)),
+        message: format!("invalid OBJ: {message}"),
+    })?;
     let options = tobj::LoadOptions {
         single_index: true,
         triangulate: true,
+        // Points and two-vertex lines would become degenerate triangles.
+        ignore_points: true,
+        ignore_lines: true,
         ..Default::default()
     };
     let mtl_error: std::cell::RefCell<Option<SceneError>> = Default::default();
     let mtl_folder: std::cell::RefCell<Option<PathBuf>> = Default::default();
+    // Polylines (`l`) and points (`p`) are not surfaces, but tobj turns an `l` with three
+    // vertices into a triangle (ignore_lines drops only two-vertex lines): blank them out,
+    // keeping the line numbers.
+    let not_surface = |l: &str| matches!(l.split_whitespace().next(), Some("l" | "p"));
+    let surfaces: Vec<u8>;
+    let text = match std::str::from_utf8(text) {
+        Ok(t) if t.lines().any(not_surface) => {
+            let kept: Vec<&str> = t
+                .split('\n')
+                .map(|l| if not_surface(l) { "" } else { l })
+                .collect();
+            surfaces = kept.join("\n").into_bytes();
+            &surfaces[..]
+        }
+        _ => text,
+    };
     let mut reader = std::io::BufReader::new(text);
     let (models, materials) =
         tobj::load_obj_buf(&mut reader, &options, |name| match open_mtl(name) {
             Ok((mtl_path, mut r)) => {
                 *mtl_folder.borrow_mut() = mtl_path.parent().map(Path::to_path_buf);
-                let result = tobj::load_mtl_buf(&mut r);
+                let mtl_err = |position: Option<usize>, what: String| {
+                    *mtl_error.borrow_mut() = Some(SceneError {
+                        path: mtl_path.clone(),
+                        position: position.map(|l| (l, 1)),
+                        message: format!(
+                            "invalid material library (named by {}): {what}",
+                            path.display()
+                        ),
+                    });
+                    Err(tobj::LoadError::MaterialParseError)
+                };
+                let mut bytes = Vec::new();
+                if let Err(e) = std::io::Read::read_to_end(&mut r, &mut bytes) {
+                    return mtl_err(None, format!("cannot read it: {e}"));
+                }
+                if let Err((line, what)) = check_mtl_text(&bytes) {
+                    return mtl_err(Some(line), what);
+                }
+                let result = tobj::load_mtl_buf(&mut std::io::Cursor::new(&bytes));
                 if let Err(e) = &result {
-                    *mtl_error.borrow_mut() = Some(SceneError::new(
-                        &mtl_path,
-                        format!("cannot parse material library: {e}"),
-                    ));
+                    return mtl_err(None, e.to_string());
                 }
                 result
             }
@@ -197,6 +251,182 @@ fn mtl_material(m: &tobj::Material, folder: &Path) -> MtlMaterial {
     }
 }
 
+/// The 1-based line of byte `offset`.
+fn line_of(text: &[u8], offset: usize) -> usize {
+    text[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// The text of an OBJ or MTL file, or the line of its first byte that is not UTF-8.
+fn utf8_lines<'a>(text: &'a [u8], what: &str) -> Result<&'a str, (usize, String)> {
+    std::str::from_utf8(text).map_err(|e| {
+        (
+            line_of(text, e.valid_up_to()),
+            format!("the {what} is not valid UTF-8 text"),
+        )
+    })
+}
+
+/// Checks every statement tobj reads, with tobj's rules, before tobj sees the text: UTF-8;
+/// `v` (x y z, then nothing, w != 0, or r g b), `vt` (u v), `vn` (x y z); `usemtl` and `mtllib`
+/// with a name; and every face corner of `f` (and `l`) lines: whole numbers, at most v/vt/vn,
+/// no index 0, none past the end of its list or, counted back, before its start. Vertex colours
+/// must be given for every vertex or for none (tobj fails on faces that mix them). Returns the
+/// first offending line and what is wrong with it.
+fn check_obj_text(text: &[u8]) -> Result<(), (usize, String)> {
+    let text = utf8_lines(text, "OBJ file")?;
+    const KINDS: [&str; 3] = ["v", "vt", "vn"];
+    const NAMES: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    let kind = |line: &str| {
+        let first = line.split_whitespace().next();
+        KINDS.iter().position(|k| first == Some(*k))
+    };
+    let mut total = [0i64; 3];
+    for line in text.lines() {
+        if let Some(k) = kind(line) {
+            total[k] += 1;
+        }
+    }
+    let number = |w: &&str| w.parse::<f32>().is_ok();
+    let mut seen = [0i64; 3];
+    // Whether the vertices so far have colours (None before the first vertex).
+    let mut coloured: Option<bool> = None;
+    for (i, line) in text.lines().enumerate() {
+        let bad = |m: String| Err((i + 1, m));
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        let rest: Vec<&str> = words.collect();
+        match key {
+            "v" => {
+                seen[0] += 1;
+                if rest.len() < 3 || !rest[..3].iter().all(number) {
+                    return bad("a vertex needs three numbers: v x y z".into());
+                }
+                let colour = match rest.len() {
+                    3 => false,
+                    4 => {
+                        if rest[3].parse::<f32>().map_or(true, |w| w == 0.0) {
+                            return bad("the vertex weight w must be a non-zero number".into());
+                        }
+                        false
+                    }
+                    6 if rest[3..].iter().all(number) => true,
+                    _ => {
+                        return bad(
+                            "a vertex is v x y z, v x y z w or v x y z r g b (numbers)".into()
+                        );
+                    }
+                };
+                if coloured.is_some_and(|c| c != colour) {
+                    return bad("vertex colours must be given for every vertex or for none".into());
+                }
+                coloured = Some(colour);
+            }
+            "vt" => {
+                seen[1] += 1;
+                if rest.len() < 2 || !rest[..2].iter().all(number) {
+                    return bad("a texture coordinate needs two numbers: vt u v".into());
+                }
+            }
+            "vn" => {
+                seen[2] += 1;
+                if rest.len() < 3 || !rest[..3].iter().all(number) {
+                    return bad("a normal needs three numbers: vn x y z".into());
+                }
+            }
+            "usemtl" | "mtllib" if rest.is_empty() => {
+                return bad(format!("{key} needs a name"));
+            }
+            "f" | "l" => {
+                let min = if key == "f" { 3 } else { 2 };
+                if rest.len() < min {
+                    return bad(format!(
+                        "`{key}` needs at least {min} corners, this one has {}",
+                        rest.len()
+                    ));
+                }
+                for word in &rest {
+                    let parts: Vec<&str> = word.split('/').collect();
+                    if parts.len() > 3 {
+                        return bad(format!(
+                            "corner {word:?} has more than three indices (v/vt/vn)"
+                        ));
+                    }
+                    for (k, part) in parts.iter().enumerate() {
+                        if part.is_empty() {
+                            if k == 0 {
+                                return bad(format!("corner {word:?} has no vertex index"));
+                            }
+                            continue;
+                        }
+                        let Ok(x) = part.parse::<i64>() else {
+                            return bad(format!(
+                                "corner {word:?} is not v, v/vt, v//vn or v/vt/vn in whole numbers"
+                            ));
+                        };
+                        let name = NAMES[k];
+                        if x == 0 {
+                            return bad(format!(
+                                "corner {word:?} has {name} index 0 (indices start at 1)"
+                            ));
+                        }
+                        if x > total[k] {
+                            return bad(format!(
+                                "corner {word:?} refers to {name} {x}, but the file has {} \
+                                 {name}(s)",
+                                total[k]
+                            ));
+                        }
+                        if x < 0 && x.unsigned_abs() > seen[k] as u64 {
+                            return bad(format!(
+                                "corner {word:?} refers to {name} {x} (counted back), but only \
+                                 {} come before this line",
+                                seen[k]
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Checks the MTL statements tobj parses: colours (Ka, Kd, Ks, Ke) need three numbers (tobj
+/// 4.0.5 panics on fewer), Ns, Ni and d one number, illum a whole number, newmtl and the texture
+/// maps a name. Returns the first offending line and what is wrong with it.
+fn check_mtl_text(text: &[u8]) -> Result<(), (usize, String)> {
+    let text = utf8_lines(text, "material library")?;
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        let rest: Vec<&str> = words.collect();
+        let number = |w: &&str| w.parse::<f32>().is_ok();
+        let problem = match key {
+            "Ka" | "Kd" | "Ks" | "Ke" => (rest.len() < 3 || !rest[..3].iter().all(number))
+                .then(|| format!("{key} needs three numbers (r g b)")),
+            "Ns" | "Ni" | "d" => {
+                (!rest.first().is_some_and(number)).then(|| format!("{key} needs a number"))
+            }
+            "illum" => (!rest.first().is_some_and(|w| w.parse::<u8>().is_ok()))
+                .then(|| "illum needs a whole number from 0 to 255".to_string()),
+            "newmtl" | "map_Ka" | "map_Kd" | "map_Ks" | "map_Bump" | "map_bump" | "map_Ns"
+            | "map_ns" | "map_NS" | "bump" | "map_d" => {
+                rest.is_empty().then(|| format!("{key} needs a name"))
+            }
+            _ => None,
+        };
+        if let Some(p) = problem {
+            return Err((i + 1, p));
+        }
+    }
+    Ok(())
+}
+
 /// tobj reports what went wrong but not where; find the first line of the kind it names so the
 /// message can point at it.
 fn obj_error(path: &Path, text: &[u8], e: tobj::LoadError) -> SceneError {
@@ -229,10 +459,11 @@ fn first_bad_line(text: &str, prefix: &str) -> Option<usize> {
     let mut first_with_prefix = None;
     for (i, line) in text.lines().enumerate() {
         let l = line.trim_start();
-        if l.starts_with("v ") {
+        let first = l.split_whitespace().next().unwrap_or("");
+        if first == "v" {
             vertex_count += 1;
         }
-        if !l.starts_with(prefix) {
+        if first != prefix.trim_end() {
             continue;
         }
         first_with_prefix.get_or_insert(i + 1);

@@ -46,6 +46,28 @@ impl SceneError {
     }
 }
 
+/// Refuses inputs that are not files to read: devices and sockets, which can be endless
+/// (`file = "/dev/zero"` would be read until memory runs out) or block. Regular files and
+/// pipes (`<(...)`) pass; directories are refused by the callers with their own message.
+pub(crate) fn check_file_kind(
+    path: &Path,
+    meta: &std::fs::Metadata,
+    what: &str,
+) -> Result<(), SceneError> {
+    #[cfg(unix)]
+    let pipe = std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type());
+    #[cfg(not(unix))]
+    let pipe = false;
+    if meta.is_file() || meta.is_dir() || pipe {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            path,
+            format!("is not a regular file (a device or a socket), expected {what}"),
+        ))
+    }
+}
+
 /// "indoor" or "outdoor" (RPF's sigma^2_8, thesis §5.1.4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Setting {

@@ -45,6 +45,7 @@ pub fn load_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), SceneError> 
             "is a directory, expected a texture image file",
         ));
     }
+    super::check_file_kind(path, &meta, "a texture image file")?;
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -98,6 +99,9 @@ pub fn load_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), SceneError> 
 
 fn load_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), SceneError> {
     use exr::prelude::*;
+    // The header first: a damaged one can claim an image too large to allocate.
+    crate::output::check_exr_memory(path, 4 * 4)
+        .map_err(|e| SceneError::new(path, format!("cannot read OpenEXR texture: {e}")))?;
     let image = read_first_rgba_layer_from_file(
         path,
         |resolution, _| {

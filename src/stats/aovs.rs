@@ -316,19 +316,36 @@ pub fn write_aov_pngs(
 /// The camera as text for AOV metadata ("origin forward right up tan_half_fov", 13 numbers),
 /// so filters that need world positions (à-trous) can run offline.
 pub fn camera_to_text(p: &crate::layout::SceneParams) -> String {
-    let v = [p.camera_origin, p.camera_forward, p.camera_right, p.camera_up];
-    let mut parts: Vec<String> = v.iter().flat_map(|f| f.0[..3].iter().map(|x| format!("{x:e}"))).collect();
+    let v = [
+        p.camera_origin,
+        p.camera_forward,
+        p.camera_right,
+        p.camera_up,
+    ];
+    let mut parts: Vec<String> = v
+        .iter()
+        .flat_map(|f| f.0[..3].iter().map(|x| format!("{x:e}")))
+        .collect();
     parts.push(format!("{:e}", p.tan_half_fov));
     parts.join(" ")
 }
 
 /// Parses [`camera_to_text`]'s output into (origin, forward, right, up, tan_half_fov).
 pub fn camera_from_text(text: &str) -> Result<crate::filters::atrous::AtrousCamera> {
-    let v: Vec<f32> = text.split_whitespace().map(|t| t.parse::<f32>()).collect::<Result<_, _>>()
+    let v: Vec<f32> = text
+        .split_whitespace()
+        .map(|t| t.parse::<f32>())
+        .collect::<Result<_, _>>()
         .map_err(|_| anyhow!("the AOV file's camera attribute is not 13 numbers: {text:?}"))?;
     if v.len() != 13 || !v.iter().all(|x| x.is_finite()) {
         bail!("the AOV file's camera attribute is not 13 finite numbers: {text:?}");
     }
     let v3 = |i: usize| glam::Vec3::new(v[i], v[i + 1], v[i + 2]);
-    Ok(crate::filters::atrous::AtrousCamera { origin: v3(0), forward: v3(3), right: v3(6), up: v3(9), tan_half_fov: v[12] })
+    Ok(crate::filters::atrous::AtrousCamera {
+        origin: v3(0),
+        forward: v3(3),
+        right: v3(6),
+        up: v3(9),
+        tan_half_fov: v[12],
+    })
 }
