@@ -43,8 +43,10 @@ inline DdfCentre ddf_centre(__constant const DdfParams* p, float16 f, __global c
     DdfCentre c;
     c.f = f;
     float16 g = vload16(pixel, gb) * p->variance_factor;   // S_n / (n - 1): the variances
-    float sums[5] = {g.s0, g.s1 + g.s2 + g.s3, g.s4 + g.s5 + g.s6, g.s7 + g.s8 + g.s9,
-                     g.sA + g.sB + g.sC};
+    // Depths are compared in hundredths of the scene's size (depth_scale; src/stats/mod.rs),
+    // so their variance scales with depth_scale^2.
+    float sums[5] = {g.s0 * p->depth_scale * p->depth_scale, g.s1 + g.s2 + g.s3,
+                     g.s4 + g.s5 + g.s6, g.s7 + g.s8 + g.s9, g.sA + g.sB + g.sC};
     for (int i = 0; i < 5; ++i)
         c.sigma2_f[i] = p->sigma2_f[i] * (1.0f - clamp(sums[i] * p->variance_scale[i], 0.0f, 1.0f));
 #if DDF_DIRECTION
@@ -65,7 +67,7 @@ inline void ddf_neighbour(__constant const DdfParams* p, DdfCentre* c, float16 n
                           float3 n_direction) {
     float e_dc = p->sigma2_dc * sum_sq3(c->f.s012, n.s012);                 // eq. 6.11
     float e_ic = p->sigma2_ic * sum_sq3(c->f.s345, n.s345);                 // eq. 6.12
-    float dd = c->f.s6 - n.s6;
+    float dd = (c->f.s6 - n.s6) * p->depth_scale;
     float e_fd = c->sigma2_f[0] * dd * dd                                    // eq. 6.13
                + c->sigma2_f[1] * sum_sq3(c->f.s789, n.s789)
                + c->sigma2_f[2] * sum_sq3(c->f.sABC, n.sABC);

@@ -159,7 +159,7 @@ typedef struct __attribute__((aligned(16))) {
     float sigma2_dc; // Eq. 6.8: 1 / (2 sigma_dc^2).
     float sigma2_ic; // Eq. 6.9: 1 / (2 sigma_ic^2).
     float variance_factor; // Multiplies GB to give variances: 1 / (n - 1) for Welford sums, 1 for variances.
-    uint pad;
+    float depth_scale; // Multiplies depths before they are compared (depth in hundredths of the scene size).
     float sigma2_f[5]; // 1 / (2 sigma_f,i^2) for depth, normal, texture, direction, texture2 (eq. 6.10).
     uint pad2[3];
     float variance_scale[5]; // The variance scales s_f,i, same order.

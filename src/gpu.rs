@@ -15,6 +15,7 @@ use ocl::flags::{DeviceType, MemFlags};
 use ocl::{Buffer, Context, Device, Event, OclPrm, Platform, Program, Queue};
 
 use crate::kernels;
+pub use crate::memory::human_bytes;
 
 /// What the user is told when no OpenCL platform is installed.
 pub const NO_PLATFORM_HELP: &str = "no OpenCL platform found. noisefree needs an OpenCL driver; \
@@ -432,21 +433,6 @@ pub fn event_duration(event: &Event) -> Result<Duration> {
     let start = event.profiling_info(ProfilingInfo::Start)?.time()?;
     let end = event.profiling_info(ProfilingInfo::End)?.time()?;
     Ok(Duration::from_nanos(end.saturating_sub(start)))
-}
-
-pub fn human_bytes(b: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut v = b as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{b} B")
-    } else {
-        format!("{v:.1} {}", UNITS[u])
-    }
 }
 
 /// Rounds `n` up to a multiple of `m`.

@@ -351,7 +351,8 @@ device_structs! {
         pub sigma2_ic: f32,
         /// Multiplies GB to give variances: 1 / (n - 1) for Welford sums, 1 for variances.
         pub variance_factor: f32,
-        pub pad: u32,
+        /// Multiplies depths before they are compared (depth in hundredths of the scene size).
+        pub depth_scale: f32,
         /// 1 / (2 sigma_f,i^2) for depth, normal, texture, direction, texture2 (eq. 6.10).
         pub sigma2_f: [f32; 5],
         pub pad2: [u32; 3],

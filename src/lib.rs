@@ -3,8 +3,12 @@
 //! Real-time Rendering*, MSc thesis, Utrecht University, 2013.
 //!
 //! Modules follow the data: [`scene`] → [`bvh`] → [`render`] (device buffers and the
-//! megakernel in `kernels/`) → [`stats`] (per-pixel statistics) → [`output`], [`metrics`]. [`layout`] is the one definition of every struct
-//! shared with the kernels; [`reference`] holds plain Rust versions of the kernels for tests.
+//! megakernel in `kernels/`) → [`stats`] (per-pixel statistics) → [`filters`] → [`output`],
+//! [`metrics`], [`bench`] → [`cli`]. [`layout`] is the one definition of every struct shared
+//! with the kernels; [`reference`] holds plain Rust versions of the kernels for tests.
+
+// Comparisons such as `!(x > 0.0)` are deliberate: they are also true for NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod assets;
 pub mod bench;
@@ -14,6 +18,7 @@ pub mod filters;
 pub mod gpu;
 pub mod kernels;
 pub mod layout;
+pub mod memory;
 pub mod metrics;
 pub mod output;
 pub mod reference;

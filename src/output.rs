@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context as _, Result, bail};
 
 use crate::layout::FilterVector;
+use crate::memory::{available_memory_bytes, human_bytes};
 use crate::scene::texture::linear_to_srgb;
 
 /// A linear RGB image, rows top to bottom.
@@ -176,14 +177,6 @@ pub fn read_exr_metadata(path: &Path) -> Result<std::collections::BTreeMap<Strin
     Ok(out)
 }
 
-/// `MemAvailable` of /proc/meminfo in bytes, where the system has one.
-fn available_memory_bytes() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    kib.checked_mul(1024)
-}
-
 /// Reads only the header of the OpenEXR file at `path` and checks, before any pixel is
 /// allocated, that decoding its largest layer fits in the memory available (16 GiB where that
 /// is unknown). A damaged or hostile header can claim up to 2^30 x 2^30 pixels, and the exr
@@ -218,22 +211,6 @@ pub(crate) fn check_exr_memory(path: &Path, bytes_per_pixel: u64) -> Result<(), 
         ));
     }
     Ok(())
-}
-
-/// `b` bytes as "1.23 GiB".
-fn human_bytes(b: u64) -> String {
-    const UNITS: [&str; 6] = ["bytes", "KiB", "MiB", "GiB", "TiB", "PiB"];
-    let mut v = b as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{b} bytes")
-    } else {
-        format!("{v:.2} {}", UNITS[u])
-    }
 }
 
 /// Reads the RGB channels of an OpenEXR file (the first RGBA layer).

@@ -119,6 +119,7 @@ fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffe
         filter_vectors,
         variances: None,
         directions: None,
+        scene_size: 100.0,
     }
 }
 

@@ -112,6 +112,7 @@ fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffe
         filter_vectors,
         variances: Some(vec![GBuffer::default(); n]),
         directions: Some(vec![[0.0; 3]; n]),
+        scene_size: 100.0,
     }
 }
 
@@ -388,4 +389,30 @@ fn tiny_images_wide_kernels_and_underflow() {
             assert!(o[1] >= f.indirect[1] - 1e-6);
         }
     }
+}
+
+/// Depth is compared in hundredths of the scene's size: the same buffers with every depth and
+/// the scene size scaled by 1000 filter to the same image (up to rounding).
+#[test]
+fn depth_weights_do_not_depend_on_the_scene_units() {
+    let b = rendered(40, 30, 8, 5);
+    let mut scaled = b.clone();
+    scaled.scene_size *= 1000.0;
+    for f in &mut scaled.filter_vectors {
+        if f.depth < SKY_DEPTH {
+            f.depth *= 1000.0;
+        }
+    }
+    for g in scaled.variances.as_mut().unwrap() {
+        g.depth *= 1.0e6;
+    }
+    let s = DdfSettings::default();
+    let (a, c) = (reference(&b, &s).unwrap(), reference(&scaled, &s).unwrap());
+    assert!(
+        max_rel_diff(&a, &c) < 1e-3,
+        "units changed the filter: {}",
+        max_rel_diff(&a, &c)
+    );
+    let d = device(&scaled, &s, Variant::Rows { work_group: 64 });
+    assert!(max_rel_diff(&d, &a) < 1e-3);
 }

@@ -55,7 +55,10 @@ const CASES_RPF: u32 = 1000;
 fn config(cases: u32) -> ProptestConfig {
     // A fixed seed, so CI runs the same cases every time (a failure is reproducible); set
     // PROPTEST_RNG_SEED to explore other cases locally.
-    let seed = std::env::var("PROPTEST_RNG_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x6e6f_6973_6566_7265);
+    let seed = std::env::var("PROPTEST_RNG_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0x6e6f_6973_6566_7265);
     ProptestConfig {
         cases,
         // No regression files in the source tree.
@@ -1563,6 +1566,7 @@ fn small_aovs(w: u32, h: u32) -> noisefree::stats::PixelBuffers {
         filter_vectors: fv,
         variances: Some(gb),
         directions: Some(vec![[0.0, 0.0, 1.0]; n]),
+        scene_size: 100.0,
     }
 }
 

@@ -7,48 +7,8 @@ mod common;
 use common::*;
 use noisefree::filters::UploadedBuffers;
 use noisefree::filters::ddf::{DdfFilter, DdfSettings, Variant};
-use noisefree::layout::{FilterVector, GBuffer, SKY_DEPTH, StatsState};
+use noisefree::layout::{FilterVector, GBuffer, SKY_DEPTH};
 use noisefree::stats::{PixelBuffers, variances_from_sums};
-
-/// Feeds one stream per pixel through the kernel's statistics stage in launches of `chunk`.
-fn device_welford(streams: &[Vec<f32>], chunk: usize) -> (Vec<FilterVector>, Vec<GBuffer>) {
-    let gpu = gpu();
-    let program = gpu.program("probes.cl", &generic_defines(), "").unwrap();
-    let (pixels, len) = (streams.len(), streams[0].len());
-    let flat: Vec<f32> = streams.iter().flatten().copied().collect();
-    let stream = gpu.upload(&flat).unwrap();
-    let f = gpu.zeroed::<FilterVector>(pixels, "F").unwrap();
-    let gb = gpu.zeroed::<GBuffer>(pixels, "GB").unwrap();
-    let st = gpu.zeroed::<StatsState>(pixels, "state").unwrap();
-    let kernel = ocl::Kernel::builder()
-        .program(&program)
-        .name("probe_film")
-        .queue(gpu.queue.clone())
-        .global_work_size(pixels)
-        .arg(&stream)
-        .arg(len as u32)
-        .arg(0u32)
-        .arg(0u32)
-        .arg(&f)
-        .arg(&gb)
-        .arg(&st)
-        .arg(pixels as u32)
-        .build()
-        .unwrap();
-    let mut first = 0;
-    while first < len {
-        let count = chunk.min(len - first);
-        kernel.set_arg(2, first as u32).unwrap();
-        kernel.set_arg(3, count as u32).unwrap();
-        unsafe { kernel.enq().unwrap() };
-        first += count;
-    }
-    let mut fv = vec![FilterVector::default(); pixels];
-    let mut s = vec![GBuffer::default(); pixels];
-    f.read(&mut fv).enq().unwrap();
-    gb.read(&mut s).enq().unwrap();
-    (fv, s)
-}
 
 fn two_pass(x: &[f32]) -> f64 {
     let n = x.len() as f64;
@@ -111,6 +71,7 @@ fn buffers(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffers
         filter_vectors,
         variances: Some(vec![GBuffer::default(); n]),
         directions: Some(vec![[0.0; 3]; n]),
+        scene_size: 100.0,
     }
 }
 

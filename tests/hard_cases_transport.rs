@@ -239,7 +239,7 @@ fn glass_total_internal_reflection_and_grazing_incidence() {
 #[test]
 fn glass_with_equal_indices_is_invisible() {
     let a = glass_arrays(1.33, 1.33);
-    for theta in [0.0f32, 0.5, 1.2, 1.5707] {
+    for theta in [0.0f32, 0.5, 1.2, std::f32::consts::FRAC_PI_2 - 1e-4] {
         let d = Vec3::new(theta.sin(), -theta.cos(), 0.0);
         for i in 0..200u32 {
             let sc = scatter(&a, &surface(true), d, Vec3::ONE, rng_sample_key(3, i, 0), 0);

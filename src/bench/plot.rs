@@ -212,3 +212,31 @@ pub fn contact_sheet(
     }
     save_rgb8(path, &buf, w, h)
 }
+
+/// Halves an image in each dimension (2x2 box filter), for small contact sheets.
+pub fn half_size(img: &RgbImage) -> RgbImage {
+    let (w, h) = ((img.width / 2).max(1), (img.height / 2).max(1));
+    let mut pixels = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let mut acc = [0.0f32; 3];
+            let mut n = 0.0;
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let (sx, sy) = (2 * x + dx, 2 * y + dy);
+                if sx < img.width && sy < img.height {
+                    let p = img.pixels[(sy * img.width + sx) as usize];
+                    for c in 0..3 {
+                        acc[c] += p[c];
+                    }
+                    n += 1.0;
+                }
+            }
+            pixels.push(acc.map(|v| v / n));
+        }
+    }
+    RgbImage {
+        width: w,
+        height: h,
+        pixels,
+    }
+}

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 
 use super::Context;
-use super::plot::{Chart, Series, contact_sheet, line_chart};
+use super::plot::{Chart, Series, contact_sheet, half_size, line_chart};
 use super::reference::{self, ReferenceRequest};
 use super::table::{ResultTable, num};
 use crate::filters::atrous::AtrousSettings;
@@ -181,6 +181,20 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
         }
         let refs: Vec<(String, &RgbImage)> = tiles.iter().map(|(l, i)| (l.clone(), i)).collect();
         contact_sheet(&ctx.out.join(format!("quality-{name}.png")), &refs, 4, 0.0)?;
+        // A small sheet for documentation: reference, unfiltered 8 spp, and each filter at 8 spp.
+        let small: Vec<(String, RgbImage)> = tiles
+            .iter()
+            .filter(|(l, _)| l.starts_with("reference") || l.ends_with(" 8 spp"))
+            .map(|(l, i)| (l.clone(), half_size(i)))
+            .collect();
+        let small_refs: Vec<(String, &RgbImage)> =
+            small.iter().map(|(l, i)| (l.clone(), i)).collect();
+        contact_sheet(
+            &ctx.out.join(format!("quality-{name}-small.png")),
+            &small_refs,
+            small.len(),
+            0.0,
+        )?;
     }
     let mut md = String::from(
         "# Quality against the reference (thesis §7.3, Fig. 7.18)\n\n\

@@ -109,35 +109,34 @@ pub fn run(args: &FilterCommandArgs) -> Result<()> {
                     let mut image = None;
                     let mut ddf;
                     let mut atrous;
-                    let run: &mut dyn FnMut() -> Result<crate::filters::Filtered> = if m
-                        == Method::Ddf
-                    {
-                        let (settings, variant) = args.filter.ddf(None)?;
-                        ddf = DdfFilter::new(
-                            gpu.clone(),
-                            &settings,
-                            variant,
-                            buffers.width,
-                            buffers.height,
-                        )?;
-                        &mut || ddf.run(&up.view())
-                    } else {
-                        let camera_text = meta.get("camera").with_context(|| {
+                    let run: &mut dyn FnMut() -> Result<crate::filters::Filtered> =
+                        if m == Method::Ddf {
+                            let (settings, variant) = args.filter.ddf(None)?;
+                            ddf = DdfFilter::new(
+                                gpu.clone(),
+                                &settings,
+                                variant,
+                                buffers.width,
+                                buffers.height,
+                            )?;
+                            &mut || ddf.run(&up.view())
+                        } else {
+                            let camera_text = meta.get("camera").with_context(|| {
                             format!(
                                 "{}: no camera in the AOV file (re-render it with this version)",
                                 args.input.display()
                             )
                         })?;
-                        let camera = crate::stats::aovs::camera_from_text(camera_text)?;
-                        atrous = AtrousFilter::new(
-                            gpu.clone(),
-                            &args.filter.atrous(None)?,
-                            &camera,
-                            buffers.width,
-                            buffers.height,
-                        )?;
-                        &mut || atrous.run(&up.view())
-                    };
+                            let camera = crate::stats::aovs::camera_from_text(camera_text)?;
+                            atrous = AtrousFilter::new(
+                                gpu.clone(),
+                                &args.filter.atrous(None)?,
+                                &camera,
+                                buffers.width,
+                                buffers.height,
+                            )?;
+                            &mut || atrous.run(&up.view())
+                        };
                     for _ in 0..args.repeat.max(1) {
                         let out = run().context("filtering")?;
                         times.push(out.kernel_time);

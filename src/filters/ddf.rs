@@ -136,7 +136,13 @@ impl DdfSettings {
     }
 
     /// Eqs. 6.8-6.9 and the constant part of 6.10, for an image of w x h.
-    pub fn params(&self, width: u32, height: u32, variance_factor: f32) -> DdfParams {
+    pub fn params(
+        &self,
+        width: u32,
+        height: u32,
+        variance_factor: f32,
+        depth_scale: f32,
+    ) -> DdfParams {
         let inv2 = |s: f32| 1.0 / (2.0 * s * s);
         DdfParams {
             width,
@@ -146,6 +152,7 @@ impl DdfSettings {
             sigma2_dc: inv2(self.sigma_dc),
             sigma2_ic: inv2(self.sigma_ic),
             variance_factor,
+            depth_scale,
             sigma2_f: self.sigma_f.map(inv2),
             variance_scale: self.variance_scale,
             ..Default::default()
@@ -208,7 +215,7 @@ impl DdfFilter {
         ];
         let program = gpu.program("ddf.cl", &defines, "")?;
         let pixels = width as usize * height as usize;
-        let params = gpu.upload(&[settings.params(width, height, 1.0)])?;
+        let params = gpu.upload(&[settings.params(width, height, 1.0, 1.0)])?;
         let out = gpu.zeroed::<Float4>(pixels, "filtered image")?;
         let (w, h) = (width as usize, height as usize);
         let mut b = Kernel::builder();
@@ -279,9 +286,12 @@ impl DdfFilter {
                 buffers.height
             );
         }
-        let p = self
-            .settings
-            .params(self.width, self.height, buffers.variance_factor);
+        let p = self.settings.params(
+            self.width,
+            self.height,
+            buffers.variance_factor,
+            buffers.depth_scale,
+        );
         self.params.write(std::slice::from_ref(&p)).enq()?;
         self.kernel.set_arg(1, buffers.filter_vectors)?;
         self.kernel.set_arg(2, buffers.gbuffers)?;
@@ -317,7 +327,12 @@ pub fn reference(b: &PixelBuffers, s: &DdfSettings) -> Result<RgbImage> {
         .as_ref()
         .context("the data-driven filter needs the feature variances")?;
     let (w, h) = (b.width as i32, b.height as i32);
-    let p = s.params(b.width, b.height, 1.0);
+    let p = s.params(
+        b.width,
+        b.height,
+        1.0,
+        crate::stats::depth_scale(b.scene_size),
+    );
     let dir = |i: usize| b.directions.as_ref().map_or([0.0; 3], |d| d[i]);
     let lanes = |f: &FilterVector| -> [f32; 16] {
         let mut x = [0f32; 16];
@@ -338,7 +353,8 @@ pub fn reference(b: &PixelBuffers, s: &DdfSettings) -> Result<RgbImage> {
                 return [fc[0] + fc[3], fc[1] + fc[4], fc[2] + fc[5]];
             }
             let g: &GBuffer = &variances[pixel];
-            let sums = crate::stats::feature_variance_sums(g);
+            let mut sums = crate::stats::feature_variance_sums(g);
+            sums[0] *= p.depth_scale * p.depth_scale;
             let sigma2_f: [f32; 5] = std::array::from_fn(|i| {
                 p.sigma2_f[i] * (1.0 - (sums[i] * p.variance_scale[i]).clamp(0.0, 1.0))
             });
@@ -347,7 +363,7 @@ pub fn reference(b: &PixelBuffers, s: &DdfSettings) -> Result<RgbImage> {
             let mut visit = |n: &[f32; 16], dn: [f32; 3]| {
                 let e_dc = p.sigma2_dc * sq(&fc[0..3], &n[0..3]);
                 let e_ic = p.sigma2_ic * sq(&fc[3..6], &n[3..6]);
-                let dd = fc[6] - n[6];
+                let dd = (fc[6] - n[6]) * p.depth_scale;
                 let e_fd = sigma2_f[0] * dd * dd
                     + sigma2_f[1] * sq(&fc[7..10], &n[7..10])
                     + sigma2_f[2] * sq(&fc[10..13], &n[10..13]);

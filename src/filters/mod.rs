@@ -30,6 +30,8 @@ pub struct DeviceBuffers<'a> {
     pub stats_state: &'a Buffer<StatsState>,
     /// Multiplies `gbuffers` to give variances: 1/(n-1) for sums, 1 for variances.
     pub variance_factor: f32,
+    /// Multiplies depths before comparing them ([`crate::stats::depth_scale`]).
+    pub depth_scale: f32,
 }
 
 /// Device copies of host buffers (for filtering offline, e.g. from an AOV file).
@@ -39,6 +41,7 @@ pub struct UploadedBuffers {
     pub stats_state: Buffer<StatsState>,
     pub width: u32,
     pub height: u32,
+    pub scene_size: f32,
 }
 
 impl UploadedBuffers {
@@ -63,6 +66,7 @@ impl UploadedBuffers {
             stats_state: gpu.upload(&states)?,
             width: b.width,
             height: b.height,
+            scene_size: b.scene_size,
         })
     }
 
@@ -74,6 +78,7 @@ impl UploadedBuffers {
             gbuffers: &self.gbuffers,
             stats_state: &self.stats_state,
             variance_factor: 1.0,
+            depth_scale: crate::stats::depth_scale(self.scene_size),
         }
     }
 }

@@ -333,6 +333,7 @@ impl Renderer {
             filter_vectors,
             variances,
             directions,
+            scene_size: self.arrays.params.offset_scale,
         })
     }
 
@@ -346,6 +347,7 @@ impl Renderer {
             gbuffers: &self.gbuffers,
             stats_state: &self.stats_state,
             variance_factor: if n > 1 { 1.0 / (n - 1) as f32 } else { 0.0 },
+            depth_scale: crate::stats::depth_scale(self.arrays.params.offset_scale),
         }
     }
 

@@ -95,7 +95,9 @@ pub fn write_aov_exr(
         FlatSamples::F32(vec![b.spp as f32; n]),
     ));
     let mut attributes = LayerAttributes::named("noisefree");
-    for (k, v) in metadata {
+    let mut metadata = metadata.clone();
+    metadata.insert("scene_size".to_string(), format!("{:e}", b.scene_size));
+    for (k, v) in &metadata {
         attributes.other.insert(
             Text::from(format!("noisefree.{k}").as_str()),
             AttributeValue::Text(Text::from(v.as_str())),
@@ -226,6 +228,11 @@ pub fn read_aov_exr(path: &Path) -> Result<(PixelBuffers, BTreeMap<String, Strin
         filter_vectors: fv,
         variances: Some(gb),
         directions: Some(dirs),
+        scene_size: metadata
+            .get("scene_size")
+            .and_then(|v| v.parse::<f32>().ok())
+            .filter(|v| *v > 0.0 && v.is_finite())
+            .unwrap_or(0.0),
     };
     Ok((buffers, metadata))
 }

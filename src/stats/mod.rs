@@ -18,6 +18,20 @@ pub struct PixelBuffers {
     pub variances: Option<Vec<GBuffer>>,
     /// Mean first-bounce directions (for the direction-difference variant of the filter).
     pub directions: Option<Vec<[f32; 3]>>,
+    /// The scene's size (largest extent of its bounds) in its own units, which gives depth a
+    /// unit the filters' sigmas can be stated in; 0 when unknown.
+    pub scene_size: f32,
+}
+
+/// The data-driven filter compares depths in hundredths of the scene's size, so that
+/// sigma_depth means the same for a scene modelled in millimetres and one in kilometres (the
+/// thesis's scenes measure a few hundred units, §4.3.1, Fig. 4.9). Unknown size: raw units.
+pub fn depth_scale(scene_size: f32) -> f32 {
+    if scene_size > 0.0 && scene_size.is_finite() {
+        100.0 / scene_size
+    } else {
+        1.0
+    }
 }
 
 impl PixelBuffers {

@@ -28,6 +28,7 @@ use std::path::Path;
 use anyhow::{Context as _, Result, bail};
 
 use crate::layout::SampleVector;
+pub use crate::memory::{available_memory_bytes, human_bytes};
 
 /// Floats per sample vector (Table 5.1): 2 + 6 + 15 + 3.
 pub const FLOATS_PER_SAMPLE: usize = 26;
@@ -108,14 +109,6 @@ pub fn memory_bytes(width: u32, height: u32, spp: u32) -> u64 {
         .saturating_mul(spp as u64)
 }
 
-/// `MemAvailable` of /proc/meminfo in bytes, where the system has one.
-pub fn available_memory_bytes() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    kib.checked_mul(1024)
-}
-
 /// Checks, before anything is allocated, that the sample vectors of a `width × height` image at
 /// `spp` fit in `budget` bytes; the error says how much is needed and how many samples per
 /// pixel (or rows, for rendering in tiles) would fit.
@@ -135,22 +128,6 @@ pub fn check_memory(width: u32, height: u32, spp: u32, budget: u64) -> Result<()
         human_bytes(budget),
         budget / per_row
     )
-}
-
-/// `need` bytes as "1.23 GiB".
-pub fn human_bytes(b: u64) -> String {
-    const UNITS: [&str; 5] = ["bytes", "KiB", "MiB", "GiB", "TiB"];
-    let mut v = b as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{b} bytes")
-    } else {
-        format!("{v:.2} {}", UNITS[u])
-    }
 }
 
 /// The sample vectors of one image, pixel-major: `samples[(y · width + x) · spp + s]`.
