@@ -103,6 +103,23 @@ impl Context {
     }
 }
 
+/// A progress bar over a study's cells (hidden with --quiet).
+pub fn bar(ctx: &Context, len: u64, what: &str) -> indicatif::ProgressBar {
+    let b = if ctx.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(len)
+    };
+    b.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {msg:40} [{elapsed_precise}] {bar:25} {pos}/{len}  ETA {eta}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    b.set_message(what.to_string());
+    b
+}
+
 /// A file-system friendly name for the device, e.g. "pocl-cpu" or "nvidia-h100-80gb-hbm3".
 pub fn device_slug(gpu: &Gpu) -> String {
     let s = &gpu.summary;

@@ -7,10 +7,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
-use super::Context;
 use super::plot::{Chart, Series, contact_sheet, half_size, line_chart};
 use super::reference::{self, ReferenceRequest};
 use super::table::{ResultTable, num};
+use super::{Context, bar};
 use crate::filters::atrous::AtrousSettings;
 use crate::filters::ddf::{DdfSettings, Variant};
 use crate::filters::method::Method;
@@ -123,8 +123,10 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
     let images = ctx.out.join("images");
     std::fs::create_dir_all(&images)?;
     let ddf_spp: &[u32] = if ctx.quick { &[8] } else { &[8, 16, 32] };
+    let pb = bar(ctx, ctx.scenes.len() as u64, "quality");
     for path in &ctx.scenes {
         let name = scene_name(path);
+        pb.set_message(format!("quality: {name}"));
         let scene = scene::load_scene(path)?;
         let reference = reference_image(ctx, path, &s)?;
         let mut tiles: Vec<(String, RgbImage)> = vec![(
@@ -165,6 +167,7 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
                 None => (r.read_buffers()?.beauty(), 0.0),
                 Some(m) => {
                     let mut f = m.prepare(&ctx.gpu, &scene, &r)?;
+                    f.show_progress(!ctx.quiet);
                     let run = f.run(&r)?;
                     (run.image, run.wall_time.as_secs_f64())
                 }
@@ -195,7 +198,9 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
             small.len(),
             0.0,
         )?;
+        pb.inc(1);
     }
+    pb.finish_and_clear();
     let mut md = String::from(
         "# Quality against the reference (thesis §7.3, Fig. 7.18)\n\n\
          Every method on every scene, against the cached reference; MSE in CIELUV is the thesis's\n\
@@ -276,8 +281,10 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
     let mut headline = String::from(
         "| scene | method | error at 8 spp (MSE-LUV) | time at 8 spp (s) | unfiltered spp for the same error | equal-quality sample reduction | unfiltered error at the same time | equal-time error ratio |\n|---|---|---|---|---|---|---|---|\n",
     );
+    let pb = bar(ctx, ctx.scenes.len() as u64, "accuracy against time");
     for path in &ctx.scenes {
         let name = scene_name(path);
+        pb.set_message(format!("accuracy against time: {name}"));
         let scene = scene::load_scene(path)?;
         let reference = reference_image(ctx, path, &s)?;
         let mut curves: Vec<(String, Vec<Point>)> = Vec::new();
@@ -400,7 +407,9 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                 num(err_equal_time / at8.error),
             ));
         }
+        pb.inc(1);
     }
+    pb.finish_and_clear();
     let mut md = String::from(
         "# What accuracy costs in time\n\n\
          Error (MSE in CIELUV against the reference) against wall-clock time of rendering plus\n\

@@ -5,11 +5,10 @@ use std::path::Path;
 use std::time::Duration;
 
 use anyhow::Result;
-use indicatif::{ProgressBar, ProgressStyle};
 
-use super::Context;
 use super::plot::{Chart, Series, line_chart};
 use super::table::{ResultTable, num};
+use super::{Context, bar};
 use crate::filters::UploadedBuffers;
 use crate::filters::ddf::{DdfFilter, DdfSettings, Variant};
 use crate::gpu::Gpu;
@@ -20,22 +19,6 @@ fn scene_name(p: &Path) -> String {
     p.file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default()
-}
-
-fn bar(ctx: &Context, len: u64, what: &str) -> ProgressBar {
-    let b = if ctx.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(len)
-    };
-    b.set_style(
-        ProgressStyle::with_template(
-            "{spinner} {msg:40} [{elapsed_precise}] {bar:25} {pos}/{len}  ETA {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    b.set_message(what.to_string());
-    b
 }
 
 fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
