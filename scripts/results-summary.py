@@ -74,9 +74,21 @@ def quality():
     r = rows("quality")
     if not r:
         return "(not measured yet)"
-    out = ["| scene | method | spp | MSE (CIELUV) | relMSE | SSIM | filter s |", "|---|---|---|---|---|---|---|"]
+    cols = [("unfiltered", "8"), ("ddf", "8"), ("ddf", "16"), ("ddf", "32"), ("rpf", "8"), ("atrous", "8")]
+    out = ["MSE in CIELUV against the reference (lower is better); SSIM of the 8 spp images in the last columns.\n",
+           "| scene | " + " | ".join(f"{m} {n}" for m, n in cols) + " | SSIM unfiltered / ddf / rpf / à-trous (8 spp) | filter s ddf / rpf / à-trous (8 spp) |",
+           "|---|" + "---|" * (len(cols) + 2)]
+    scenes = []
     for x in r:
-        out.append(f"| {x['scene']} | {x['method']} | {x['spp']} | {x['mse_luv']} | {x['rel_mse']} | {x['ssim']} | {x['filter_s']} |")
+        if x["scene"] not in scenes:
+            scenes.append(x["scene"])
+    for sc in scenes:
+        cell = {(x["method"], x["spp"]): x for x in r if x["scene"] == sc}
+        mse = [cell[c]["mse_luv"] if c in cell else "" for c in cols]
+        at8 = [cell.get((m, "8")) for m in ("unfiltered", "ddf", "rpf", "atrous")]
+        ssim = " / ".join(x["ssim"] if x else "" for x in at8)
+        secs = " / ".join(x["filter_s"] if x else "" for x in at8[1:])
+        out.append(f"| {sc} | " + " | ".join(mse) + f" | {ssim} | {secs} |")
     return "\n".join(out)
 
 def accuracy():

@@ -235,7 +235,7 @@ mod tests {
             if node.leaf != 0 {
                 assert_eq!((node.leaf & LEAF_FIRST_MASK) as usize, covered);
                 let count = node.leaf >> LEAF_COUNT_SHIFT;
-                assert!(count >= 1 && count <= MAX_LEAF_TRIANGLES);
+                assert!((1..=MAX_LEAF_TRIANGLES).contains(&count));
                 covered += count as usize;
             }
         }

@@ -412,7 +412,9 @@ fn check_mtl_text(text: &[u8]) -> Result<(), (usize, String)> {
             "Ns" | "Ni" | "d" => {
                 (!rest.first().is_some_and(number)).then(|| format!("{key} needs a number"))
             }
-            "illum" => (!rest.first().is_some_and(|w| w.parse::<u8>().is_ok()))
+            "illum" => rest
+                .first()
+                .is_none_or(|w| w.parse::<u8>().is_err())
                 .then(|| "illum needs a whole number from 0 to 255".to_string()),
             "newmtl" | "map_Ka" | "map_Kd" | "map_Ks" | "map_Bump" | "map_bump" | "map_Ns"
             | "map_ns" | "map_NS" | "bump" | "map_d" => {
