@@ -43,7 +43,8 @@ fn quick_benchmark_completes_with_well_formed_results() {
     }
     for png in [
         "filter-speed-64x48.png",
-        "quality-cornell_diffuse.png",
+        "quality-cornell_diffuse-small.png",
+        "images/quality-cornell_diffuse.png",
         "accuracy-time-cornell_diffuse.png",
         "sweep-cornell_diffuse.png",
     ] {
