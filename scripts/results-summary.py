@@ -61,14 +61,18 @@ def filter_speed():
         out.append("")
     return "\n".join(out)
 
-def sweep():
-    p = os.path.join(d, "sweep.md")
+def md_section(name, start_marker, end_marker):
+    """The text of results file `name`.md from start_marker up to end_marker, or None."""
+    p = os.path.join(d, name + ".md")
     if not os.path.exists(p):
-        return ""
+        return None
     text = open(p).read()
-    start = text.find("## Hypothesis 1")
-    end = text.find("## All measurements")
-    return text[start:end].replace("## Hypothesis", "### Hypothesis").strip()
+    start = text.find(start_marker)
+    return text[start:text.find(end_marker, start)]
+
+def sweep():
+    text = md_section("sweep", "## Hypothesis 1", "## All measurements")
+    return "" if text is None else text.replace("## Hypothesis", "### Hypothesis").strip()
 
 def quality():
     r = rows("quality")
@@ -92,13 +96,8 @@ def quality():
     return "\n".join(out)
 
 def accuracy():
-    p = os.path.join(d, "accuracy-time.md")
-    if not os.path.exists(p):
-        return "(not measured yet)"
-    text = open(p).read()
-    start = text.find("| scene | method | error at 8 spp")
-    end = text.find("\n\n", start)
-    return text[start:end]
+    text = md_section("accuracy-time", "| scene | method | error at 8 spp", "\n\n")
+    return "(not measured yet)" if text is None else text
 
 tables = {
     "RESULTS_RENDER_SPEED": render_speed(),

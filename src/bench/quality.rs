@@ -9,7 +9,7 @@ use anyhow::Result;
 
 use super::plot::{Chart, Series, contact_sheet, half_size, line_chart};
 use super::reference::{self, ReferenceRequest};
-use super::table::{ResultTable, num};
+use super::table::{ResultTable, distinct, num};
 use super::{Context, bar};
 use crate::filters::atrous::AtrousSettings;
 use crate::filters::ddf::{DdfSettings, Variant};
@@ -208,15 +208,10 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
          metric. `filter_s` is the filter's wall-clock time on this machine.\n\n",
     );
     // Every scene the CSV holds: runs over a few scenes at a time add up to one report.
-    let mut names: Vec<String> = Vec::new();
-    for r in t.records() {
-        if !names.iter().any(|n| n == r["scene"]) {
-            names.push(r["scene"].to_string());
-        }
-    }
-    for name in &names {
+    for name in distinct(&t.records(), "scene") {
         md.push_str(&format!(
-            "![{name}](quality-{name}-small.png)\n\nFull size, with every spp: `images/quality-{name}.png`.\n\n"
+            "![{name}](quality-{name}-small.png)\n\nFull size, with every spp: \
+             `images/quality-{name}.png` (written by the run, not kept in git).\n\n"
         ));
     }
     md.push_str(&t.markdown());
@@ -366,22 +361,18 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
 /// (runs over a few scenes at a time add up to one report).
 fn accuracy_time_report(ctx: &Context, t: &ResultTable) -> Result<()> {
     let records = t.records();
-    let mut scenes: Vec<&str> = Vec::new();
-    for r in &records {
-        if !scenes.contains(&r["scene"]) {
-            scenes.push(r["scene"]);
-        }
-    }
+    let scenes = distinct(&records, "scene");
     let mut headline = String::from(
         "| scene | method | error at 8 spp (MSE-LUV) | time at 8 spp (s) | unfiltered spp for the same error | equal-quality sample reduction | unfiltered error at the same time | equal-time error ratio |\n|---|---|---|---|---|---|---|---|\n",
     );
     for &name in &scenes {
+        // The unfiltered curve first: the headline figures are read off it.
         let mut labels: Vec<&str> = vec!["unfiltered"];
-        for r in records.iter().filter(|r| r["scene"] == name) {
-            if !labels.contains(&r["method"]) {
-                labels.push(r["method"]);
-            }
-        }
+        labels.extend(
+            distinct(records.iter().filter(|r| r["scene"] == name), "method")
+                .into_iter()
+                .filter(|l| *l != "unfiltered"),
+        );
         let curves: Vec<(String, Vec<Point>)> = labels
             .iter()
             .map(|&label| {
@@ -666,9 +657,8 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
 /// Hypotheses 1-3 of §7.3 from the sweep rows, and the per-parameter plots.
 fn write_sweep_report(ctx: &Context, t: &ResultTable) -> Result<()> {
     let recs = t.records();
-    let mut scenes: Vec<&str> = recs.iter().map(|r| r["scene"]).collect();
+    let mut scenes = distinct(&recs, "scene");
     scenes.sort_unstable();
-    scenes.dedup();
     let mut md = String::from(
         "# Parameter sweep (thesis Table 7.1) and hypotheses 1-3 (§7.3)\n\n\
          One parameter at a time from Table 7.1's base values (kw 21, sigma_dc 0.5, sigma_ic 0.3,\n\

@@ -171,6 +171,25 @@ impl ResultTable {
     }
 }
 
+/// The distinct values of `column` over `records`, in order of first appearance.
+pub fn distinct<'t, 'r>(
+    records: impl IntoIterator<Item = &'r BTreeMap<&'t str, &'t str>>,
+    column: &str,
+) -> Vec<&'t str>
+where
+    't: 'r,
+{
+    let mut out: Vec<&'t str> = Vec::new();
+    for r in records {
+        if let Some(&v) = r.get(column)
+            && !out.contains(&v)
+        {
+            out.push(v);
+        }
+    }
+    out
+}
+
 /// Formats a float for a table: 4 significant digits.
 pub fn num(v: f64) -> String {
     if !v.is_finite() {
@@ -192,6 +211,17 @@ pub fn num(v: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn distinct_keeps_the_order_of_first_appearance() {
+        let rows: Vec<BTreeMap<&str, &str>> = [("b", "x"), ("a", "y"), ("b", "z"), ("c", "x")]
+            .iter()
+            .map(|&(s, m)| BTreeMap::from([("scene", s), ("method", m)]))
+            .collect();
+        assert_eq!(distinct(&rows, "scene"), ["b", "a", "c"]);
+        assert_eq!(distinct(&rows, "method"), ["x", "y", "z"]);
+        assert!(distinct(&rows, "missing").is_empty());
+    }
 
     #[test]
     fn rows_survive_reopening_and_quotes_round_trip() {
