@@ -33,7 +33,7 @@ typedef struct __attribute__((aligned(16))) {
     uint light_count;
     int env_texture; // Texture index of the environment light, -1 for a constant colour.
     uint rr_depth; // Path depth from which Russian roulette runs (eq. 2.9).
-    uint max_vertices; // Hard cap on path vertices, a guard against runaway paths (see kernels/pathtrace.cl).
+    uint max_vertices; // Hard cap on path vertices, a guard against runaway paths (see kernels/render/pathtrace.cl).
     uint seed;
     float sample_clamp; // Largest colour component a single path sample may carry; 0: no clamp (default).  Clamping trades a bias for fewer fireflies.
     float offset_scale; // Size of the scene (largest extent of its bounds): the unit of the absolute part of  the secondary-ray origin offset (kernels/geometry.cl), so it works at any scale.
@@ -141,7 +141,7 @@ typedef struct __attribute__((aligned(64))) {
 
 // Running state of the statistics that is neither a FilterVector mean nor an S_n: the
 // mean first-bounce direction, the depth shift and the Kahan compensation of every S_n
-// (see kernels/film.cl on float32).
+// (see kernels/render/film.cl on float32).
 typedef struct __attribute__((aligned(32))) {
     float direction_mean[3];
     float depth_shift; // The pixel's first depth sample K; depth is accumulated as x - K.

@@ -244,8 +244,8 @@ mod tests {
 
     #[test]
     fn ray_in_the_plane_of_a_box_face_still_reaches_the_leaf() {
-        use crate::reference::geometry::ray_aabb;
-        use crate::reference::geometry::{ray_triangle, safe_inverse};
+        use crate::geometry::ray_aabb;
+        use crate::geometry::{ray_triangle, safe_inverse};
         // A wall at z = 0 spanning x in [0, 1]: its box's min-x face is the plane x = 0.
         let tris = vec![
             [

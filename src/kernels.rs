@@ -7,20 +7,47 @@ use anyhow::{Result, bail};
 /// Every kernel source file, by name.
 pub const SOURCES: &[(&str, &str)] = &[
     ("layout.cl", include_str!("../kernels/layout.cl")),
-    ("features.cl", include_str!("../kernels/features.cl")),
-    ("rng.cl", include_str!("../kernels/rng.cl")),
     ("geometry.cl", include_str!("../kernels/geometry.cl")),
-    ("scene.cl", include_str!("../kernels/scene.cl")),
-    ("sampling.cl", include_str!("../kernels/sampling.cl")),
-    ("textures.cl", include_str!("../kernels/textures.cl")),
-    ("camera.cl", include_str!("../kernels/camera.cl")),
-    ("materials.cl", include_str!("../kernels/materials.cl")),
-    ("lights.cl", include_str!("../kernels/lights.cl")),
-    ("film.cl", include_str!("../kernels/film.cl")),
-    ("pathtrace.cl", include_str!("../kernels/pathtrace.cl")),
-    ("probes.cl", include_str!("../kernels/probes.cl")),
-    ("ddf.cl", include_str!("../kernels/ddf.cl")),
-    ("atrous.cl", include_str!("../kernels/atrous.cl")),
+    (
+        "arrays/trace.cl",
+        include_str!("../kernels/arrays/trace.cl"),
+    ),
+    (
+        "render/features.cl",
+        include_str!("../kernels/render/features.cl"),
+    ),
+    ("render/rng.cl", include_str!("../kernels/render/rng.cl")),
+    (
+        "render/sampling.cl",
+        include_str!("../kernels/render/sampling.cl"),
+    ),
+    (
+        "render/textures.cl",
+        include_str!("../kernels/render/textures.cl"),
+    ),
+    (
+        "render/camera.cl",
+        include_str!("../kernels/render/camera.cl"),
+    ),
+    (
+        "render/materials.cl",
+        include_str!("../kernels/render/materials.cl"),
+    ),
+    (
+        "render/lights.cl",
+        include_str!("../kernels/render/lights.cl"),
+    ),
+    ("render/film.cl", include_str!("../kernels/render/film.cl")),
+    (
+        "render/pathtrace.cl",
+        include_str!("../kernels/render/pathtrace.cl"),
+    ),
+    ("filters/ddf.cl", include_str!("../kernels/filters/ddf.cl")),
+    (
+        "filters/atrous.cl",
+        include_str!("../kernels/filters/atrous.cl"),
+    ),
+    ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];
 
 pub fn source(name: &str) -> Option<&'static str> {
@@ -70,8 +97,8 @@ mod tests {
 
     #[test]
     fn every_include_resolves_and_each_file_appears_once() {
-        let text = assemble("pathtrace.cl", "").unwrap();
-        let count = text.matches("#line 1 \"scene.cl\"").count();
+        let text = assemble("render/pathtrace.cl", "").unwrap();
+        let count = text.matches("#line 1 \"arrays/trace.cl\"").count();
         assert_eq!(count, 1);
         assert!(text.contains("__kernel void render"));
         assert!(!text.contains("#include"));

@@ -177,7 +177,7 @@ device_structs! {
         pub env_texture: i32,
         /// Path depth from which Russian roulette runs (eq. 2.9).
         pub rr_depth: u32,
-        /// Hard cap on path vertices, a guard against runaway paths (see kernels/pathtrace.cl).
+        /// Hard cap on path vertices, a guard against runaway paths (see kernels/render/pathtrace.cl).
         pub max_vertices: u32,
         pub seed: u32,
         /// Largest colour component a single path sample may carry; 0: no clamp (default).
@@ -323,7 +323,7 @@ device_structs! {
 
     /// Running state of the statistics that is neither a FilterVector mean nor an S_n: the
     /// mean first-bounce direction, the depth shift and the Kahan compensation of every S_n
-    /// (see kernels/film.cl on float32).
+    /// (see kernels/render/film.cl on float32).
     #[align(32)]
     pub struct StatsState {
         pub direction_mean: [f32; 3],

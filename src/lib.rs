@@ -10,18 +10,18 @@
 // Comparisons such as `!(x > 0.0)` are deliberate: they are also true for NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod assets;
+pub mod arrays;
 pub mod bench;
 pub mod bvh;
 pub mod cli;
 pub mod filters;
+pub mod geometry;
 pub mod gpu;
+pub mod imaging;
 pub mod kernels;
 pub mod layout;
 pub mod memory;
 pub mod metrics;
-pub mod output;
-pub mod reference;
 pub mod render;
 pub mod scene;
 pub mod stats;

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use noisefree::assets::{MESH_GENERATORS, generate_mesh, textures};
+use noisefree::scene::assets::{MESH_GENERATORS, generate_mesh, textures};
 use noisefree::scene::load_scene;
 use noisefree::scene::mesh::MeshPart;
 

@@ -13,9 +13,9 @@ use noisefree::filters::UploadedBuffers;
 use noisefree::filters::atrous::{
     AtrousCamera, AtrousFilter, AtrousSettings, B3, pixel_direction, reference,
 };
+use noisefree::imaging::RgbImage;
 use noisefree::layout::{FilterVector, SKY_DEPTH};
 use noisefree::metrics::mse_luv;
-use noisefree::output::RgbImage;
 use noisefree::render::Renderer;
 use noisefree::scene::Scene;
 use noisefree::stats::PixelBuffers;

@@ -7,8 +7,8 @@ mod common;
 
 use common::{TestRng, device_intersect};
 use glam::{Vec2, Vec3};
-use noisefree::reference::geometry::offset_ray_origin;
-use noisefree::reference::trace::{Prim, brute_force_closest, intersect_closest, occluded};
+use noisefree::render::cpu::geometry::offset_ray_origin;
+use noisefree::render::cpu::trace::{Prim, brute_force_closest, intersect_closest, occluded};
 use noisefree::render::{FrameSettings, SceneArrays};
 use noisefree::scene::{
     Camera, Material, MaterialKind, RenderSettings, Scene, Setting, SphereObject, Triangle,
@@ -247,7 +247,7 @@ fn bundled_scene_meshes_match_brute_force() {
             continue;
         }
         let arrays = SceneArrays::build(&scene, &FrameSettings::from_scene(&scene)).unwrap();
-        let (lo, hi) = noisefree::render::arrays::scene_bounds(&scene);
+        let (lo, hi) = noisefree::arrays::scene_bounds(&scene);
         let rays = rays(&mut rng, &arrays, lo, hi, 10_000);
         let bad = check(&arrays, &rays);
         assert!(

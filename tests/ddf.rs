@@ -7,9 +7,9 @@ mod common;
 use common::*;
 use noisefree::filters::UploadedBuffers;
 use noisefree::filters::ddf::{DdfFilter, DdfSettings, DirectionTerm, Variant, reference};
+use noisefree::imaging::RgbImage;
 use noisefree::layout::{FilterVector, GBuffer, SKY_DEPTH};
 use noisefree::metrics::mse_luv;
-use noisefree::output::RgbImage;
 use noisefree::stats::PixelBuffers;
 
 const VARIANTS: [Variant; 4] = [

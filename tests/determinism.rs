@@ -6,9 +6,9 @@ mod common;
 
 use common::*;
 use noisefree::layout::Float4;
-use noisefree::reference::rng::{rng_sample_key, rng_uniform};
-use noisefree::reference::sampling::camera_ray;
 use noisefree::render::SceneArrays;
+use noisefree::render::cpu::rng::{rng_sample_key, rng_uniform};
+use noisefree::render::cpu::sampling::camera_ray;
 
 fn test_scene() -> noisefree::scene::Scene {
     scene_from_toml(&cornell(
@@ -58,7 +58,9 @@ fn same_seed_same_bytes_any_work_group_size_and_batching() {
 #[test]
 fn device_random_numbers_equal_the_reference_bit_for_bit() {
     let gpu = gpu();
-    let program = gpu.program("probes.cl", &generic_defines(), "").unwrap();
+    let program = gpu
+        .program("test/probes.cl", &generic_defines(), "")
+        .unwrap();
     let mut rng = TestRng(3);
     let counters: Vec<[u32; 4]> = (0..50_000)
         .map(|i| {
@@ -116,7 +118,7 @@ fn camera_rays_match_the_reference() {
             defines.retain(|d| d.0 != "HAS_DOF");
             defines.push(("HAS_DOF".into(), "0".into()));
         }
-        let program = gpu.program("probes.cl", &defines, "").unwrap();
+        let program = gpu.program("test/probes.cl", &defines, "").unwrap();
         let params = gpu.upload(std::slice::from_ref(&arrays.params)).unwrap();
         let n = 200;
         let o = gpu.zeroed::<Float4>(n, "o").unwrap();

@@ -278,9 +278,9 @@ fn filter_refuses_missing_directory_and_non_exr_inputs() {
     fails(&["filter", s(&empty), "--out", s(&out)], &["empty.exr"]);
     // A real EXR that is not an AOV file: the missing channel is named.
     let rgb = dir.join("rgb.exr");
-    noisefree::output::write_exr(
+    noisefree::imaging::write_exr(
         &rgb,
-        &noisefree::output::RgbImage {
+        &noisefree::imaging::RgbImage {
             width: 2,
             height: 2,
             pixels: vec![[0.5; 3]; 4],
@@ -314,12 +314,12 @@ fn filter_refuses_missing_directory_and_non_exr_inputs() {
 }
 
 fn write_rgb(path: &Path, w: u32, h: u32) {
-    let img = noisefree::output::RgbImage {
+    let img = noisefree::imaging::RgbImage {
         width: w,
         height: h,
         pixels: vec![[0.25, 0.5, 0.75]; (w * h) as usize],
     };
-    noisefree::output::write_exr(path, &img).unwrap();
+    noisefree::imaging::write_exr(path, &img).unwrap();
 }
 
 #[test]

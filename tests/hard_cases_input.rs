@@ -1523,8 +1523,8 @@ proptest! {
 // Images: EXR, PNG, JPEG
 
 /// A small image with a gradient, so that compressed pixel data is not trivial.
-fn small_rgb(w: u32, h: u32) -> noisefree::output::RgbImage {
-    noisefree::output::RgbImage {
+fn small_rgb(w: u32, h: u32) -> noisefree::imaging::RgbImage {
+    noisefree::imaging::RgbImage {
         width: w,
         height: h,
         pixels: (0..w * h)
@@ -1573,13 +1573,13 @@ fn small_aovs(w: u32, h: u32) -> noisefree::stats::PixelBuffers {
 /// Image files made by the project's own writers and the committed textures.
 static IMAGES: LazyLock<Vec<(&'static str, Vec<u8>)>> = LazyLock::new(|| {
     let rgb = fresh("rgb", "exr");
-    noisefree::output::write_exr(&rgb, &small_rgb(7, 5)).unwrap();
+    noisefree::imaging::write_exr(&rgb, &small_rgb(7, 5)).unwrap();
     let aov = fresh("aov", "exr");
     noisefree::stats::aovs::write_aov_exr(&aov, &small_aovs(6, 4), &Default::default()).unwrap();
     let png = fresh("img", "png");
-    noisefree::output::write_png(&png, &small_rgb(5, 3), 0.0).unwrap();
+    noisefree::imaging::write_png(&png, &small_rgb(5, 3), 0.0).unwrap();
     let mut jpeg = Vec::new();
-    let rgb8 = noisefree::output::to_srgb8(&small_rgb(16, 9), 0.0);
+    let rgb8 = noisefree::imaging::to_srgb8(&small_rgb(16, 9), 0.0);
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 80)
         .encode(&rgb8, 16, 9, image::ExtendedColorType::Rgb8)
         .unwrap();
@@ -1648,7 +1648,7 @@ fn check_image_file(bytes: &[u8], ext: &str) -> Result<(), TestCaseError> {
         }
     }
     if ext == "exr" {
-        let r = no_panic("read_exr_rgb", || noisefree::output::read_exr_rgb(&path))?;
+        let r = no_panic("read_exr_rgb", || noisefree::imaging::read_exr_rgb(&path))?;
         match &r {
             Err(e) => prop_assert!(anyhow_text(e).contains(&shown), "{}", anyhow_text(e)),
             Ok(img) => {
@@ -1656,7 +1656,7 @@ fn check_image_file(bytes: &[u8], ext: &str) -> Result<(), TestCaseError> {
             }
         }
         let r = no_panic("read_exr_metadata", || {
-            noisefree::output::read_exr_metadata(&path)
+            noisefree::imaging::read_exr_metadata(&path)
         })?;
         if let Err(e) = &r {
             prop_assert!(anyhow_text(e).contains(&shown), "{}", anyhow_text(e));
@@ -1909,7 +1909,7 @@ fn directories_are_refused_by_every_loader() {
     }
     let d = work().join("dir.exr");
     for e in [
-        noisefree::output::read_exr_rgb(&d).unwrap_err(),
+        noisefree::imaging::read_exr_rgb(&d).unwrap_err(),
         noisefree::stats::aovs::read_aov_exr(&d).unwrap_err(),
     ] {
         let t = anyhow_text(&e);
@@ -1962,7 +1962,7 @@ fn unreadable_files_are_reported_with_their_name() {
     std::fs::write(&exr, &IMAGES[0].1).unwrap();
     std::fs::set_permissions(&exr, std::fs::Permissions::from_mode(0o000)).unwrap();
     assert!(
-        anyhow_text(&noisefree::output::read_exr_rgb(&exr).unwrap_err()).contains("locked.exr")
+        anyhow_text(&noisefree::imaging::read_exr_rgb(&exr).unwrap_err()).contains("locked.exr")
     );
 }
 
@@ -1977,7 +1977,7 @@ fn empty_files_are_clear_errors() {
     let e = texture::load_image(&exr).unwrap_err();
     assert_eq!(e.path, exr);
     for e in [
-        noisefree::output::read_exr_rgb(&exr).unwrap_err(),
+        noisefree::imaging::read_exr_rgb(&exr).unwrap_err(),
         noisefree::stats::aovs::read_aov_exr(&exr).unwrap_err(),
     ] {
         assert!(anyhow_text(&e).contains("empty.exr"), "{}", anyhow_text(&e));
@@ -1993,15 +1993,15 @@ fn empty_files_are_clear_errors() {
 fn a_zero_sized_image_is_an_error() {
     // 0 x 0 EXR: the writer refuses it or the reader does; either way no panic and the file named.
     let exr = work().join("zero.exr");
-    let img = noisefree::output::RgbImage {
+    let img = noisefree::imaging::RgbImage {
         width: 0,
         height: 0,
         pixels: Vec::new(),
     };
-    if noisefree::output::write_exr(&exr, &img).is_ok() {
+    if noisefree::imaging::write_exr(&exr, &img).is_ok() {
         let e = texture::load_image(&exr).unwrap_err();
         assert_eq!(e.path, exr);
-        assert!(noisefree::output::read_exr_rgb(&exr).is_err());
+        assert!(noisefree::imaging::read_exr_rgb(&exr).is_err());
     }
     // A PNG header that says 0 x 0 (the IHDR chunk of a real PNG with its sizes zeroed).
     let mut png = IMAGES[2].1.clone();
@@ -2117,7 +2117,7 @@ fn exr_with_non_finite_pixels_is_refused_as_a_texture() {
     let exr = work().join("nan.exr");
     let mut img = small_rgb(3, 3);
     img.pixels[4] = [f32::NAN, 0.0, 0.0];
-    noisefree::output::write_exr(&exr, &img).unwrap();
+    noisefree::imaging::write_exr(&exr, &img).unwrap();
     let e = texture::load_image(&exr).unwrap_err();
     assert!(e.message.contains("(1, 1)"), "{e}");
 }
@@ -2249,7 +2249,7 @@ fn exr_headers_claiming_huge_images_are_refused_before_allocating() {
         assert_eq!(e.path, path);
         assert!(!terabytes || e.message.contains("would take"), "{e}");
         for e in [
-            noisefree::output::read_exr_rgb(&path).unwrap_err(),
+            noisefree::imaging::read_exr_rgb(&path).unwrap_err(),
             noisefree::stats::aovs::read_aov_exr(&path).unwrap_err(),
         ] {
             let t = anyhow_text(&e);

@@ -8,8 +8,8 @@ mod common;
 use common::*;
 use glam::{Vec2, Vec3};
 use noisefree::layout::{FilterVector, Float4, MATERIAL_GLASS, Material};
-use noisefree::reference::pathtrace::{Surface, scatter};
-use noisefree::reference::rng::rng_sample_key;
+use noisefree::render::cpu::pathtrace::{Surface, scatter};
+use noisefree::render::cpu::rng::rng_sample_key;
 use noisefree::render::{Outputs, Renderer, SceneArrays};
 use noisefree::scene::Scene;
 

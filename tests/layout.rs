@@ -22,7 +22,7 @@ fn committed_header_is_generated_from_src_layout() {
 #[test]
 fn device_sizes_and_offsets_match_rust() {
     let gpu = common::gpu();
-    // One pointer argument per struct, in all_declarations() order (see kernels/probes.cl).
+    // One pointer argument per struct, in all_declarations() order (see kernels/test/probes.cl).
     let letters = [
         "a", "b", "c", "d", "e", "f", "g", "h", "i", "j", "k2", "l", "m", "n",
     ];
@@ -40,7 +40,7 @@ fn device_sizes_and_offsets_match_rust() {
     }
     let prelude = format!("#define LAYOUT_PROBE_BODY {body}\n");
     let program = gpu
-        .program("probes.cl", &common::generic_defines(), &prelude)
+        .program("test/probes.cl", &common::generic_defines(), &prelude)
         .unwrap();
     let out = gpu.zeroed::<u32>(expected.len(), "probe output").unwrap();
     let dummy = gpu.zeroed::<u8>(4096, "probe structs").unwrap();

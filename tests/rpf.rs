@@ -11,8 +11,8 @@ use noisefree::filters::rpf::weights::{Dependencies, weights};
 use noisefree::filters::rpf::{
     self, RangeColors, RpfSettings, SampleSet, SceneKind, analyze_pixel, filter,
 };
+use noisefree::imaging::RgbImage;
 use noisefree::layout::SampleVector;
-use noisefree::output::RgbImage;
 
 /// A small counter-based generator for the synthetic scenes.
 struct Rng(u64);

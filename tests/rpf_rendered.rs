@@ -7,8 +7,8 @@ mod common;
 
 use common::*;
 use noisefree::filters::rpf::{self, RpfSettings, SampleSet};
+use noisefree::imaging::RgbImage;
 use noisefree::metrics::mse_luv;
-use noisefree::output::RgbImage;
 use noisefree::render::Renderer;
 use noisefree::scene::Scene;
 

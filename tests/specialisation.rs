@@ -120,9 +120,9 @@ fn kernel_binaries_are_cached_on_disk_and_invalidated_by_changes() {
     let defines = generic_defines();
     let source_of = |gpu: &Gpu| gpu.builds().last().unwrap().source;
     let first = Gpu::open_with_cache(None, Some(dir.clone())).unwrap();
-    first.program("pathtrace.cl", &defines, "").unwrap();
+    first.program("render/pathtrace.cl", &defines, "").unwrap();
     assert_eq!(source_of(&first), BuildSource::Compiled);
-    first.program("pathtrace.cl", &defines, "").unwrap();
+    first.program("render/pathtrace.cl", &defines, "").unwrap();
     assert_eq!(
         source_of(&first),
         BuildSource::Memory,
@@ -136,7 +136,7 @@ fn kernel_binaries_are_cached_on_disk_and_invalidated_by_changes() {
 
     // A second run (a new context) loads the binary instead of compiling.
     let second = Gpu::open_with_cache(None, Some(dir.clone())).unwrap();
-    second.program("pathtrace.cl", &defines, "").unwrap();
+    second.program("render/pathtrace.cl", &defines, "").unwrap();
     assert_eq!(source_of(&second), BuildSource::Disk);
     // A program from the disk cache works: it renders like a compiled one.
     let scene = scene_from_toml(&cornell("max_depth = 2", ""));
@@ -154,10 +154,10 @@ fn kernel_binaries_are_cached_on_disk_and_invalidated_by_changes() {
     let mut other = defines.clone();
     other.retain(|d| d.0 != "HAS_GLASS");
     other.push(("HAS_GLASS".into(), "0".into()));
-    second.program("pathtrace.cl", &other, "").unwrap();
+    second.program("render/pathtrace.cl", &other, "").unwrap();
     assert_eq!(source_of(&second), BuildSource::Compiled);
     second
-        .program("pathtrace.cl", &defines, "// changed source\n")
+        .program("render/pathtrace.cl", &defines, "// changed source\n")
         .unwrap();
     assert_eq!(source_of(&second), BuildSource::Compiled);
     let _ = std::fs::remove_dir_all(&dir);

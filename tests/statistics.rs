@@ -5,9 +5,9 @@
 mod common;
 
 use common::*;
-use noisefree::reference::pathtrace::{ReferenceOptions, trace_path};
-use noisefree::reference::rng::rng_sample_key;
 use noisefree::render::SceneArrays;
+use noisefree::render::cpu::pathtrace::{ReferenceOptions, trace_path};
+use noisefree::render::cpu::rng::rng_sample_key;
 use noisefree::stats::{PixelBuffers, feature_variance_sums, variances_from_sums};
 
 fn two_pass(x: &[f32]) -> (f64, f64) {

@@ -4,8 +4,8 @@
 mod common;
 
 use common::*;
-use noisefree::reference::pathtrace::{ReferenceOptions, render as reference_render};
 use noisefree::render::SceneArrays;
+use noisefree::render::cpu::pathtrace::{ReferenceOptions, render as reference_render};
 
 fn furnace(material: &str) -> String {
     format!(

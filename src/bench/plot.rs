@@ -8,7 +8,7 @@ use anyhow::{Result, anyhow};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
-use crate::output::{RgbImage, to_srgb8, write_atomically};
+use crate::imaging::{RgbImage, to_srgb8, write_atomically};
 
 static FONT: Once = Once::new();
 

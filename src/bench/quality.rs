@@ -15,8 +15,8 @@ use crate::filters::atrous::AtrousSettings;
 use crate::filters::ddf::{DdfSettings, Variant};
 use crate::filters::method::Method;
 use crate::filters::rpf::{RpfSettings, SceneKind};
+use crate::imaging::{RgbImage, write_exr, write_png};
 use crate::metrics;
-use crate::output::{RgbImage, write_exr, write_png};
 use crate::render::{Outputs, RenderOptions, Renderer};
 use crate::scene::{self, Scene, Setting};
 
@@ -153,7 +153,7 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
             if t.has(&key) && exr.exists() {
                 tiles.push((
                     format!("{label} {spp} spp"),
-                    crate::output::read_exr_rgb(&exr)?,
+                    crate::imaging::read_exr_rgb(&exr)?,
                 ));
                 continue;
             }

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use anyhow::{Context as _, Result};
 
 use crate::gpu::{Gpu, fnv1a};
-use crate::output::{self, RgbImage};
+use crate::imaging::{self, RgbImage};
 use crate::render::{RenderOptions, Renderer, SceneArrays};
 use crate::scene::{self, Scene};
 
@@ -93,7 +93,7 @@ pub fn get_or_render(
         req.width, req.height, req.spp, req.seed
     ));
     if file.exists() {
-        let img = output::read_exr_rgb(&file)?;
+        let img = imaging::read_exr_rgb(&file)?;
         if img.width == req.width && img.height == req.height {
             return Ok((img, file, true));
         }
@@ -113,6 +113,6 @@ pub fn get_or_render(
         "seconds".to_string(),
         format!("{:.1}", start.elapsed().as_secs_f64()),
     );
-    output::write_exr_with_metadata(&file, &img, &meta)?;
+    imaging::write_exr_with_metadata(&file, &img, &meta)?;
     Ok((img, file, false))
 }

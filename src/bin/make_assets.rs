@@ -8,7 +8,7 @@ fn main() -> anyhow::Result<()> {
         .nth(1)
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from("scenes/textures"));
-    for path in noisefree::assets::textures::write_all(&dir)? {
+    for path in noisefree::scene::assets::textures::write_all(&dir)? {
         let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
         println!("{} ({} KiB)", path.display(), size.div_ceil(1024));
     }

@@ -14,7 +14,7 @@ use crate::filters::ddf::DdfFilter;
 use crate::filters::method::run_rpf;
 use crate::filters::rpf::samples::{SampleSet, is_sample_file};
 use crate::gpu::Gpu;
-use crate::output;
+use crate::imaging;
 use crate::scene::Setting;
 
 #[derive(Args, Debug, Clone)]
@@ -49,7 +49,7 @@ pub struct FilterCommandArgs {
 
 pub fn run(args: &FilterCommandArgs) -> Result<()> {
     for p in [&args.out, &args.exr].into_iter().flatten() {
-        output::check_output_path(p)?;
+        imaging::check_output_path(p)?;
     }
     if args.out.is_none() && args.exr.is_none() {
         bail!("nothing to write: give --out FILE.png and/or --exr FILE.exr");
@@ -157,10 +157,10 @@ pub fn run(args: &FilterCommandArgs) -> Result<()> {
         }
     };
     if let Some(p) = &args.out {
-        output::write_png(p, &image, args.exposure)?;
+        imaging::write_png(p, &image, args.exposure)?;
     }
     if let Some(p) = &args.exr {
-        output::write_exr(p, &image)?;
+        imaging::write_exr(p, &image)?;
     }
     println!("filtered {}x{} from {what}", image.width, image.height);
     Ok(())

@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::filter_args::FilterArgs;
 use crate::gpu::Gpu;
-use crate::output;
+use crate::imaging;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene;
 
@@ -330,14 +330,14 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
                 std::fs::create_dir_all(dir)
                     .with_context(|| format!("creating {}", dir.display()))?;
             }
-            output::check_output_path(path)?;
+            imaging::check_output_path(path)?;
         }
     }
     for p in [&args.aovs, &args.exr_unfiltered, &args.save_samples]
         .into_iter()
         .flatten()
     {
-        output::check_output_path(p)?;
+        imaging::check_output_path(p)?;
     }
 
     let gpu = Gpu::open(args.device)?;
@@ -416,12 +416,12 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         },
         None => unfiltered.clone(),
     };
-    output::write_png(&png_path, &image, args.exposure)?;
+    imaging::write_png(&png_path, &image, args.exposure)?;
     if let Some(p) = &exr_path {
-        output::write_exr(p, &image)?;
+        imaging::write_exr(p, &image)?;
     }
     if let Some(p) = &args.exr_unfiltered {
-        output::write_exr(p, &unfiltered)?;
+        imaging::write_exr(p, &unfiltered)?;
     }
     if let Some(p) = &args.save_samples {
         let (n, samples) = renderer.read_sample_vectors()?;

@@ -7,8 +7,8 @@ use clap::Args;
 
 use crate::bench::reference::{self, ReferenceRequest};
 use crate::gpu::Gpu;
+use crate::imaging;
 use crate::metrics::{self, ErrorScale};
-use crate::output;
 
 #[derive(Args, Debug, Clone)]
 pub struct CompareArgs {
@@ -26,10 +26,10 @@ pub struct CompareArgs {
 
 pub fn compare(args: &CompareArgs) -> Result<()> {
     if let Some(p) = &args.error_map {
-        output::check_output_path(p)?;
+        imaging::check_output_path(p)?;
     }
-    let test = output::read_exr_rgb(&args.test)?;
-    let reference = output::read_exr_rgb(&args.reference)?;
+    let test = imaging::read_exr_rgb(&args.test)?;
+    let reference = imaging::read_exr_rgb(&args.reference)?;
     let m = metrics::compare(&test, &reference).with_context(|| {
         format!(
             "comparing {} with {}",
@@ -45,7 +45,7 @@ pub fn compare(args: &CompareArgs) -> Result<()> {
     if let Some(p) = &args.error_map {
         let map = metrics::error_map(&test, &reference, ErrorScale::default())?;
 
-        output::write_atomically(p, |tmp| {
+        imaging::write_atomically(p, |tmp| {
             image::save_buffer_with_format(
                 tmp,
                 &map.rgb8,

@@ -1,6 +1,6 @@
 //! The edge-avoiding à-trous wavelet filter (Dammertz, Sewtz, Hanika, Lensch, "Edge-Avoiding
 //! À-Trous Wavelet Transform for fast Global Illumination Filtering", HPG 2010): settings, the
-//! OpenCL passes of kernels/atrous.cl and the plain Rust reference of the same equations and
+//! OpenCL passes of kernels/filters/atrous.cl and the plain Rust reference of the same equations and
 //! the same pass structure.
 //!
 //! Every pass convolves with the 5 × 5 B3-spline kernel h = (1/16, 1/4, 3/8, 1/4, 1/16)
@@ -31,7 +31,7 @@
 //!   (`sigma_position · 2^i · footprint`) was measured too, and filtered worse (MSE 5.85 at
 //!   its best, 5.45 with √(2^i), against 5.19; see the defaults).
 //! - **World positions** are reconstructed from F's depth (distance along the camera ray)
-//!   and the ray through the pixel centre, as kernels/camera.cl forms it; camera-relative
+//!   and the ray through the pixel centre, as kernels/render/camera.cl forms it; camera-relative
 //!   (the origin cancels in every difference). With a thin lens (DOF) the real rays start
 //!   anywhere on the lens, and the pinhole reconstruction is off by about the lens radius ×
 //!   (1 + depth / focal distance): fine for the weights while that is below a few footprints.
@@ -57,8 +57,8 @@ use rayon::prelude::*;
 
 use super::{DeviceBuffers, Filtered};
 use crate::gpu::{Gpu, event_duration};
+use crate::imaging::RgbImage;
 use crate::layout::{AtrousParams, FilterVector, Float4, SKY_DEPTH, SceneParams};
-use crate::output::RgbImage;
 use crate::scene::Scene;
 use crate::stats::PixelBuffers;
 
@@ -255,7 +255,7 @@ impl AtrousFilter {
                 format!("{ALBEDO_EPSILON:e}f"),
             ),
         ];
-        let program = gpu.program("atrous.cl", &defines, "")?;
+        let program = gpu.program("filters/atrous.cl", &defines, "")?;
         let pixels = width as usize * height as usize;
         let params = (0..settings.iterations.max(1))
             .map(|i| gpu.upload(&[settings.params(camera, width, height, i)]))
@@ -383,7 +383,7 @@ fn sum_sq(a: V3, b: V3) -> f32 {
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
 
-/// 1/σ², finite and positive for any σ (kernels/atrous.cl `atrous_inv_sq`).
+/// 1/σ², finite and positive for any σ (kernels/filters/atrous.cl `atrous_inv_sq`).
 fn inv_sq(sigma: f32) -> f32 {
     1.0 / (sigma * sigma).clamp(f32::MIN_POSITIVE, f32::MAX)
 }
@@ -397,7 +397,7 @@ fn beauty(f: &FilterVector) -> V3 {
 }
 
 /// The unit direction of the camera ray through the centre of pixel (x, y)
-/// (kernels/atrous.cl `atrous_pixel_direction`).
+/// (kernels/filters/atrous.cl `atrous_pixel_direction`).
 pub fn pixel_direction(p: &AtrousParams, x: u32, y: u32) -> V3 {
     let (w, h) = (p.width as f32, p.height as f32);
     let sx = (2.0 * (x as f32 + 0.5) / w - 1.0) * p.tan_half_fov * (w / h);
@@ -408,7 +408,7 @@ pub fn pixel_direction(p: &AtrousParams, x: u32, y: u32) -> V3 {
     d.map(|v| v / len)
 }
 
-/// The per-pixel guides of kernels/atrous.cl `atrous_init`.
+/// The per-pixel guides of kernels/filters/atrous.cl `atrous_init`.
 #[derive(Clone, Copy)]
 struct Guide {
     /// depth · dir, camera-relative.
@@ -419,7 +419,7 @@ struct Guide {
     surface: bool,
 }
 
-/// The plain Rust reference of kernels/atrous.cl: init, `iterations` passes, finish.
+/// The plain Rust reference of kernels/filters/atrous.cl: init, `iterations` passes, finish.
 pub fn reference(b: &PixelBuffers, camera: &AtrousCamera, s: &AtrousSettings) -> Result<RgbImage> {
     s.validate()?;
     let (w, h) = (b.width, b.height);

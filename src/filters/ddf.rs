@@ -1,5 +1,5 @@
 //! The data-driven filter of thesis ch. 6 (Algorithm 8): settings, the OpenCL kernels of
-//! kernels/ddf.cl (naive, vector loads, local-memory rows; holes) and the plain Rust reference
+//! kernels/filters/ddf.cl (naive, vector loads, local-memory rows; holes) and the plain Rust reference
 //! of the same equations.
 
 use std::sync::Arc;
@@ -10,8 +10,8 @@ use rayon::prelude::*;
 
 use super::{DeviceBuffers, Filtered};
 use crate::gpu::{Gpu, event_duration, round_up};
+use crate::imaging::RgbImage;
 use crate::layout::{DdfParams, FilterVector, Float4, GBuffer, SKY_DEPTH};
-use crate::output::RgbImage;
 use crate::stats::PixelBuffers;
 
 /// How a pixel's neighbourhood is read (§6.3).
@@ -222,7 +222,7 @@ impl DdfFilter {
                 ((settings.direction == DirectionTerm::Difference) as u32).to_string(),
             ),
         ];
-        let program = gpu.program("ddf.cl", &defines, "")?;
+        let program = gpu.program("filters/ddf.cl", &defines, "")?;
         let pixels = width as usize * height as usize;
         let params = gpu.upload(&[settings.params(width, height, 1.0, 1.0)])?;
         let out = gpu.zeroed::<Float4>(pixels, "filtered image")?;
@@ -328,7 +328,7 @@ impl DdfFilter {
     }
 }
 
-/// The plain Rust reference of kernels/ddf.cl (all variants compute this).
+/// The plain Rust reference of kernels/filters/ddf.cl (all variants compute this).
 pub fn reference(b: &PixelBuffers, s: &DdfSettings) -> Result<RgbImage> {
     s.validate()?;
     let variances = b

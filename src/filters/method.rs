@@ -11,7 +11,7 @@ use super::atrous::{AtrousCamera, AtrousFilter, AtrousSettings};
 use super::ddf::{DdfFilter, DdfSettings, Variant};
 use super::rpf::{self, RpfSettings, SampleSet};
 use crate::gpu::Gpu;
-use crate::output::RgbImage;
+use crate::imaging::RgbImage;
 use crate::render::{Outputs, Renderer};
 use crate::scene::{MaterialKind, Scene};
 

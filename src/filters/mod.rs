@@ -14,8 +14,8 @@ use anyhow::Result;
 use ocl::Buffer;
 
 use crate::gpu::Gpu;
+use crate::imaging::RgbImage;
 use crate::layout::{FilterVector, GBuffer, StatsState};
-use crate::output::RgbImage;
 use crate::stats::PixelBuffers;
 
 /// The per-pixel buffers on the device, as the renderer leaves them or as uploaded from an

@@ -31,15 +31,13 @@ pub mod ssim;
 use anyhow::{Result, bail};
 use serde::{Serialize, Serializer};
 
-use crate::output::RgbImage;
+use crate::imaging::RgbImage;
 
 pub use color::{
     CIE_EPSILON, CIE_KAPPA, D65_WHITE, RGB_TO_XYZ, linear_rgb_to_luv, linear_rgb_to_xyz, luminance,
     xyz_to_luv,
 };
-pub use error_map::{
-    ErrorMap, ErrorScale, colormap, colormap_exact, error_map_from_values, percentile,
-};
+pub use error_map::{ErrorMap, ErrorScale, error_map_from_values, percentile};
 pub use ssim::ssim_gray;
 
 /// The ε in the denominator of [`rel_mse`]: (x − r)² / (r² + 0.01).
@@ -514,7 +512,7 @@ mod tests {
             }
             prev_t = t;
             // The pixel's colour is the map's colour at that position…
-            assert_eq!(map.rgb8[3 * x..3 * x + 3], colormap(t));
+            assert_eq!(map.rgb8[3 * x..3 * x + 3], crate::imaging::colormap(t));
         }
         // …and colours further along the map are lighter (colormap tests check L* is
         // monotone); here: green+red channels sum grows from first to last pixel.
@@ -528,7 +526,7 @@ mod tests {
         assert_eq!(map.rgb8[0..row], map.rgb8[row..2 * row]);
     }
 
-    const COLORMAP_FIRST: [u8; 3] = error_map::COLORMAP_ANCHORS[0];
+    const COLORMAP_FIRST: [u8; 3] = crate::imaging::COLORMAP_ANCHORS[0];
 
     #[test]
     fn metrics_serialise_with_inf_as_string() {

@@ -1,5 +1,5 @@
 //! "Simulate only the effects a scene calls for": the set of effects a scene (and the outputs
-//! asked for) needs, turned into the `-D` switches of kernels/features.cl.
+//! asked for) needs, turned into the `-D` switches of kernels/render/features.cl.
 
 use crate::scene::{MaterialKind, Scene};
 

@@ -1,7 +1,7 @@
 //! The renderer: uploads the scene arrays, builds the megakernel specialised to the scene, and
 //! adds samples progressively to the per-pixel FilterVector buffer (thesis §4.2.3, §4.3).
 
-pub mod arrays;
+pub mod cpu;
 pub mod features;
 
 use std::sync::Arc;
@@ -10,6 +10,7 @@ use std::time::Duration;
 use anyhow::{Context as _, Result};
 use ocl::{Buffer, Event, Kernel};
 
+pub use crate::arrays::{FrameSettings, SceneArrays};
 use crate::gpu::{Gpu, event_duration, round_up};
 use crate::layout::{
     BvhNode, FilterVector, Float4, GBuffer, Light, Material, SampleVector, SceneParams, Sphere,
@@ -17,7 +18,6 @@ use crate::layout::{
 };
 use crate::scene::Scene;
 use crate::stats::PixelBuffers;
-pub use arrays::{FrameSettings, SceneArrays};
 pub use features::{FeatureSet, Outputs};
 
 /// How to render, besides the scene itself.
@@ -29,7 +29,7 @@ pub struct RenderOptions {
     pub all_features: bool,
     /// Work-group size; None lets the driver choose. The image does not depend on it.
     pub local_size: Option<[usize; 2]>,
-    /// Compile in the debug counters of kernels/scene.cl (tests only).
+    /// Compile in the debug counters of kernels/arrays/trace.cl (tests only).
     pub debug_counters: bool,
 }
 
@@ -84,11 +84,11 @@ pub struct LaunchStats {
     pub rays: u64,
 }
 
-/// Positions of the per-launch arguments of kernels/pathtrace.cl `render`.
+/// Positions of the per-launch arguments of kernels/render/pathtrace.cl `render`.
 const ARG_SAMPLE_BASE: u32 = 17;
 const ARG_SAMPLE_COUNT: u32 = 18;
 
-/// What the debug counters of kernels/scene.cl count (same order as COUNT_*).
+/// What the debug counters of kernels/arrays/trace.cl count (same order as COUNT_*).
 pub const DEBUG_COUNTERS: [&str; 12] = [
     "lens samples",
     "diffuse scatters",
@@ -112,7 +112,7 @@ pub struct Renderer {
     pub film: Buffer<FilterVector>,
     /// Running S_n per pixel (eq. 6.2, 6.6); one dummy element unless variances are wanted.
     pub gbuffers: Buffer<GBuffer>,
-    /// Mean first-bounce directions and the depth shift (see kernels/film.cl).
+    /// Mean first-bounce directions and the depth shift (see kernels/render/film.cl).
     pub stats_state: Buffer<StatsState>,
     ray_counts: Buffer<u32>,
     /// Every sample's vector for RPF; one dummy element unless requested.
@@ -167,7 +167,7 @@ impl Renderer {
             "DEBUG_COUNTERS".into(),
             (options.debug_counters as u32).to_string(),
         ));
-        let program = gpu.program("pathtrace.cl", &defines, "")?;
+        let program = gpu.program("render/pathtrace.cl", &defines, "")?;
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let film = gpu.zeroed::<FilterVector>(pixels, "FilterVector film")?;
         // Only what is asked for is allocated: without variances these are one element each.

@@ -625,18 +625,19 @@ impl Resolver<'_> {
                 (parts, path.display().to_string())
             }
             (None, Some(g)) => {
-                let parts =
-                    crate::assets::generate_mesh(g.get_ref(), sec.seed).ok_or_else(|| {
+                let parts = crate::scene::assets::generate_mesh(g.get_ref(), sec.seed).ok_or_else(
+                    || {
                         self.src.at(
                             g,
                             "mesh.generator",
                             format!(
                                 "unknown mesh generator {:?}; available: {}",
                                 g.get_ref(),
-                                crate::assets::MESH_GENERATORS.join(", ")
+                                crate::scene::assets::MESH_GENERATORS.join(", ")
                             ),
                         )
-                    })?;
+                    },
+                )?;
                 (parts, format!("generator {:?}", g.get_ref()))
             }
             _ => {

@@ -1,6 +1,7 @@
 //! The scene: what the file describes, resolved into flat lists of triangles, spheres,
 //! materials, textures and lights (thesis §4.2.2).
 
+pub mod assets;
 pub mod file;
 mod load;
 pub mod mesh;

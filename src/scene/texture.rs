@@ -6,6 +6,7 @@ use std::path::Path;
 use glam::Vec2;
 
 use super::SceneError;
+use crate::imaging::srgb_to_linear;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
@@ -16,23 +17,6 @@ pub struct Texture {
     pub texels: Vec<[f32; 4]>,
     pub uv_scale: Vec2,
     pub uv_shift: Vec2,
-}
-
-/// The sRGB electro-optical transfer function (IEC 61966-2-1).
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-pub fn linear_to_srgb(c: f32) -> f32 {
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
 }
 
 /// Loads an image file as linear RGBA. `what` names the file's role in messages.
@@ -100,7 +84,7 @@ pub fn load_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), SceneError> 
 fn load_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), SceneError> {
     use exr::prelude::*;
     // The header first: a damaged one can claim an image too large to allocate.
-    crate::output::check_exr_memory(path, 4 * 4)
+    crate::imaging::check_exr_memory(path, 4 * 4)
         .map_err(|e| SceneError::new(path, format!("cannot read OpenEXR texture: {e}")))?;
     let image = read_first_rgba_layer_from_file(
         path,

@@ -8,8 +8,8 @@ use std::path::Path;
 use anyhow::{Context as _, Result, anyhow, bail};
 
 use super::{PixelBuffers, feature_variance_sums};
+use crate::imaging::{RgbImage, write_atomically, write_png};
 use crate::layout::{FilterVector, GBuffer, SKY_DEPTH};
-use crate::output::{RgbImage, write_atomically, write_png};
 
 /// Every channel, in the order written: name, reader of the value from (F, variances, mean
 /// direction).
@@ -123,7 +123,7 @@ pub fn read_aov_exr(path: &Path) -> Result<(PixelBuffers, BTreeMap<String, Strin
     use exr::prelude::*;
     // The header first: a damaged one can claim an image too large to allocate.
     let ours = std::mem::size_of::<FilterVector>() + std::mem::size_of::<GBuffer>() + 3 * 4;
-    crate::output::check_exr_memory(path, ours as u64)
+    crate::imaging::check_exr_memory(path, ours as u64)
         .map_err(|e| anyhow!("{}: cannot read OpenEXR: {e}", path.display()))?;
     let image = read()
         .no_deep_data()
@@ -299,7 +299,7 @@ pub fn write_aov_pngs(
                 .flat_map(|g| {
                     let v = feature_variance_sums(g)[k].max(0.0) as f64;
                     let t = ((v.max(1e-12).log10() + 4.0) / 4.0).clamp(0.0, 1.0);
-                    crate::metrics::colormap(if v > 0.0 { t } else { 0.0 })
+                    crate::imaging::colormap(if v > 0.0 { t } else { 0.0 })
                 })
                 .collect();
             let p = dir.join(format!("{name}.png"));

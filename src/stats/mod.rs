@@ -36,8 +36,8 @@ pub fn depth_scale(scene_size: f32) -> f32 {
 
 impl PixelBuffers {
     /// direct + indirect: the unfiltered image.
-    pub fn beauty(&self) -> crate::output::RgbImage {
-        crate::output::RgbImage::beauty(self.width, self.height, &self.filter_vectors)
+    pub fn beauty(&self) -> crate::imaging::RgbImage {
+        crate::imaging::RgbImage::beauty(self.width, self.height, &self.filter_vectors)
     }
 }
 

@@ -207,11 +207,13 @@ pub fn film_bytes(film: &[FilterVector]) -> Vec<u8> {
         .collect()
 }
 
-/// Runs kernels/probes.cl `probe_intersect` on `arrays`: per ray (origin, direction, t_max)
+/// Runs kernels/test/probes.cl `probe_intersect` on `arrays`: per ray (origin, direction, t_max)
 /// returns (t or -1, primitive: triangle k, or -2 - sphere index, or -1 for none, occluded).
 pub fn device_intersect(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<(f32, i32, bool)> {
     let gpu = gpu();
-    let program = gpu.program("probes.cl", &generic_defines(), "").unwrap();
+    let program = gpu
+        .program("test/probes.cl", &generic_defines(), "")
+        .unwrap();
     let n = rays.len();
     let origins: Vec<Float4> = rays.iter().map(|r| Float4::from_vec3(r.0, r.2)).collect();
     let dirs: Vec<Float4> = rays.iter().map(|r| Float4::from_vec3(r.1, 0.0)).collect();
@@ -282,14 +284,16 @@ impl TestRng {
 }
 
 /// Feeds one stream of values per pixel (equal lengths) through the kernel's statistics stage
-/// (kernels/probes.cl probe_film) in launches of `chunk` samples; returns (F, S_n) per pixel.
+/// (kernels/test/probes.cl probe_film) in launches of `chunk` samples; returns (F, S_n) per pixel.
 pub fn device_welford(
     streams: &[Vec<f32>],
     chunk: usize,
 ) -> (Vec<FilterVector>, Vec<noisefree::layout::GBuffer>) {
     use noisefree::layout::{GBuffer, StatsState};
     let gpu = gpu();
-    let program = gpu.program("probes.cl", &generic_defines(), "").unwrap();
+    let program = gpu
+        .program("test/probes.cl", &generic_defines(), "")
+        .unwrap();
     let (pixels, len) = (streams.len(), streams[0].len());
     let flat: Vec<f32> = streams.iter().flatten().copied().collect();
     let stream = gpu.upload(&flat).unwrap();

@@ -51,7 +51,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use rayon::prelude::*;
 
-use crate::output::RgbImage;
+use crate::imaging::RgbImage;
 pub use filter::PixelInfo;
 pub use samples::{SampleSet, check_memory, memory_bytes};
 pub use weights::Weights;

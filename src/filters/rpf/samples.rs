@@ -211,7 +211,7 @@ impl SampleSet {
     /// a failed write never leaves a half-written file under `path`.
     pub fn write(&self, path: &Path) -> Result<()> {
         self.validate()?;
-        crate::output::write_atomically(path, |tmp| {
+        crate::imaging::write_atomically(path, |tmp| {
             let file = File::create(tmp).with_context(|| format!("creating {}", tmp.display()))?;
             let mut w = BufWriter::with_capacity(1 << 20, file);
             self.write_to(&mut w)?;

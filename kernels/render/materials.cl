@@ -2,10 +2,10 @@
 #ifndef NOISEFREE_MATERIALS_CL
 #define NOISEFREE_MATERIALS_CL
 
-#include "scene.cl"
-#include "sampling.cl"
-#include "textures.cl"
-#include "rng.cl"
+#include "arrays/trace.cl"
+#include "render/sampling.cl"
+#include "render/textures.cl"
+#include "render/rng.cl"
 
 // What the path tracer needs to know about a hit point.
 typedef struct {

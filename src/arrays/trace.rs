@@ -1,11 +1,11 @@
-//! kernels/scene.cl in Rust: skip-index BVH traversal (Alg. 4, nearest hit) and any-hit, plus
+//! kernels/arrays/trace.cl in Rust: skip-index BVH traversal (Alg. 4, nearest hit) and any-hit, plus
 //! a brute-force search over every primitive to check them against.
 
 use glam::Vec3;
 
-use super::geometry::{ray_aabb, ray_sphere, ray_triangle, safe_inverse};
+use super::SceneArrays;
+use crate::geometry::{ray_aabb, ray_sphere, ray_triangle, safe_inverse};
 use crate::layout::{LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
-use crate::render::arrays::SceneArrays;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Prim {

@@ -20,7 +20,7 @@
 //                   grows with the tap spacing filtered worse: see src/filters/atrous.rs).
 //
 // Positions are reconstructed once, by `atrous_init`, from F's depth (the distance along the
-// camera ray) and the ray through the pixel centre (kernels/camera.cl without the jitter):
+// camera ray) and the ray through the pixel centre (kernels/render/camera.cl without the jitter):
 //     dir = normalize(forward + sx right + sy up), p = origin + depth dir.
 // Only differences of positions enter the weights and the origin cancels in them, so the
 // buffer holds depth * dir (camera-relative, better float precision far from the world

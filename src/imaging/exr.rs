@@ -1,124 +1,12 @@
-//! Images out: tone-mapped sRGB PNG for people, linear float OpenEXR for tools. Every file is
-//! written to a temporary name in the same folder and renamed into place, so a failed or
-//! interrupted write never destroys an existing image.
+//! Linear float OpenEXR: single-layer RGB images with text metadata, and the header check that
+//! keeps a damaged file from allocating terabytes.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use anyhow::{Context as _, Result, bail};
+use anyhow::Result;
 
-use crate::layout::FilterVector;
+use super::{RgbImage, write_atomically};
 use crate::memory::{available_memory_bytes, human_bytes};
-use crate::scene::texture::linear_to_srgb;
-
-/// A linear RGB image, rows top to bottom.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RgbImage {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<[f32; 3]>,
-}
-
-impl RgbImage {
-    /// direct + indirect: the beauty image (eq. 6.21 without filtering).
-    pub fn beauty(width: u32, height: u32, film: &[FilterVector]) -> RgbImage {
-        let pixels = film
-            .iter()
-            .map(|f| std::array::from_fn(|c| f.direct[c] + f.indirect[c]))
-            .collect();
-        RgbImage {
-            width,
-            height,
-            pixels,
-        }
-    }
-
-    pub fn mean(&self) -> [f64; 3] {
-        let mut m = [0.0f64; 3];
-        for p in &self.pixels {
-            for c in 0..3 {
-                m[c] += p[c] as f64;
-            }
-        }
-        m.map(|v| v / self.pixels.len().max(1) as f64)
-    }
-}
-
-/// Checks that `path` can be written: its folder exists and it is not a folder itself.
-pub fn check_output_path(path: &Path) -> Result<()> {
-    if path.is_dir() {
-        bail!(
-            "{} is a directory; give a file name for the output",
-            path.display()
-        );
-    }
-    let parent = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    if !parent.is_dir() {
-        bail!(
-            "cannot write {}: the folder {} does not exist",
-            path.display(),
-            parent.display()
-        );
-    }
-    Ok(())
-}
-
-/// Writes through `write` to a temporary file next to `path`, then renames it over `path`.
-pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    check_output_path(path)?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp: PathBuf = path.with_file_name(format!(".{name}.partial-{}.{ext}", std::process::id()));
-    let result = write(&tmp).and_then(|_| {
-        std::fs::rename(&tmp, path)
-            .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(|| format!("writing {}", path.display()))
-}
-
-/// Tone mapping for PNG: scale by 2^exposure, clamp to [0, 1], sRGB-encode.
-pub fn to_srgb8(img: &RgbImage, exposure: f32) -> Vec<u8> {
-    let scale = 2f32.powf(exposure);
-    img.pixels
-        .iter()
-        .flat_map(|p| {
-            p.map(|c| {
-                let v = if c.is_finite() {
-                    (c * scale).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (linear_to_srgb(v) * 255.0 + 0.5) as u8
-            })
-        })
-        .collect()
-}
-
-pub fn write_png(path: &Path, img: &RgbImage, exposure: f32) -> Result<()> {
-    let bytes = to_srgb8(img, exposure);
-    write_atomically(path, |tmp| {
-        image::save_buffer_with_format(
-            tmp,
-            &bytes,
-            img.width,
-            img.height,
-            image::ColorType::Rgb8,
-            image::ImageFormat::Png,
-        )
-        .context("encoding PNG")
-    })
-}
 
 /// A linear, single-layer float RGB OpenEXR.
 pub fn write_exr(path: &Path, img: &RgbImage) -> Result<()> {
@@ -184,7 +72,7 @@ pub fn read_exr_metadata(path: &Path) -> Result<std::collections::BTreeMap<Strin
 /// an allocation that large aborts the process instead of returning an error.
 /// `bytes_per_pixel` is what the caller keeps per pixel; 4 bytes per channel sample are added.
 /// The message does not name the file: the callers put their own prefix in front.
-pub(crate) fn check_exr_memory(path: &Path, bytes_per_pixel: u64) -> Result<(), String> {
+pub fn check_exr_memory(path: &Path, bytes_per_pixel: u64) -> Result<(), String> {
     use exr::prelude::*;
     let meta = MetaData::read_from_file(path, false)
         .map_err(|e| format!("cannot read OpenEXR header: {e}"))?;

@@ -3,13 +3,13 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
-#include "features.cl"
-#include "rng.cl"
-#include "scene.cl"
-#include "camera.cl"
-#include "materials.cl"
-#include "lights.cl"
-#include "film.cl"
+#include "render/features.cl"
+#include "render/rng.cl"
+#include "arrays/trace.cl"
+#include "render/camera.cl"
+#include "render/materials.cl"
+#include "render/lights.cl"
+#include "render/film.cl"
 
 inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 

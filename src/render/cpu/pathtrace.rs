@@ -1,4 +1,4 @@
-//! kernels/textures.cl, materials.cl, lights.cl, film.cl and pathtrace.cl in Rust: the
+//! kernels/render/textures.cl, materials.cl, lights.cl, film.cl and pathtrace.cl in Rust: the
 //! megakernel's algorithm (Alg. 1) on the CPU, one pixel at a time, with rayon across pixels.
 
 use std::f32::consts::PI;
@@ -6,12 +6,12 @@ use std::f32::consts::PI;
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::geometry::{offset_ray_origin, ray_sphere};
 use super::rng::*;
 use super::sampling::*;
-use super::trace::{Hit, Prim, intersect_closest, occluded};
+use crate::arrays::SceneArrays;
+use crate::arrays::trace::{Hit, Prim, intersect_closest, occluded};
+use crate::geometry::{offset_ray_origin, ray_sphere};
 use crate::layout::*;
-use crate::render::arrays::SceneArrays;
 
 /// Which compile-time switches of the kernel the reference follows.
 #[derive(Clone, Copy, Debug)]
@@ -224,7 +224,7 @@ fn select_light(s: &SceneArrays, u: f32) -> usize {
 
 pub const SHADOW_RAY_SHORTEN: f32 = 0.9999;
 
-/// kernels/lights.cl sample_direct_light.
+/// kernels/render/lights.cl sample_direct_light.
 pub fn sample_direct_light(
     s: &SceneArrays,
     surface_p: Vec3,
@@ -284,7 +284,7 @@ pub fn sample_direct_light(
     light.emission.xyz() * (cos_s * inv_pdf / light.pmf)
 }
 
-/// What one path sample leaves behind (kernels/film.cl PathSample).
+/// What one path sample leaves behind (kernels/render/film.cl PathSample).
 #[derive(Clone, Copy, Debug)]
 pub struct PathSample {
     pub direct: Vec3,
@@ -336,7 +336,7 @@ impl PathSample {
     }
 }
 
-/// Algorithm 1 for one sample (kernels/pathtrace.cl trace_path).
+/// Algorithm 1 for one sample (kernels/render/pathtrace.cl trace_path).
 pub fn trace_path(
     s: &SceneArrays,
     opt: ReferenceOptions,

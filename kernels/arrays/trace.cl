@@ -4,7 +4,7 @@
 #define NOISEFREE_SCENE_CL
 
 #include "layout.cl"
-#include "features.cl"
+#include "render/features.cl"
 #include "geometry.cl"
 
 // Pointers to the scene buffers, bundled so functions take one argument.

@@ -2,8 +2,8 @@
 #ifndef NOISEFREE_TEXTURES_CL
 #define NOISEFREE_TEXTURES_CL
 
-#include "scene.cl"
-#include "sampling.cl"
+#include "arrays/trace.cl"
+#include "render/sampling.cl"
 
 inline float4 texel_fetch(const SceneRefs* s, __global const TextureInfo* t, int x, int y) {
     int w = (int)t->width, h = (int)t->height;

@@ -3,9 +3,9 @@
 #ifndef NOISEFREE_CAMERA_CL
 #define NOISEFREE_CAMERA_CL
 
-#include "scene.cl"
-#include "sampling.cl"
-#include "rng.cl"
+#include "arrays/trace.cl"
+#include "render/sampling.cl"
+#include "render/rng.cl"
 
 // Pixel (x, y) counts from the top-left corner; (jx, jy) in [0,1)^2 is the point in the pixel.
 inline void camera_ray(const SceneRefs* s, uint x, uint y, uint key,

@@ -4,9 +4,9 @@
 #ifndef NOISEFREE_LIGHTS_CL
 #define NOISEFREE_LIGHTS_CL
 
-#include "scene.cl"
-#include "sampling.cl"
-#include "rng.cl"
+#include "arrays/trace.cl"
+#include "render/sampling.cl"
+#include "render/rng.cl"
 
 #if HAS_LIGHTS
 

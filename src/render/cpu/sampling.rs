@@ -1,4 +1,4 @@
-//! kernels/sampling.cl and kernels/camera.cl in Rust.
+//! kernels/render/sampling.cl and kernels/render/camera.cl in Rust.
 
 use std::f32::consts::PI;
 
@@ -49,7 +49,7 @@ pub fn sample_triangle(r1: f32, r2: f32) -> Vec2 {
     Vec2::new(1.0 - s, r2 * s)
 }
 
-/// The camera ray of pixel (x, y) for the sample whose key is `key` (kernels/camera.cl).
+/// The camera ray of pixel (x, y) for the sample whose key is `key` (kernels/render/camera.cl).
 pub fn camera_ray(p: &SceneParams, x: u32, y: u32, key: u32) -> (Vec3, Vec3) {
     let jx = rng_uniform(key, 0, DIM_PIXEL_X);
     let jy = rng_uniform(key, 0, DIM_PIXEL_Y);

@@ -6,8 +6,8 @@
 #define NOISEFREE_FILM_CL
 
 #include "layout.cl"
-#include "features.cl"
-#include "rng.cl"
+#include "render/features.cl"
+#include "render/rng.cl"
 
 // Lanes of F (src/layout.rs FilterVector).
 #define F_DIRECT 0

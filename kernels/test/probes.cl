@@ -3,11 +3,11 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
-#include "features.cl"
-#include "rng.cl"
-#include "scene.cl"
-#include "camera.cl"
-#include "film.cl"
+#include "render/features.cl"
+#include "render/rng.cl"
+#include "arrays/trace.cl"
+#include "render/camera.cl"
+#include "render/film.cl"
 
 // rng_uniform for each (pixel, sample, bounce, dim) quadruple.
 __kernel void probe_rng(__global const uint4* counters, uint seed, __global float* out, uint n) {

@@ -1,4 +1,4 @@
-//! kernels/rng.cl in Rust: counter-based random numbers, bit for bit.
+//! kernels/render/rng.cl in Rust: counter-based random numbers, bit for bit.
 
 pub const DIM_PIXEL_X: u32 = 0;
 pub const DIM_PIXEL_Y: u32 = 1;

@@ -1,5 +1,8 @@
 //! The scene as flat arrays in the shared layout (src/layout.rs): exactly what is uploaded to
-//! the device, and what the Rust reference (src/reference) reads, so both trace the same data.
+//! the device, and what the CPU mirror of the kernels (src/render/cpu) reads, so both trace the
+//! same data; and the ray queries over them ([`trace`], the mirror of kernels/arrays/trace.cl).
+
+pub mod trace;
 
 use anyhow::{Result, bail};
 use glam::Vec3;
@@ -263,7 +266,7 @@ impl SceneArrays {
         }
         let origin = self.params.camera_origin.xyz();
         let forward = self.params.camera_forward.xyz();
-        match crate::reference::trace::intersect_closest(self, origin, forward, f32::INFINITY) {
+        match crate::arrays::trace::intersect_closest(self, origin, forward, f32::INFINITY) {
             Some(hit) => {
                 self.params.focal_distance = hit.t;
                 self.focus_note =
