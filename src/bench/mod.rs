@@ -16,11 +16,21 @@
 //!   figures (equal-quality sample reduction, equal-time error ratio).
 //! - `sweep`: Table 7.1's one-parameter-at-a-time sweep and hypotheses 1-3 (§7.3), plus the
 //!   variance scales s_f the thesis leaves open.
+//!
+//! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
+//! study each, with `study` for what those three share and `curves` for the log-log maths of
+//! the headline figures. `ground_truth` is the cache of many-spp reference images (not to be
+//! confused with `render::cpu`, the CPU mirror of the kernels); `table` the resumable CSV
+//! tables and `plot` the charts and contact sheets.
 
+pub mod accuracy_time;
+pub mod curves;
+pub mod ground_truth;
 pub mod plot;
 pub mod quality;
-pub mod reference;
 pub mod speed;
+pub mod study;
+pub mod sweep;
 pub mod table;
 
 use std::path::PathBuf;
@@ -208,8 +218,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::Statistics => speed::statistics_cost(&ctx, args.fresh)?,
             Study::FilterSpeed => speed::filter_speed(&ctx, args.fresh)?,
             Study::Quality => quality::quality(&ctx, args.fresh)?,
-            Study::AccuracyTime => quality::accuracy_time(&ctx, args.fresh)?,
-            Study::Sweep => quality::sweep(&ctx, args.fresh)?,
+            Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
+            Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;

@@ -7,6 +7,7 @@ use std::time::Duration;
 use anyhow::Result;
 
 use super::plot::{Chart, Series, line_chart};
+use super::study::scene_name;
 use super::table::{ResultTable, num};
 use super::{Context, bar};
 use crate::filters::UploadedBuffers;
@@ -14,12 +15,6 @@ use crate::filters::ddf::{DdfFilter, DdfSettings, Variant};
 use crate::gpu::Gpu;
 use crate::render::{Outputs, RenderOptions, Renderer};
 use crate::scene::{self, Scene};
-
-fn scene_name(p: &Path) -> String {
-    p.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default()
-}
 
 fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
     let mut o = RenderOptions::for_scene(scene);

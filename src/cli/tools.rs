@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
-use crate::bench::reference::{self, ReferenceRequest};
+use crate::bench::ground_truth::{self, ReferenceRequest};
 use crate::gpu::Gpu;
 use crate::imaging;
 use crate::metrics::{self, ErrorScale};
@@ -65,13 +65,13 @@ pub struct ReferenceArgs {
     /// The scene to render a ground truth of.
     pub scene: PathBuf,
     /// Samples per pixel (the thesis used 2048).
-    #[arg(long, default_value_t = reference::DEFAULT_REFERENCE_SPP)]
+    #[arg(long, default_value_t = ground_truth::DEFAULT_REFERENCE_SPP)]
     pub spp: u32,
     #[arg(long, default_value_t = 512)]
     pub width: u32,
     #[arg(long, default_value_t = 512)]
     pub height: u32,
-    #[arg(long, default_value_t = reference::REFERENCE_SEED)]
+    #[arg(long, default_value_t = ground_truth::REFERENCE_SEED)]
     pub seed: u32,
     /// Cache folder [default: cache/references].
     #[arg(long)]
@@ -94,8 +94,11 @@ pub fn reference(args: &ReferenceArgs) -> Result<()> {
         spp: args.spp,
         seed: args.seed,
     };
-    let cache = args.cache.clone().unwrap_or_else(reference::default_cache);
-    let (_, file, cached) = reference::get_or_render(&gpu, &req, &cache, args.quiet)?;
+    let cache = args
+        .cache
+        .clone()
+        .unwrap_or_else(ground_truth::default_cache);
+    let (_, file, cached) = ground_truth::get_or_render(&gpu, &req, &cache, args.quiet)?;
     println!(
         "{} {}",
         if cached { "cached:" } else { "rendered:" },
