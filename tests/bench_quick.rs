@@ -73,3 +73,59 @@ fn quick_benchmark_completes_with_well_formed_results() {
     );
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// `noisefree bench` runs from any folder: the bundled scenes come from the source tree the binary
+/// was built from, and the results go under the current folder. Statistics reads every bundled
+/// scene (here, with --quick, Cornell diffuse) and filter-speed one bundled scene by name: the
+/// two cheapest studies, a few seconds together.
+#[test]
+fn quick_benchmark_runs_outside_the_repository() {
+    let dir = std::env::temp_dir().join(format!("noisefree-bench-anywhere-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    assert!(!dir.join("scenes").exists());
+    let run = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+        .current_dir(&dir)
+        .args([
+            "bench",
+            "--quick",
+            "-q",
+            "--study",
+            "statistics",
+            "--study",
+            "filter-speed",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.success(),
+        "bench outside the repository failed: {stderr}"
+    );
+    for study in ["statistics", "filter-speed"] {
+        let csv = std::fs::read_to_string(dir.join("results/quick").join(format!("{study}.csv")))
+            .unwrap_or_else(|e| panic!("{study}.csv in the current folder: {e}"));
+        assert!(csv.lines().count() > 1, "{study}.csv has no rows");
+    }
+    let statistics = std::fs::read_to_string(dir.join("results/quick/statistics.csv")).unwrap();
+    assert!(statistics.contains("cornell_diffuse"), "{statistics}");
+    // A scenes folder that is not there is named in the error, before anything is measured.
+    let missing = dir.join("no-such-scenes");
+    let bad = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+        .current_dir(&dir)
+        .args([
+            "bench",
+            "--quick",
+            "-q",
+            "--study",
+            "statistics",
+            "--scenes",
+        ])
+        .arg(&missing)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(stderr.contains("--scenes"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -2,6 +2,10 @@
 //! Markdown + PNG plots under results/. Runs are resumable: a measurement already in a study's
 //! CSV is not repeated (delete the file, or pass --fresh, to measure again).
 //!
+//! It runs from any folder: the bundled scenes come from `--scenes`, else from the source tree
+//! the binary was built from, else from `./scenes`; what it writes (results, ground-truth cache)
+//! goes under the current folder unless `--out` and `--cache` say otherwise.
+//!
 //! Studies:
 //! - `render-speed`: per scene, samples/s and Mrays/s of the specialised and the generic
 //!   megakernel side by side, and kernel build times cold and cached (thesis ch. 4; the
@@ -33,10 +37,10 @@ pub mod study;
 pub mod sweep;
 pub mod table;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 use clap::{Args, ValueEnum};
 
 use crate::gpu::Gpu;
@@ -65,18 +69,27 @@ pub struct BenchArgs {
     /// A reduced set (small images, few samples, few cells) that finishes in minutes on PoCL.
     #[arg(long)]
     pub quick: bool,
-    /// Results folder [default: results/<device> or results/quick].
+    /// Results folder [default: results/<device>, or results/quick with --quick, under the
+    /// current folder].
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Ground-truth image cache, reused across runs [default: cache/references under the
+    /// current folder, as for `noisefree reference`].
+    #[arg(long, value_name = "DIR")]
+    pub cache: Option<PathBuf>,
     /// Measure again even what the CSV files already hold.
     #[arg(long)]
     pub fresh: bool,
     /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
     #[arg(long)]
     pub device: Option<usize>,
-    /// Scenes to use [default: all bundled scenes].
+    /// Scenes to use (repeatable) [default: every scene of the bundled scenes folder].
     #[arg(long)]
     pub scene: Vec<PathBuf>,
+    /// The bundled scenes folder (the sweep and filter-speed read their scenes from it too)
+    /// [default: scenes/ of the source tree this binary was built from, else ./scenes].
+    #[arg(long, value_name = "DIR")]
+    pub scenes: Option<PathBuf>,
     #[arg(long, short)]
     pub quiet: bool,
 }
@@ -88,6 +101,10 @@ pub struct Context {
     pub quick: bool,
     pub quiet: bool,
     pub scenes: Vec<PathBuf>,
+    /// The bundled scenes folder, if one was found.
+    pub scenes_dir: Option<PathBuf>,
+    /// Where ground-truth images are cached.
+    pub reference_cache: PathBuf,
 }
 
 impl Context {
@@ -104,6 +121,12 @@ impl Context {
             std::fs::remove_file(&path)?;
         }
         table::ResultTable::open(&path, columns, keys)
+    }
+
+    /// A bundled scene by name, e.g. "cornell_diffuse", in the bundled scenes folder.
+    pub fn scene_file(&self, name: &str) -> Result<PathBuf> {
+        let dir = self.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+        Ok(dir.join(format!("{name}.toml")))
     }
 
     pub fn say(&self, msg: &str) {
@@ -149,13 +172,37 @@ pub fn device_slug(gpu: &Gpu) -> String {
     out.trim_matches('-').to_string()
 }
 
-/// The bundled scenes, the five of the thesis and their depth-of-field variants.
-pub fn bundled_scenes() -> Result<Vec<PathBuf>> {
-    let dir = PathBuf::from("scenes");
-    if !dir.is_dir() {
-        bail!("run noisefree bench from the repository root (it reads scenes/)");
+/// `scenes/` of the source tree this binary was built from.
+fn built_scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+/// The bundled scenes folder: `given` (--scenes) if any, else `scenes/` of the source tree the
+/// binary was built from, else `./scenes`. None if no default exists; an error if `given` is
+/// not a folder.
+pub fn scenes_dir(given: Option<&Path>) -> Result<Option<PathBuf>> {
+    if let Some(dir) = given {
+        if !dir.is_dir() {
+            bail!("--scenes {}: not a folder", dir.display());
+        }
+        return Ok(Some(dir.to_path_buf()));
     }
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)?
+    Ok([built_scenes_dir(), PathBuf::from("scenes")]
+        .into_iter()
+        .find(|d| d.is_dir()))
+}
+
+fn no_scenes_dir() -> anyhow::Error {
+    anyhow!(
+        "no bundled scenes: neither {} (the source tree this binary was built from) nor ./scenes \
+         is a folder; pass --scenes DIR with the scenes/ folder of a noisefree checkout",
+        built_scenes_dir().display()
+    )
+}
+
+/// The bundled scenes in `dir`, the five of the thesis and their depth-of-field variants.
+pub fn bundled_scenes(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)?
         .flatten()
         .map(|e| e.path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
@@ -183,7 +230,22 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         ];
     }
     studies.dedup();
+    // The bundled scenes are needed unless --scene names every scene and no study reads a
+    // bundled scene by name (filter-speed and the sweep do): fail before measuring anything.
+    let scenes_dir = scenes_dir(args.scenes.as_deref())?;
+    let needs_bundled = args.scene.is_empty()
+        || studies
+            .iter()
+            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep));
+    if scenes_dir.is_none() && needs_bundled {
+        return Err(no_scenes_dir());
+    }
+    let mut scenes = match &scenes_dir {
+        Some(dir) if args.scene.is_empty() => bundled_scenes(dir)?,
+        _ => args.scene.clone(),
+    };
     let gpu = Gpu::open(args.device)?;
+    // Outputs go under the current folder unless --out (and --cache) say otherwise.
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results").join(if args.quick {
             "quick".to_string()
@@ -192,11 +254,6 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         })
     });
     std::fs::create_dir_all(&out)?;
-    let mut scenes = if args.scene.is_empty() {
-        bundled_scenes()?
-    } else {
-        args.scene.clone()
-    };
     if args.quick && args.scene.is_empty() {
         scenes.retain(|p| p.ends_with("cornell_diffuse.toml"));
     }
@@ -206,10 +263,18 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         quick: args.quick,
         quiet: args.quiet,
         scenes,
+        scenes_dir,
+        reference_cache: args
+            .cache
+            .clone()
+            .unwrap_or_else(ground_truth::default_cache),
     };
     ctx.say(&format!(
-        "device: {} | results in {}",
+        "device: {} | bundled scenes: {} | results in {}",
         ctx.gpu.summary.name,
+        ctx.scenes_dir
+            .as_deref()
+            .map_or("none".into(), |d| d.display().to_string()),
         ctx.out.display()
     ));
     for s in studies {
@@ -229,7 +294,10 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 /// device.md: what the results were measured on.
 fn write_device_info(ctx: &Context) -> Result<()> {
     let s = &ctx.gpu.summary;
+    // The commit of the source tree the binary was built from, wherever the run is.
     let commit = std::process::Command::new("git")
+        .arg("-C")
+        .arg(env!("CARGO_MANIFEST_DIR"))
         .args(["rev-parse", "--short", "HEAD"])
         .output()
         .ok()

@@ -1,7 +1,6 @@
 //! Speed studies: the megakernel per scene (specialised vs generic), the cost of the per-pixel
 //! statistics, and the data-driven filter's kernel time (thesis §7.1-7.2).
 
-use std::path::Path;
 use std::time::Duration;
 
 use anyhow::Result;
@@ -268,8 +267,8 @@ pub fn statistics_cost(ctx: &Context, fresh: bool) -> Result<()> {
 
 /// Rendered 8-spp buffers of Cornell diffuse at `w` x `h`, the filter's input.
 fn filter_input(ctx: &Context, w: u32, h: u32) -> Result<crate::stats::PixelBuffers> {
-    let path = Path::new("scenes/cornell_diffuse.toml");
-    let scene = scene::load_scene(path)?;
+    let path = ctx.scene_file("cornell_diffuse")?;
+    let scene = scene::load_scene(&path)?;
     let mut o = options(&scene, w, h);
     o.outputs = Outputs {
         features: true,

@@ -78,7 +78,7 @@ pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<R
         path.display(),
         s.reference_spp
     ));
-    Ok(ground_truth::get_or_render(&ctx.gpu, &req, &ground_truth::default_cache(), ctx.quiet)?.0)
+    Ok(ground_truth::get_or_render(&ctx.gpu, &req, &ctx.reference_cache, ctx.quiet)?.0)
 }
 
 /// Metrics of `img` against `reference` as table cells: mse_luv, rel_mse, mse_rgb, ssim.

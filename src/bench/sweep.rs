@@ -1,8 +1,6 @@
 //! Parameter sweep of Table 7.1 (one parameter at a time) and the thesis's hypotheses 1-3
 //! (§7.3), plus the variance scales s_f the thesis leaves open.
 
-use std::path::PathBuf;
-
 use anyhow::Result;
 
 use super::Context;
@@ -117,12 +115,13 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
     let columns = ["scene", "parameter", "value", "mse_luv", "rel_mse"];
     let mut t = ctx.table("sweep", &columns, 3, fresh)?;
     // Cornell diffuse with and without DOF for every parameter; glossy and outside for the
-    // direction and texture2 parameters (§7.3). DOF scenes at 16 spp, as in the thesis.
+    // direction and texture2 parameters (§7.3). DOF scenes at 16 spp, as in the thesis. Scenes
+    // by name, from the bundled scenes folder.
     let plan: Vec<(&str, u32, Vec<&str>)> = vec![
-        ("scenes/cornell_diffuse.toml", 8, vec![]),
-        ("scenes/cornell_diffuse_dof.toml", 16, vec![]),
+        ("cornell_diffuse", 8, vec![]),
+        ("cornell_diffuse_dof", 16, vec![]),
         (
-            "scenes/cornell_glossy.toml",
+            "cornell_glossy",
             8,
             vec![
                 "sigma_direction",
@@ -132,7 +131,7 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
             ],
         ),
         (
-            "scenes/outside.toml",
+            "outside",
             8,
             vec![
                 "sigma_direction",
@@ -147,8 +146,8 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
     } else {
         plan
     };
-    for (path, spp, only) in &plan {
-        let path = PathBuf::from(path);
+    for (name, spp, only) in &plan {
+        let path = ctx.scene_file(name)?;
         let name = scene_name(&path);
         let scene = scene::load_scene(&path)?;
         let reference = reference_image(ctx, &path, &s)?;
