@@ -1,5 +1,5 @@
-// GENERATED from src/layout.rs by `NOISEFREE_BLESS=1 cargo test --test layout`.
-// Do not edit: change src/layout.rs instead. tests/layout.rs checks that this file
+// GENERATED from src/layout/mod.rs by `NOISEFREE_BLESS=1 cargo test --test layout`.
+// Do not edit: change src/layout/mod.rs instead. tests/layout.rs checks that this file
 // is current and that the device lays every struct out exactly as Rust does.
 #ifndef NOISEFREE_LAYOUT_CL
 #define NOISEFREE_LAYOUT_CL
@@ -36,7 +36,7 @@ typedef struct __attribute__((aligned(16))) {
     uint max_vertices; // Hard cap on path vertices, a guard against runaway paths (see kernels/render/pathtrace.cl).
     uint seed;
     float sample_clamp; // Largest colour component a single path sample may carry; 0: no clamp (default).  Clamping trades a bias for fewer fireflies.
-    float offset_scale; // Size of the scene (largest extent of its bounds): the unit of the absolute part of  the secondary-ray origin offset (kernels/geometry.cl), so it works at any scale.
+    float scene_size; // Size of the scene (largest extent of its bounds): the unit of the absolute part of  the secondary-ray origin offset (kernels/geometry.cl), so it works at any scale.
     uint pad1;
     uint pad2;
 } SceneParams;
@@ -126,29 +126,56 @@ typedef struct __attribute__((aligned(64))) {
     float albedo[3]; // Mean albedo ("texture") at the first hit; 0 for sky.
     float albedo2[3]; // Mean albedo of the first diffuse surface after the first bounce ("texture2"); 0 if none.
 } FilterVector;
+// Float lanes of FilterVector (offset / 4).
+#define FILTER_VECTOR_DIRECT 0
+#define FILTER_VECTOR_INDIRECT 3
+#define FILTER_VECTOR_DEPTH 6
+#define FILTER_VECTOR_NORMAL 7
+#define FILTER_VECTOR_ALBEDO 10
+#define FILTER_VECTOR_ALBEDO2 13
+#define FILTER_VECTOR_FLOATS 16
 
-// The variance GBuffer GB of eq. 6.2, held as Welford's running sums of squared
-// deviations S_n (eq. 6.6); the variance S_n / (n - 1) is formed only when a filter asks
-// for it. 13 floats padded to one float16 (§6.3.1).
+// The thesis's variance WelfordSums GB (eq. 6.2), held as Welford's running sums of squared
+// deviations S_n (eq. 6.6): the variance S_n / (n - 1) is formed only where a filter reads
+// it. 13 floats padded to one float16 (§6.3.1).
 typedef struct __attribute__((aligned(64))) {
     float depth;
     float normal[3];
     float albedo[3];
-    float direction[3]; // Direction leaving the first hit (its mean lives in StatsState, not in F).
+    float direction[3]; // Direction leaving the first hit (its mean lives in WelfordState, not in F).
     float albedo2[3];
     float pad[3];
-} GBuffer;
+} WelfordSums;
+// Float lanes of WelfordSums (offset / 4).
+#define WELFORD_SUMS_DEPTH 0
+#define WELFORD_SUMS_NORMAL 1
+#define WELFORD_SUMS_ALBEDO 4
+#define WELFORD_SUMS_DIRECTION 7
+#define WELFORD_SUMS_ALBEDO2 10
+#define WELFORD_SUMS_FLOATS 16
 
-// Running state of the statistics that is neither a FilterVector mean nor an S_n: the
-// mean first-bounce direction, the depth shift and the Kahan compensation of every S_n
-// (see kernels/render/film.cl on float32).
-typedef struct __attribute__((aligned(32))) {
+// The rest of Welford's running state (eq. 6.6), neither a FilterVector mean nor an S_n:
+// the mean first-bounce direction and the Kahan compensation of every S_n (see
+// kernels/render/film.cl on float32).
+typedef struct __attribute__((aligned(16))) {
     float direction_mean[3];
-    float depth_shift; // The pixel's first depth sample K; depth is accumulated as x - K.
-    float depth_shifted_mean; // Running mean of x - K; F.depth = K + this.
-    float pad[3];
-    float s_compensation[16]; // Kahan compensation of each GBuffer lane's S_n (13 used).
-} StatsState;
+    float pad;
+    float s_compensation[16]; // Kahan compensation of each WelfordSums lane's S_n (13 used).
+} WelfordState;
+// Float lanes of WelfordState (offset / 4).
+#define WELFORD_STATE_DIRECTION_MEAN 0
+#define WELFORD_STATE_S_COMPENSATION 4
+#define WELFORD_STATE_FLOATS 20
+
+// The depth mean on shifted data (see kernels/render/film.cl): F.depth = shift + mean.
+typedef struct __attribute__((aligned(8))) {
+    float shift; // The pixel's first depth sample K.
+    float mean; // Running mean of x - K (eq. 6.5).
+} DepthShift;
+// Float lanes of DepthShift (offset / 4).
+#define DEPTH_SHIFT_SHIFT 0
+#define DEPTH_SHIFT_MEAN 1
+#define DEPTH_SHIFT_FLOATS 2
 
 // Parameters of the data-driven filter for one run (thesis Tables 6.2, 6.3).
 typedef struct __attribute__((aligned(16))) {
@@ -178,6 +205,16 @@ typedef struct __attribute__((aligned(4))) {
     float texture1[3]; // Albedo ("texture") of the first hit.
     float color[3]; // The sample's colour (direct + indirect).
 } SampleVector;
+// Float lanes of SampleVector (offset / 4).
+#define SAMPLE_VECTOR_POSITION 0
+#define SAMPLE_VECTOR_RANDOM 2
+#define SAMPLE_VECTOR_WORLD1 8
+#define SAMPLE_VECTOR_NORMAL1 11
+#define SAMPLE_VECTOR_WORLD2 14
+#define SAMPLE_VECTOR_NORMAL2 17
+#define SAMPLE_VECTOR_TEXTURE1 20
+#define SAMPLE_VECTOR_COLOR 23
+#define SAMPLE_VECTOR_FLOATS 26
 
 // Parameters of one pass of the edge-avoiding a-trous filter (Dammertz et al. 2010).
 typedef struct __attribute__((aligned(16))) {

@@ -249,8 +249,23 @@ impl Gpu {
         defines: &[(String, String)],
         prelude: &str,
     ) -> Result<Program> {
+        self.program_with_options(main, defines, prelude, "")
+    }
+
+    /// [`Gpu::program`] with more compiler options (e.g. `-cl-kernel-arg-info` for tests).
+    pub fn program_with_options(
+        &self,
+        main: &str,
+        defines: &[(String, String)],
+        prelude: &str,
+        extra: &str,
+    ) -> Result<Program> {
         let source = kernels::assemble(main, prelude)?;
         let mut options = String::from("-cl-std=CL1.2");
+        if !extra.is_empty() {
+            options.push(' ');
+            options.push_str(extra);
+        }
         for (k, v) in defines {
             options.push_str(&format!(" -D {k}={v}"));
         }
@@ -284,7 +299,7 @@ impl Gpu {
         let cache_file = self
             .cache_dir
             .as_ref()
-            .map(|d| d.join(format!("{main}-{hash:016x}.bin")));
+            .map(|d| d.join(format!("{}-{hash:016x}.bin", main.replace('/', "-"))));
         if let Some(file) = &cache_file
             && let Ok(binary) = std::fs::read(file)
         {

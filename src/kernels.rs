@@ -16,6 +16,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "render/features.cl",
         include_str!("../kernels/render/features.cl"),
     ),
+    (
+        "render/outputs.cl",
+        include_str!("../kernels/render/outputs.cl"),
+    ),
     ("render/rng.cl", include_str!("../kernels/render/rng.cl")),
     (
         "render/sampling.cl",
@@ -102,6 +106,35 @@ mod tests {
         assert_eq!(count, 1);
         assert!(text.contains("__kernel void render"));
         assert!(!text.contains("#include"));
+    }
+
+    #[test]
+    fn every_kernel_file_is_embedded() {
+        fn walk(dir: &std::path::Path, root: &std::path::Path, out: &mut Vec<String>) {
+            for e in std::fs::read_dir(dir).unwrap().flatten() {
+                let p = e.path();
+                if p.is_dir() {
+                    walk(&p, root, out);
+                } else if p.extension().is_some_and(|x| x == "cl") {
+                    out.push(
+                        p.strip_prefix(root)
+                            .unwrap()
+                            .to_string_lossy()
+                            .replace('\\', "/"),
+                    );
+                }
+            }
+        }
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("kernels");
+        let mut files = Vec::new();
+        walk(&root, &root, &mut files);
+        for f in &files {
+            assert!(
+                source(f).is_some(),
+                "kernels/{f} is not in SOURCES (src/kernels.rs)"
+            );
+        }
+        assert_eq!(files.len(), SOURCES.len());
     }
 
     #[test]

@@ -142,7 +142,7 @@ fn rays(
                     d = (d + n).normalize();
                 }
                 out.push((
-                    offset_ray_origin(p, n, arrays.params.offset_scale),
+                    offset_ray_origin(p, n, arrays.params.scene_size),
                     d,
                     f32::INFINITY,
                 ));

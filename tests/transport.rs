@@ -250,7 +250,8 @@ material = "metal"
         russian_roulette: true,
         next_event_estimation: true,
     };
-    reference_render(&arrays, ref_opts, &mut means, 0, spp);
+    let mut shifts = vec![[0.0f32; 2]; means.len()];
+    reference_render(&arrays, ref_opts, &mut means, &mut shifts, 0, spp);
     let mut close = 0;
     for (f, r) in film.iter().zip(&means) {
         let d: [f32; 16] = bytemuck_lanes(f);

@@ -21,6 +21,13 @@
 #error "noisefree: a data-driven filter switch is missing from the build options"
 #endif
 
+// F is read as one float16 and taken apart with swizzles (s012 direct, s345 indirect, s6
+// depth, s789 normal, sABC albedo, sDEF albedo2); the generated lanes must agree.
+#if FILTER_VECTOR_DIRECT != 0 || FILTER_VECTOR_INDIRECT != 3 || FILTER_VECTOR_DEPTH != 6 \
+    || FILTER_VECTOR_NORMAL != 7 || FILTER_VECTOR_ALBEDO != 10 || FILTER_VECTOR_ALBEDO2 != 13
+#error "noisefree: ddf.cl's swizzles do not match the FilterVector layout"
+#endif
+
 // The centre pixel's values, fixed for the whole neighbourhood loop (Table 6.3).
 typedef struct {
     float16 f;          // F of the centre (eq. 6.1)
@@ -32,6 +39,11 @@ typedef struct {
     float tw_i;         // total indirect weight (eq. 6.20)
 } DdfCentre;
 
+// The sum of three consecutive lanes, in lane order.
+inline float sum_lanes3(const float* g, int lane) {
+    return g[lane] + g[lane + 1] + g[lane + 2];
+}
+
 inline float sum_sq3(float3 a, float3 b) {
     float3 d = a - b;
     return d.x * d.x + d.y * d.y + d.z * d.z;
@@ -42,15 +54,17 @@ inline DdfCentre ddf_centre(__constant const DdfParams* p, float16 f, __global c
                             __global const float* state, uint pixel) {
     DdfCentre c;
     c.f = f;
-    float16 g = vload16(pixel, gb) * p->variance_factor;   // S_n / (n - 1): the variances
+    float g[WELFORD_SUMS_FLOATS];                         // S_n / (n - 1): the variances
+    vstore16(vload16(pixel, gb) * p->variance_factor, 0, g);
     // Depths are compared in hundredths of the scene's size (depth_scale; src/stats/mod.rs),
     // so their variance scales with depth_scale^2.
-    float sums[5] = {g.s0 * p->depth_scale * p->depth_scale, g.s1 + g.s2 + g.s3,
-                     g.s4 + g.s5 + g.s6, g.s7 + g.s8 + g.s9, g.sA + g.sB + g.sC};
+    float sums[5] = {g[WELFORD_SUMS_DEPTH] * p->depth_scale * p->depth_scale,
+                     sum_lanes3(g, WELFORD_SUMS_NORMAL), sum_lanes3(g, WELFORD_SUMS_ALBEDO),
+                     sum_lanes3(g, WELFORD_SUMS_DIRECTION), sum_lanes3(g, WELFORD_SUMS_ALBEDO2)};
     for (int i = 0; i < 5; ++i)
         c.sigma2_f[i] = p->sigma2_f[i] * (1.0f - clamp(sums[i] * p->variance_scale[i], 0.0f, 1.0f));
 #if DDF_DIRECTION
-    c.direction = vload3(0, state + pixel * 24u);
+    c.direction = vload3(0, state + (size_t)pixel * WELFORD_STATE_FLOATS + WELFORD_STATE_DIRECTION_MEAN);
 #else
     c.direction = (float3)(0.0f);
 #endif
@@ -107,7 +121,7 @@ inline bool ddf_centre_off_grid(__constant const DdfParams* p) {
 
 inline float3 neighbour_direction(__global const float* state, uint index) {
 #if DDF_DIRECTION
-    return vload3(0, state + index * 24u);
+    return vload3(0, state + (size_t)index * WELFORD_STATE_FLOATS + WELFORD_STATE_DIRECTION_MEAN);
 #else
     return (float3)(0.0f);
 #endif

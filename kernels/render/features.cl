@@ -10,18 +10,12 @@
     || !defined(HAS_ENV) || !defined(HAS_ENV_TEXTURE) || !defined(HAS_SPHERE_LIGHTS) \
     || !defined(HAS_TRIANGLE_LIGHTS) || !defined(HAS_DIFFUSE) || !defined(HAS_SPECULAR) \
     || !defined(HAS_GLASS) || !defined(HAS_METAL) || !defined(HAS_DOF) \
-    || !defined(HAS_RUSSIAN_ROULETTE) || !defined(NEXT_EVENT_ESTIMATION) \
-    || !defined(OUTPUT_FEATURES) || !defined(OUTPUT_VARIANCE) || !defined(OUTPUT_SAMPLES)
+    || !defined(HAS_RUSSIAN_ROULETTE) || !defined(NEXT_EVENT_ESTIMATION)
 #error "noisefree: a feature switch is missing from the build options"
 #endif
 
 #define HAS_LIGHTS (HAS_SPHERE_LIGHTS || HAS_TRIANGLE_LIGHTS)
 
-#if OUTPUT_VARIANCE && !OUTPUT_FEATURES
-#error "noisefree: OUTPUT_VARIANCE needs OUTPUT_FEATURES (the means live in F)"
-#endif
-#if OUTPUT_SAMPLES && !OUTPUT_FEATURES
-#error "noisefree: OUTPUT_SAMPLES needs OUTPUT_FEATURES (the sample vector reuses the features)"
-#endif
+// The OUTPUT_* switches are checked by the generated render/outputs.cl.
 
 #endif

@@ -1,33 +1,25 @@
 // The per-pixel output stage: what one path sample leaves behind, and how it is folded into the
-// pixel's statistics (thesis §6.2.1-6.2.2): the running means of the FilterVector F (eq. 6.1)
-// and, when a filter needs them, Welford's running S_n of the scene features (the variance
-// GBuffer GB, eq. 6.2). Later stages (sample vectors) hook in at film_accumulate.
+// pixel's outputs (thesis §6.2.1-6.2.2): the running means of the FilterVector F (eq. 6.1) and,
+// when a filter needs them, Welford's running S_n of the scene features (the variance GBuffer
+// GB, eq. 6.2), the mean first-hit position and the per-sample RPF vectors. Which outputs exist
+// is decided by the OUTPUT_* switches of src/layout/outputs.rs; the buffers and the float lane
+// of every field come from the generated layout.cl and render/outputs.cl, none by hand.
+//
+// One rule holds for every output: its bytes do not depend on which other outputs are on. So a
+// filter sees the same F whether the render also gathered variances, AOVs or sample vectors
+// (tests/online_offline.rs).
 #ifndef NOISEFREE_FILM_CL
 #define NOISEFREE_FILM_CL
 
 #include "layout.cl"
 #include "render/features.cl"
+#include "render/outputs.cl"
 #include "render/rng.cl"
 
-// Lanes of F (src/layout.rs FilterVector).
-#define F_DIRECT 0
-#define F_INDIRECT 3
-#define F_DEPTH 6
-#define F_NORMAL 7
-#define F_ALBEDO 10
-#define F_ALBEDO2 13
-// Lanes of GB (src/layout.rs GBuffer).
-#define GB_DEPTH 0
-#define GB_NORMAL 1
-#define GB_ALBEDO 4
-#define GB_DIRECTION 7
-#define GB_ALBEDO2 10
-// Lanes of the statistics state (src/layout.rs StatsState).
-#define ST_DIRECTION 0
-#define ST_DEPTH_SHIFT 3
-#define ST_DEPTH_MEAN 4
-#define ST_COMPENSATION 8
-#define ST_FLOATS 24
+#if FILTER_VECTOR_FLOATS != 16 || WELFORD_SUMS_FLOATS != 16 || WELFORD_STATE_FLOATS != 20 \
+    || DEPTH_SHIFT_FLOATS != 2
+#error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16"
+#endif
 
 // One path's contribution and first-hit features.
 typedef struct {
@@ -38,8 +30,11 @@ typedef struct {
     float3 albedo;     // first-hit albedo, 0 for sky
     float3 albedo2;    // albedo of the first diffuse surface after the first bounce, 0 if none
     float3 direction;  // direction leaving the first hit, 0 if none
-#if OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES
     float3 world1;     // first hit (camera origin + SKY_DEPTH x direction for sky)
+    bool hit;          // the camera ray hit a surface
+#endif
+#if OUTPUT_SAMPLES
     float3 world2;     // second hit, 0 if none
     float3 normal2;    // shading normal at the second hit, 0 if none
 #endif
@@ -54,42 +49,61 @@ inline PathSample path_sample_empty(void) {
     ps.albedo = (float3)(0.0f);
     ps.albedo2 = (float3)(0.0f);
     ps.direction = (float3)(0.0f);
-#if OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES
     ps.world1 = (float3)(0.0f);
+    ps.hit = false;
+#endif
+#if OUTPUT_SAMPLES
     ps.world2 = (float3)(0.0f);
     ps.normal2 = (float3)(0.0f);
 #endif
     return ps;
 }
 
-// A pixel's statistics while a launch works on it (private memory; loaded once, stored once).
+// A pixel's outputs while a launch works on it (private memory; loaded once, stored once).
 typedef struct {
-    float mean[16];   // F
+    float mean[FILTER_VECTOR_FLOATS];      // F
+#if OUTPUT_FEATURES
+    float depth[DEPTH_SHIFT_FLOATS];       // DepthShift: K and the mean of x - K
+#endif
 #if OUTPUT_VARIANCE
-    float s[16];      // GB: S_n per feature component
-    float state[ST_FLOATS];   // StatsState (its last 16 floats: the compensation of s)
+    float s[WELFORD_SUMS_FLOATS];          // GB: S_n per feature component
+    float state[WELFORD_STATE_FLOATS];     // the rest of Welford's state (WelfordState)
+#endif
+#if OUTPUT_POSITION
+    float position[4];                     // mean first-hit position (xyz), hits (w)
 #endif
 } PixelStats;
 
-inline void pixel_stats_load(PixelStats* p, __global const float* f, __global const float* gb,
-                             __global const float* st, uint pixel) {
-    vstore16(vload16(pixel, f), 0, p->mean);
+inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
+    vstore16(vload16(pixel, filter_vectors), 0, p->mean);
+#if OUTPUT_FEATURES
+    vstore2(vload2(pixel, depth_shifts), 0, p->depth);
+#endif
 #if OUTPUT_VARIANCE
-    vstore16(vload16(pixel, gb), 0, p->s);
-    __global const float* sp = st + (size_t)pixel * ST_FLOATS;
-    vstore8(vload8(0, sp), 0, p->state);
-    vstore16(vload16(0, sp + 8), 0, p->state + 8);
+    vstore16(vload16(pixel, welford_sums), 0, p->s);
+    __global const float* sp = welford_state + (size_t)pixel * WELFORD_STATE_FLOATS;
+    vstore4(vload4(0, sp), 0, p->state);                  // 20 floats: float4 + float16
+    vstore16(vload16(0, sp + 4), 0, p->state + 4);
+#endif
+#if OUTPUT_POSITION
+    vstore4(vload4(pixel, positions), 0, p->position);
 #endif
 }
 
-inline void pixel_stats_store(const PixelStats* p, __global float* f, __global float* gb,
-                              __global float* st, uint pixel) {
-    vstore16(vload16(0, p->mean), pixel, f);
+inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
+    vstore16(vload16(0, p->mean), pixel, filter_vectors);
+#if OUTPUT_FEATURES
+    vstore2(vload2(0, p->depth), pixel, depth_shifts);
+#endif
 #if OUTPUT_VARIANCE
-    vstore16(vload16(0, p->s), pixel, gb);
-    __global float* sp = st + (size_t)pixel * ST_FLOATS;
-    vstore8(vload8(0, p->state), 0, sp);
-    vstore16(vload16(0, p->state + 8), 0, sp + 8);
+    vstore16(vload16(0, p->s), pixel, welford_sums);
+    __global float* sp = welford_state + (size_t)pixel * WELFORD_STATE_FLOATS;
+    vstore4(vload4(0, p->state), 0, sp);
+    vstore16(vload16(0, p->state + 4), 0, sp + 4);
+#endif
+#if OUTPUT_POSITION
+    vstore4(vload4(0, p->position), pixel, positions);
 #endif
 }
 
@@ -100,8 +114,9 @@ inline void running_mean(float* mean, float x, float n) {
 
 // Eqs. 6.5 and 6.6 (Knuth, after Welford): the running mean and
 // S_n = S_{n-1} + (x_n - mu_{n-1}) (x_n - mu_n), with S_1 = 0 (mu_1 = x_1 makes the product 0).
-// This is the one update every statistic uses. Each term is a product of two deviations from
-// the mean, so S_n never goes negative and a constant stream gives exactly 0.
+// This is the one update every statistic uses; its mean is exactly running_mean's. Each term is
+// a product of two deviations from the mean, so S_n never goes negative and a constant stream
+// gives exactly 0.
 //
 // Where float32 loses accuracy, and what is done about it:
 // - Large offsets (depth in millimetres, or 1e4 with a spread of 0.1): the deviations x - mu
@@ -109,11 +124,12 @@ inline void running_mean(float* mean, float x, float n) {
 //   and once (x - mu) / n drops below that, mu stops moving ("stagnation", after a few hundred
 //   samples): S_n then grows around a wrong mean and overestimates the variance by
 //   (mu - mean)^2 per sample. So depth runs on shifted data x - K, K the pixel's first sample
-//   (in StatsState); F.depth = K + mean(x - K). Normals, albedos and directions are bounded by
-//   1 and need no shift.
+//   (DepthShift, part of the features output, so that F.depth has the same bytes with and
+//   without variances); F.depth = K + mean(x - K). Normals, albedos and directions are bounded
+//   by 1 and need no shift.
 // - Long runs with outliers (fireflies): after one sample 10^4 times the mean, S_n is ~5e10
 //   and its ulp 4096, so the ordinary terms (~25) that follow vanish when added. S_n is
-//   therefore summed with Kahan's compensation (the compensation lives in StatsState).
+//   therefore summed with Kahan's compensation (the compensation lives in WelfordState).
 // tests/statistics.rs and tests/hard_cases_statistics.rs check both against float64.
 inline void welford(float* mean, float* s, float* compensation, float x, float n) {
     float delta = x - *mean;
@@ -124,12 +140,12 @@ inline void welford(float* mean, float* s, float* compensation, float x, float n
     *s = sum;
 }
 
-inline void accumulate3(PixelStats* p, int f_lane, int gb_lane, float3 x, float n) {
+inline void accumulate3(PixelStats* p, int f_lane, int s_lane, float3 x, float n) {
 #if OUTPUT_VARIANCE
-    float* c = p->state + ST_COMPENSATION;
-    welford(&p->mean[f_lane], &p->s[gb_lane], &c[gb_lane], x.x, n);
-    welford(&p->mean[f_lane + 1], &p->s[gb_lane + 1], &c[gb_lane + 1], x.y, n);
-    welford(&p->mean[f_lane + 2], &p->s[gb_lane + 2], &c[gb_lane + 2], x.z, n);
+    float* c = p->state + WELFORD_STATE_S_COMPENSATION;
+    welford(&p->mean[f_lane], &p->s[s_lane], &c[s_lane], x.x, n);
+    welford(&p->mean[f_lane + 1], &p->s[s_lane + 1], &c[s_lane + 1], x.y, n);
+    welford(&p->mean[f_lane + 2], &p->s[s_lane + 2], &c[s_lane + 2], x.z, n);
 #else
     running_mean(&p->mean[f_lane], x.x, n);
     running_mean(&p->mean[f_lane + 1], x.y, n);
@@ -137,58 +153,75 @@ inline void accumulate3(PixelStats* p, int f_lane, int gb_lane, float3 x, float 
 #endif
 }
 
-// Folds sample number n (1-based) of this pixel into its statistics.
+// Folds sample number `count` (1-based) of this pixel into its outputs.
 inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
     float n = (float)count;
     // Colour: means only (GB holds no colour variance, eq. 6.2).
-    running_mean(&p->mean[F_DIRECT], ps->direct.x, n);
-    running_mean(&p->mean[F_DIRECT + 1], ps->direct.y, n);
-    running_mean(&p->mean[F_DIRECT + 2], ps->direct.z, n);
-    running_mean(&p->mean[F_INDIRECT], ps->indirect.x, n);
-    running_mean(&p->mean[F_INDIRECT + 1], ps->indirect.y, n);
-    running_mean(&p->mean[F_INDIRECT + 2], ps->indirect.z, n);
+    running_mean(&p->mean[FILTER_VECTOR_DIRECT], ps->direct.x, n);
+    running_mean(&p->mean[FILTER_VECTOR_DIRECT + 1], ps->direct.y, n);
+    running_mean(&p->mean[FILTER_VECTOR_DIRECT + 2], ps->direct.z, n);
+    running_mean(&p->mean[FILTER_VECTOR_INDIRECT], ps->indirect.x, n);
+    running_mean(&p->mean[FILTER_VECTOR_INDIRECT + 1], ps->indirect.y, n);
+    running_mean(&p->mean[FILTER_VECTOR_INDIRECT + 2], ps->indirect.z, n);
 #if OUTPUT_FEATURES
-#if OUTPUT_VARIANCE
     if (count == 1u) {
-        p->state[ST_DEPTH_SHIFT] = ps->depth;
-        p->state[ST_DEPTH_MEAN] = 0.0f;
+        p->depth[DEPTH_SHIFT_SHIFT] = ps->depth;
+        p->depth[DEPTH_SHIFT_MEAN] = 0.0f;
     }
-    float* c = p->state + ST_COMPENSATION;
-    welford(&p->state[ST_DEPTH_MEAN], &p->s[GB_DEPTH], &c[GB_DEPTH], ps->depth - p->state[ST_DEPTH_SHIFT], n);
-    p->mean[F_DEPTH] = p->state[ST_DEPTH_SHIFT] + p->state[ST_DEPTH_MEAN];
-    welford(&p->state[ST_DIRECTION], &p->s[GB_DIRECTION], &c[GB_DIRECTION], ps->direction.x, n);
-    welford(&p->state[ST_DIRECTION + 1], &p->s[GB_DIRECTION + 1], &c[GB_DIRECTION + 1], ps->direction.y, n);
-    welford(&p->state[ST_DIRECTION + 2], &p->s[GB_DIRECTION + 2], &c[GB_DIRECTION + 2], ps->direction.z, n);
+    float shifted = ps->depth - p->depth[DEPTH_SHIFT_SHIFT];
+#if OUTPUT_VARIANCE
+    float* st = p->state;
+    float* c = st + WELFORD_STATE_S_COMPENSATION;
+    welford(&p->depth[DEPTH_SHIFT_MEAN], &p->s[WELFORD_SUMS_DEPTH], &c[WELFORD_SUMS_DEPTH],
+            shifted, n);
 #else
-    running_mean(&p->mean[F_DEPTH], ps->depth, n);
+    running_mean(&p->depth[DEPTH_SHIFT_MEAN], shifted, n);
 #endif
-    accumulate3(p, F_NORMAL, GB_NORMAL, ps->normal, n);
-    accumulate3(p, F_ALBEDO, GB_ALBEDO, ps->albedo, n);
-    accumulate3(p, F_ALBEDO2, GB_ALBEDO2, ps->albedo2, n);
+    p->mean[FILTER_VECTOR_DEPTH] = p->depth[DEPTH_SHIFT_SHIFT] + p->depth[DEPTH_SHIFT_MEAN];
+#if OUTPUT_VARIANCE
+    int d = WELFORD_STATE_DIRECTION_MEAN, sd = WELFORD_SUMS_DIRECTION;
+    welford(&st[d], &p->s[sd], &c[sd], ps->direction.x, n);
+    welford(&st[d + 1], &p->s[sd + 1], &c[sd + 1], ps->direction.y, n);
+    welford(&st[d + 2], &p->s[sd + 2], &c[sd + 2], ps->direction.z, n);
+#endif
+    accumulate3(p, FILTER_VECTOR_NORMAL, WELFORD_SUMS_NORMAL, ps->normal, n);
+    accumulate3(p, FILTER_VECTOR_ALBEDO, WELFORD_SUMS_ALBEDO, ps->albedo, n);
+    accumulate3(p, FILTER_VECTOR_ALBEDO2, WELFORD_SUMS_ALBEDO2, ps->albedo2, n);
+#endif
+#if OUTPUT_POSITION
+    // The mean over the samples whose camera ray hit a surface; w counts them. A pixel whose
+    // every sample escaped keeps (0, 0, 0, 0).
+    if (ps->hit) {
+        p->position[3] += 1.0f;
+        float h = p->position[3];
+        running_mean(&p->position[0], ps->world1.x, h);
+        running_mean(&p->position[1], ps->world1.y, h);
+        running_mean(&p->position[2], ps->world1.z, h);
+    }
 #endif
 }
 
 #if OUTPUT_SAMPLES
-// Random Parameter Filtering's sample vector (thesis §5.1.1, Table 5.1; src/layout.rs
+// Random Parameter Filtering's sample vector (thesis §5.1.1, Table 5.1; src/layout/mod.rs
 // SampleVector): screen position, random parameters (lens u, v, time 0, first-bounce
 // direction), world position and normal of the first and second hits, first-hit texture, and
 // the sample's colour. The pixel jitter and lens numbers are drawn again from the counter-based
 // generator: the same numbers the camera used.
 inline void write_sample_vector(__global float* out, uint index, uint x, uint y, uint key,
                                 const PathSample* ps, bool lens) {
-    __global float* v = out + (size_t)index * 26u;
-    v[0] = (float)x + rng_uniform(key, 0u, DIM_PIXEL_X);
-    v[1] = (float)y + rng_uniform(key, 0u, DIM_PIXEL_Y);
-    v[2] = lens ? rng_uniform(key, 0u, DIM_LENS_U) : 0.0f;
-    v[3] = lens ? rng_uniform(key, 0u, DIM_LENS_V) : 0.0f;
-    v[4] = 0.0f;                                   // t: no motion blur
-    vstore3(ps->direction, 0, v + 5);
-    vstore3(ps->world1, 0, v + 8);
-    vstore3(ps->normal, 0, v + 11);
-    vstore3(ps->world2, 0, v + 14);
-    vstore3(ps->normal2, 0, v + 17);
-    vstore3(ps->albedo, 0, v + 20);
-    vstore3(ps->direct + ps->indirect, 0, v + 23);
+    __global float* v = out + (size_t)index * SAMPLE_VECTOR_FLOATS;
+    v[SAMPLE_VECTOR_POSITION] = (float)x + rng_uniform(key, 0u, DIM_PIXEL_X);
+    v[SAMPLE_VECTOR_POSITION + 1] = (float)y + rng_uniform(key, 0u, DIM_PIXEL_Y);
+    v[SAMPLE_VECTOR_RANDOM] = lens ? rng_uniform(key, 0u, DIM_LENS_U) : 0.0f;
+    v[SAMPLE_VECTOR_RANDOM + 1] = lens ? rng_uniform(key, 0u, DIM_LENS_V) : 0.0f;
+    v[SAMPLE_VECTOR_RANDOM + 2] = 0.0f;            // t: no motion blur
+    vstore3(ps->direction, 0, v + SAMPLE_VECTOR_RANDOM + 3);
+    vstore3(ps->world1, 0, v + SAMPLE_VECTOR_WORLD1);
+    vstore3(ps->normal, 0, v + SAMPLE_VECTOR_NORMAL1);
+    vstore3(ps->world2, 0, v + SAMPLE_VECTOR_WORLD2);
+    vstore3(ps->normal2, 0, v + SAMPLE_VECTOR_NORMAL2);
+    vstore3(ps->albedo, 0, v + SAMPLE_VECTOR_TEXTURE1);
+    vstore3(ps->direct + ps->indirect, 0, v + SAMPLE_VECTOR_COLOR);
 }
 #endif
 

@@ -33,7 +33,7 @@ inline float3 sample_direct_light(const SceneRefs* s, float3 surface_p, float3 n
     // directions aimed from the unmoved point would, at grazing angles, cross the light's
     // plane before the sampled point (an offset of 6e-5 under a ceiling moved the hit on a
     // lamp 1 cm below it by 0.6% of the distance) and the light would shadow itself.
-    float3 p = offset_ray_origin(surface_p, ng, s->params->offset_scale);
+    float3 p = offset_ray_origin(surface_p, ng, s->params->scene_size);
     uint index = select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT));
     __global const Light* light = s->lights + index;
     float r1 = rng_uniform(key, bounce, DIM_LIGHT_U);

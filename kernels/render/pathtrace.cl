@@ -46,7 +46,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 #endif
         Hit hit = intersect_closest(s, o, d, INFINITY, ray_count);
         if (hit.kind == HIT_NONE) {           // Alg. 1 lines 12-16: SampleSky
-#if OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES
             if (bounce == 0u) ps.world1 = o + SKY_DEPTH * d;
 #endif
 #if HAS_ENV
@@ -56,10 +56,14 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
         }
         Surface sf = surface_at(s, &hit, o, d);
         __global const Material* m = s->materials + sf.material;
-#if OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES
         if (bounce == 0u) {
             ps.world1 = sf.p;
-        } else if (bounce == 1u) {
+            ps.hit = true;
+        }
+#endif
+#if OUTPUT_SAMPLES
+        if (bounce == 1u) {
             ps.world2 = sf.p;
             ps.normal2 = sf.ns;
         }
@@ -104,7 +108,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 #if NEXT_EVENT_ESTIMATION
         count_emission = sc.specular;
 #endif
-        o = offset_ray_origin(sf.p, sc.offset_normal, params->offset_scale);
+        o = offset_ray_origin(sf.p, sc.offset_normal, params->scene_size);
         d = sc.direction;
     }
     // Optional firefly clamp (off by default: it biases the image). Direct and indirect are
@@ -121,6 +125,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
     return ps;
 }
 
+// One work-item per pixel adds `sample_count` samples, numbered from `sample_base`, to the
+// pixel's outputs. The host binds every argument by name (src/render/mod.rs), the output
+// buffers in the order of the generated RENDER_OUTPUT_PARAMS.
 __kernel void render(__constant const SceneParams* params,
                      __global const BvhNode* nodes,
                      __global const TriangleGeom* tri_geom,
@@ -131,13 +138,10 @@ __kernel void render(__constant const SceneParams* params,
                      __global const float4* texels,
                      __global const Light* lights,
                      __global const float* light_cdf,
-                     __global float* filter_vectors,    // FilterVector per pixel
-                     __global float* gbuffers,          // GBuffer per pixel (OUTPUT_VARIANCE)
-                     __global float* stats_state,       // StatsState per pixel (OUTPUT_VARIANCE)
+                     RENDER_OUTPUT_PARAMS,
                      __global uint* ray_counts,
-                     __global float* sample_vectors,    // SampleVector per sample (OUTPUT_SAMPLES)
-                     uint sample_capacity,              // samples per pixel it holds
                      __global uint* debug_counters,     // DEBUG_COUNTERS builds only
+                     uint sample_capacity,              // samples per pixel sample_vectors holds
                      uint sample_base,
                      uint sample_count) {
     uint x = get_global_id(0), y = get_global_id(1);
@@ -146,7 +150,7 @@ __kernel void render(__constant const SceneParams* params,
     SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
                    textures, texels, lights, light_cdf, debug_counters};
     PixelStats stats;
-    pixel_stats_load(&stats, filter_vectors, gbuffers, stats_state, pixel);
+    pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, pixel);
     uint rays = 0u;
     for (uint k = 0u; k < sample_count; ++k) {
         uint sample = sample_base + k;
@@ -159,6 +163,6 @@ __kernel void render(__constant const SceneParams* params,
                                 HAS_DOF && params->lens_radius > 0.0f);
 #endif
     }
-    pixel_stats_store(&stats, filter_vectors, gbuffers, stats_state, pixel);
+    pixel_stats_store(&stats, RENDER_OUTPUT_ARGS, pixel);
     ray_counts[pixel] = rays;
 }

@@ -1,5 +1,5 @@
 // Small kernels that expose single device functions to the tests, so each can be compared
-// with its Rust reference (src/reference/). Not used for rendering.
+// with its Rust reference (src/render/cpu/). Not used for rendering.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -53,15 +53,15 @@ __kernel void probe_camera(__constant const SceneParams* params, uint sample,
     out_dir[pixel] = (float4)(d, 0.0f);
 }
 
-// Feeds one stream of values per pixel through the renderer's statistics stage
-// (film_accumulate), for samples [first, first + count): several calls emulate progressive
-// launches. Every feature lane of a sample gets the stream value.
+// Feeds one stream of values per pixel through the renderer's output stage (film_accumulate),
+// for samples [first, first + count): several calls emulate progressive launches. Every
+// feature lane of a sample gets the stream value; the buffers are the render kernel's.
 __kernel void probe_film(__global const float* stream, uint stream_len, uint first, uint count,
-                         __global float* f, __global float* gb, __global float* st, uint pixels) {
+                         RENDER_OUTPUT_PARAMS, uint pixels) {
     uint pixel = get_global_id(0);
     if (pixel >= pixels) return;
     PixelStats stats;
-    pixel_stats_load(&stats, f, gb, st, pixel);
+    pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, pixel);
     for (uint k = first; k < first + count; ++k) {
         float v = stream[pixel * stream_len + k];
         PathSample ps = path_sample_empty();
@@ -73,25 +73,12 @@ __kernel void probe_film(__global const float* stream, uint stream_len, uint fir
         ps.direction = (float3)(v);
         film_accumulate(&stats, &ps, k + 1u);
     }
-    pixel_stats_store(&stats, f, gb, st, pixel);
+    pixel_stats_store(&stats, RENDER_OUTPUT_ARGS, pixel);
 }
 
 // sizeof and field offsets of every shared struct, measured on the device (tests/layout.rs).
-// The test prepends `#define LAYOUT_PROBE_BODY ...`, generated from src/layout.rs.
-#ifdef LAYOUT_PROBE_BODY
-__kernel void probe_layout(__global uint* out,
-                           __global SceneParams* a, __global BvhNode* b, __global TriangleGeom* c,
-                           __global TriangleShading* d, __global Sphere* e, __global Material* f,
-                           __global TextureInfo* g, __global Light* h, __global FilterVector* i,
-                           __global GBuffer* j, __global StatsState* k_, __global DdfParams* l,
-                           __global SampleVector* m, __global AtrousParams* n) {
-    if (get_global_id(0) != 0) return;
-    uint k = 0;
-    __global StatsState* k2 = k_;
-#define SIZE(p) out[k++] = (uint)sizeof(*(p));
-#define OFFSET(p, field) out[k++] = (uint)((__global char*)&((p)->field) - (__global char*)(p));
-    LAYOUT_PROBE_BODY
-#undef SIZE
-#undef OFFSET
-}
+// The test prepends `#define LAYOUT_PROBE_KERNEL ...`, the whole kernel, generated from
+// src/layout.
+#ifdef LAYOUT_PROBE_KERNEL
+LAYOUT_PROBE_KERNEL
 #endif

@@ -248,6 +248,20 @@ impl SceneArrays {
 }
 
 impl SceneArrays {
+    /// The camera the megakernel renders with (after autofocus).
+    pub fn camera(&self) -> crate::scene::CameraBasis {
+        let p = &self.params;
+        crate::scene::CameraBasis {
+            origin: p.camera_origin.xyz(),
+            forward: p.camera_forward.xyz(),
+            right: p.camera_right.xyz(),
+            up: p.camera_up.xyz(),
+            tan_half_fov: p.tan_half_fov,
+            lens_radius: p.lens_radius,
+            focal_distance: p.focal_distance,
+        }
+    }
+
     /// Autofocus (§4.2.2 "Camera"): the focal distance is the distance to the first hit along
     /// the view direction. When that ray hits nothing, the explicit focal_distance is kept if
     /// there is one, else the camera focuses on the centre of the scene's bounds.
@@ -312,20 +326,17 @@ pub fn scene_bounds(scene: &Scene) -> (Vec3, Vec3) {
 }
 
 fn scene_params(scene: &Scene, frame: &FrameSettings, a: &SceneArrays) -> Result<SceneParams> {
-    let cam = &scene.camera;
-    let forward = (cam.target - cam.origin).normalize();
-    let right = forward.cross(cam.up).normalize();
-    let up = right.cross(forward);
+    let cam = crate::scene::CameraBasis::new(&scene.camera);
     let mut p = SceneParams {
         camera_origin: f4(cam.origin, 0.0),
-        camera_forward: f4(forward, 0.0),
-        camera_right: f4(right, 0.0),
-        camera_up: f4(up, 0.0),
+        camera_forward: f4(cam.forward, 0.0),
+        camera_right: f4(cam.right, 0.0),
+        camera_up: f4(cam.up, 0.0),
         image_width: frame.width,
         image_height: frame.height,
-        tan_half_fov: (cam.fov_degrees.to_radians() * 0.5).tan(),
+        tan_half_fov: cam.tan_half_fov,
         lens_radius: cam.lens_radius,
-        focal_distance: cam.focal_distance.unwrap_or(1.0),
+        focal_distance: cam.focal_distance,
         node_count: a.nodes.len() as u32,
         sphere_count: a.spheres.len() as u32,
         light_count: a.lights.len() as u32,
@@ -334,7 +345,7 @@ fn scene_params(scene: &Scene, frame: &FrameSettings, a: &SceneArrays) -> Result
         max_vertices: MAX_PATH_VERTICES,
         seed: frame.seed,
         sample_clamp: frame.sample_clamp,
-        offset_scale: {
+        scene_size: {
             let (lo, hi) = scene_bounds(scene);
             let size = (hi - lo).max_element();
             if size.is_finite() && size > 0.0 {

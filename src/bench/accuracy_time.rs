@@ -7,13 +7,12 @@ use anyhow::Result;
 
 use super::curves::{loglog_at, loglog_where};
 use super::plot::{Chart, Series, line_chart};
-use super::study::{STUDY_SEED, methods, reference_image, renderer_for, scene_name, sizes};
+use super::study::{STUDY_SEED, StudyScene, reads_every_sample, reference_image, sizes};
 use super::table::{ResultTable, distinct, num};
 use super::{Context, bar};
-use crate::filters::method::Method;
+use crate::filters::Configured;
+use crate::layout::outputs::OutputSet;
 use crate::metrics;
-use crate::render::Outputs;
-use crate::scene;
 
 /// One point of an error-versus-time curve.
 #[derive(Clone, Copy, Debug)]
@@ -31,31 +30,26 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
     let columns = ["scene", "method", "spp", "seconds", "mse_luv", "rel_mse"];
     let mut t = ctx.table("accuracy-time", &columns, 3, fresh)?;
     let unfiltered_max = if ctx.quick { 32 } else { 1024 };
-    let filtered_max = |m: &Method| -> u32 {
-        match (ctx.quick, m.name()) {
-            (true, _) => 8,
-            // RPF's cost grows with every stored sample (about five minutes per 512x512 frame
-            // at 8 spp on a 2-core CPU); its curve stops at 8 spp, the spp of the headline.
-            (false, "rpf") => 8,
-            (false, _) => 64,
+    let filtered_max = |m: &Configured| -> u32 {
+        // RPF's cost grows with every stored sample (about five minutes per 512x512 frame at
+        // 8 spp on a 2-core CPU); such curves stop at 8 spp, the spp of the headline.
+        if ctx.quick || reads_every_sample(m) {
+            8
+        } else {
+            64
         }
     };
     let pb = bar(ctx, ctx.scenes.len() as u64, "accuracy against time");
     for path in &ctx.scenes {
-        let name = scene_name(path);
+        let study = StudyScene::load(path, &s, STUDY_SEED)?;
+        let name = study.name.clone();
         pb.set_message(format!("accuracy against time: {name}"));
-        let scene = scene::load_scene(path)?;
         let reference = reference_image(ctx, path, &s)?;
-        let mut entries: Vec<(Option<Method>, u32)> = vec![(None, unfiltered_max)];
-        entries.extend(methods(&scene).into_iter().map(|m| {
-            let max = filtered_max(&m);
-            (Some(m), max)
-        }));
+        let methods = study.methods()?;
+        let mut entries: Vec<(Option<&Configured>, u32)> = vec![(None, unfiltered_max)];
+        entries.extend(methods.iter().map(|m| (Some(m), filtered_max(m))));
         for (method, max_spp) in entries {
-            let label = method
-                .as_ref()
-                .map_or("unfiltered", |m| m.name())
-                .to_string();
+            let label = method.map_or("unfiltered", |m| m.name()).to_string();
             let checkpoints: Vec<u32> = (0..)
                 .map(|i| 1u32 << i)
                 .take_while(|&n| n <= max_spp)
@@ -67,31 +61,30 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                 ctx.say(&format!(
                     "accuracy-time: {name} {label} up to {max_spp} spp"
                 ));
-                let outputs = method
-                    .as_ref()
-                    .map_or(Outputs::default(), |m| m.outputs(max_spp));
-                let mut r = renderer_for(ctx, &scene, &s, STUDY_SEED, outputs)?;
-                let mut prepared = match &method {
-                    Some(m) => Some(m.prepare(&ctx.gpu, &scene, &r)?),
+                let outputs = method.map_or(OutputSet::colour(), |m| m.needs());
+                let mut r = study.renderer(ctx, &s, outputs, max_spp)?;
+                let mut prepared = match method {
+                    Some(m) => Some(m.prepare(r.frame().info(), &ctx.gpu)?),
                     None => None,
                 };
                 // Warm-up: one frame builds and loads everything, then the render restarts.
                 r.render_samples(1)?;
                 if let Some(f) = prepared.as_mut() {
-                    f.run(&r)?;
+                    f.run(&r.frame())?;
                 }
-                let mut r2 = renderer_for(ctx, &scene, &s, STUDY_SEED, outputs)?;
+                let mut r2 = study.renderer(ctx, &s, outputs, max_spp)?;
                 let mut render_time = Duration::ZERO;
                 for &spp in &checkpoints {
                     let start = Instant::now();
                     r2.render_samples(spp - r2.samples_done())?;
                     render_time += start.elapsed();
+                    let frame = r2.frame();
                     let (img, filter_time) = match prepared.as_mut() {
                         Some(f) => {
-                            let run = f.run(&r2)?;
+                            let run = f.run(&frame)?;
                             (run.image, run.wall_time)
                         }
-                        None => (r2.read_buffers()?.beauty(), Duration::ZERO),
+                        None => (frame.beauty()?, Duration::ZERO),
                     };
                     let key = vec![name.clone(), label.clone(), spp.to_string()];
                     if !t.has(&key) {

@@ -101,8 +101,13 @@ pub fn get_or_render(
     std::fs::create_dir_all(cache).with_context(|| format!("creating {}", cache.display()))?;
     let mut renderer = Renderer::new(gpu.clone(), &scene, &options)?;
     let start = std::time::Instant::now();
-    crate::cli::progressive(&mut renderer, req.spp, None, quiet, |_| Ok(()))?;
-    let img = renderer.read_buffers()?.beauty();
+    let budget = crate::render::Budget {
+        spp: req.spp,
+        time_limit: None,
+    };
+    let bar = crate::render::progress_bar(req.spp, quiet);
+    crate::render::render_progressively(&mut renderer, budget, &bar, &|| false, |_| Ok(()))?;
+    let img = renderer.frame().beauty()?;
     let mut meta = BTreeMap::new();
     meta.insert("scene".to_string(), req.scene.display().to_string());
     meta.insert("scene_hash".to_string(), format!("{hash:016x}"));

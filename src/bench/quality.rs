@@ -4,15 +4,13 @@
 use anyhow::Result;
 
 use super::plot::{contact_sheet, half_size};
-use super::study::{
-    STUDY_SEED, methods, metric_cells, reference_image, renderer_for, scene_name, sizes,
-};
+use super::study::{STUDY_SEED, StudyScene, metric_cells, reference_image, sizes};
 use super::table::{distinct, num};
 use super::{Context, bar};
-use crate::filters::method::Method;
+use crate::filters::FilterKind;
+use crate::filters::ddf::Ddf;
 use crate::imaging::{RgbImage, write_exr, write_png};
-use crate::render::Outputs;
-use crate::scene;
+use crate::layout::outputs::OutputSet;
 
 /// Study 2 (thesis §7.3, Fig. 7.18): every scene, unfiltered and filtered, against the
 /// reference; a contact sheet per scene.
@@ -27,24 +25,25 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
     let ddf_spp: &[u32] = if ctx.quick { &[8] } else { &[8, 16, 32] };
     let pb = bar(ctx, ctx.scenes.len() as u64, "quality");
     for path in &ctx.scenes {
-        let name = scene_name(path);
+        let study = StudyScene::load(path, &s, STUDY_SEED)?;
+        let name = study.name.clone();
         pb.set_message(format!("quality: {name}"));
-        let scene = scene::load_scene(path)?;
         let reference = reference_image(ctx, path, &s)?;
         let mut tiles: Vec<(String, RgbImage)> = vec![(
             format!("reference {} spp", s.reference_spp),
             reference.clone(),
         )];
-        // (method, spp) cells: unfiltered at 8, ours at 8/16/32, RPF and à-trous at 8.
-        let mut cells: Vec<(Option<Method>, u32)> = vec![(None, 8)];
-        for m in methods(&scene) {
-            let spps: Vec<u32> = if m.name() == "ddf" {
+        // (method, spp) cells: unfiltered at 8, the thesis's filter at 8/16/32, the others at 8.
+        let methods = study.methods()?;
+        let mut cells: Vec<(Option<&crate::filters::Configured>, u32)> = vec![(None, 8)];
+        for m in &methods {
+            let spps: Vec<u32> = if m.name() == Ddf::NAME {
                 ddf_spp.to_vec()
             } else {
                 vec![8]
             };
             for spp in spps {
-                cells.push((Some(m.clone()), spp));
+                cells.push((Some(m), spp));
             }
         }
         for (method, spp) in cells {
@@ -60,17 +59,16 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
                 continue;
             }
             ctx.say(&format!("quality: {name} {label} {spp} spp"));
-            let outputs = method
-                .as_ref()
-                .map_or(Outputs::default(), |m| m.outputs(spp));
-            let mut r = renderer_for(ctx, &scene, &s, STUDY_SEED, outputs)?;
+            let outputs = method.map_or(OutputSet::colour(), |m| m.needs());
+            let mut r = study.renderer(ctx, &s, outputs, spp)?;
             r.render_samples(spp)?;
-            let (img, secs) = match &method {
-                None => (r.read_buffers()?.beauty(), 0.0),
+            let frame = r.frame();
+            let (img, secs) = match method {
+                None => (frame.beauty()?, 0.0),
                 Some(m) => {
-                    let mut f = m.prepare(&ctx.gpu, &scene, &r)?;
+                    let mut f = m.prepare(frame.info(), &ctx.gpu)?;
                     f.show_progress(!ctx.quiet);
-                    let run = f.run(&r)?;
+                    let run = f.run(&frame)?;
                     (run.image, run.wall_time.as_secs_f64())
                 }
             };

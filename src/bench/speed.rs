@@ -9,10 +9,10 @@ use super::plot::{Chart, Series, line_chart};
 use super::study::scene_name;
 use super::table::{ResultTable, num};
 use super::{Context, bar};
-use crate::filters::UploadedBuffers;
-use crate::filters::ddf::{DdfFilter, DdfSettings, Variant};
+use crate::filters::ddf::{DdfKernel, DdfSettings, Variant};
 use crate::gpu::Gpu;
-use crate::render::{Outputs, RenderOptions, Renderer};
+use crate::layout::outputs::{Output, OutputSet};
+use crate::render::{Frame, RenderOptions, Renderer};
 use crate::scene::{self, Scene};
 
 fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
@@ -200,22 +200,12 @@ pub fn statistics_cost(ctx: &Context, fresh: bool) -> Result<()> {
         4,
         fresh,
     )?;
-    let configs: [(&str, Outputs); 3] = [
-        ("none", Outputs::default()),
-        (
-            "means",
-            Outputs {
-                features: true,
-                ..Default::default()
-            },
-        ),
+    let configs: [(&str, OutputSet); 3] = [
+        ("none", OutputSet::colour()),
+        ("means", OutputSet::of(&[Output::Features])),
         (
             "means+variances",
-            Outputs {
-                features: true,
-                variance: true,
-                ..Default::default()
-            },
+            OutputSet::of(&[Output::Features, Output::Variance]),
         ),
     ];
     let pb = bar(ctx, ctx.scenes.len() as u64, "statistics cost");
@@ -265,19 +255,15 @@ pub fn statistics_cost(ctx: &Context, fresh: bool) -> Result<()> {
     Ok(())
 }
 
-/// Rendered 8-spp buffers of Cornell diffuse at `w` x `h`, the filter's input.
-fn filter_input(ctx: &Context, w: u32, h: u32) -> Result<crate::stats::PixelBuffers> {
+/// Rendered 8-spp outputs of Cornell diffuse at `w` x `h`, the filter's input (on the device).
+fn filter_input(ctx: &Context, w: u32, h: u32) -> Result<Frame> {
     let path = ctx.scene_file("cornell_diffuse")?;
     let scene = scene::load_scene(&path)?;
     let mut o = options(&scene, w, h);
-    o.outputs = Outputs {
-        features: true,
-        variance: true,
-        ..Default::default()
-    };
+    o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
     let mut r = Renderer::new(ctx.gpu.clone(), &scene, &o)?;
     r.render_samples(8)?;
-    r.read_buffers()
+    Ok(r.frame())
 }
 
 /// Filter kernel time over kernel widths x resolutions x variants x work-group sizes, min /
@@ -325,27 +311,29 @@ pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {
                         continue;
                     }
                     if input.is_none() {
-                        input = Some(UploadedBuffers::new(&ctx.gpu, &filter_input(ctx, w, h)?)?);
+                        input = Some(filter_input(ctx, w, h)?);
                     }
-                    let up = input.as_ref().expect("uploaded above");
+                    let frame = input.as_ref().expect("rendered above");
+                    let (v, naive_wg) = match variant {
+                        "naive" => (Variant::Naive, Some(wg)),
+                        _ => (Variant::Rows, None),
+                    };
                     let settings = DdfSettings {
                         kw,
                         holes: variant == "rows+holes",
+                        variant: v,
+                        work_group: wg as u32,
                         ..Default::default()
                     };
-                    let (v, naive_wg) = match variant {
-                        "naive" => (Variant::Naive, Some(wg)),
-                        _ => (Variant::Rows { work_group: wg }, None),
-                    };
                     let mut f =
-                        DdfFilter::with_work_group(ctx.gpu.clone(), &settings, v, w, h, naive_wg)?;
-                    f.run(&up.view())?; // warm-up
+                        DdfKernel::with_work_group(ctx.gpu.clone(), &settings, w, h, naive_wg)?;
+                    f.filter(frame)?; // warm-up
                     let mut times = Vec::new();
                     let max_runs = if ctx.quick { 3 } else { 7 };
                     let budget = Duration::from_secs(if ctx.quick { 5 } else { 60 });
                     let mut spent = Duration::ZERO;
                     while times.len() < max_runs && (times.len() < 2 || spent < budget) {
-                        let k = f.run(&up.view())?.kernel_time;
+                        let k = f.filter(frame)?.time();
                         spent += k;
                         times.push(k);
                     }

@@ -9,14 +9,12 @@ use anyhow::Result;
 use super::Context;
 use super::ground_truth::{self, ReferenceRequest};
 use super::table::num;
-use crate::filters::atrous::AtrousSettings;
-use crate::filters::ddf::{DdfSettings, Variant};
-use crate::filters::method::Method;
-use crate::filters::rpf::{RpfSettings, SceneKind};
+use crate::filters::{Configured, FilterRequest, Registry};
 use crate::imaging::RgbImage;
+use crate::layout::outputs::{Output, OutputSet};
 use crate::metrics;
-use crate::render::{Outputs, RenderOptions, Renderer};
-use crate::scene::{Scene, Setting};
+use crate::render::{RenderOptions, Renderer, SceneArrays, SceneInfo};
+use crate::scene::{self, Scene};
 
 /// Resolution, reference spp and the spp of the studies, full or quick.
 pub struct Sizes {
@@ -47,22 +45,69 @@ pub(super) fn scene_name(p: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// The filters compared, with the thesis's defaults (Table 7.2 for ours; RPF's sigma^2_8 from
-/// the scene's setting).
-pub fn methods(scene: &Scene) -> Vec<Method> {
-    let kind = if scene.render.setting == Setting::Outdoor {
-        SceneKind::Outdoor
-    } else {
-        SceneKind::Indoor
-    };
-    vec![
-        Method::Ddf {
-            settings: DdfSettings::default(),
-            variant: Variant::Rows { work_group: 64 },
-        },
-        Method::Rpf(RpfSettings::for_scene(kind)),
-        Method::Atrous(AtrousSettings::default()),
-    ]
+/// A scene of a study at the study's size and seed, with its arrays built once for every
+/// renderer of the study and the scene information the filters specialise to.
+pub struct StudyScene {
+    pub name: String,
+    pub scene: Scene,
+    pub arrays: SceneArrays,
+    pub info: SceneInfo,
+}
+
+impl StudyScene {
+    pub fn load(path: &Path, s: &Sizes, seed: u32) -> Result<StudyScene> {
+        let scene = scene::load_scene(path)?;
+        let o = options(&scene, s, seed);
+        let arrays = SceneArrays::build(&scene, &o.frame)?;
+        let info = SceneInfo::new(&scene, &arrays);
+        Ok(StudyScene {
+            name: scene_name(path),
+            scene,
+            arrays,
+            info,
+        })
+    }
+
+    /// A renderer gathering `outputs` (and, for per-sample outputs, `spp` samples of each
+    /// pixel).
+    pub fn renderer(
+        &self,
+        ctx: &Context,
+        s: &Sizes,
+        outputs: OutputSet,
+        spp: u32,
+    ) -> Result<Renderer> {
+        let mut o = options(&self.scene, s, self.arrays.params.seed);
+        o.outputs = outputs;
+        if outputs.contains(Output::Samples) {
+            o.sample_capacity = spp;
+        }
+        Renderer::with_arrays(ctx.gpu.clone(), &self.scene, self.arrays.clone(), &o)
+    }
+
+    /// The filters compared: every registered filter with its defaults (Table 7.2 for the
+    /// thesis's), specialised to this scene.
+    pub fn methods(&self) -> Result<Vec<Configured>> {
+        let r = Registry::builtin();
+        r.filters()
+            .iter()
+            .map(|f| r.configure(*f, &FilterRequest::default(), &self.info))
+            .collect()
+    }
+}
+
+/// Filters that read every stored sample (RPF) cost time and memory in proportion to the
+/// samples; their curves stop at 8 spp, the spp of the headline.
+pub fn reads_every_sample(c: &Configured) -> bool {
+    c.needs().contains(Output::Samples)
+}
+
+fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
+    let mut o = RenderOptions::for_scene(scene);
+    o.frame.width = s.width;
+    o.frame.height = s.height;
+    o.frame.seed = seed;
+    o
 }
 
 pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
@@ -90,21 +135,6 @@ pub(super) fn metric_cells(img: &RgbImage, reference: &RgbImage) -> Result<Vec<S
         num(m.mse_rgb),
         num(m.ssim),
     ])
-}
-
-pub(super) fn renderer_for(
-    ctx: &Context,
-    scene: &Scene,
-    s: &Sizes,
-    seed: u32,
-    outputs: Outputs,
-) -> Result<Renderer> {
-    let mut o = RenderOptions::for_scene(scene);
-    o.frame.width = s.width;
-    o.frame.height = s.height;
-    o.frame.seed = seed;
-    o.outputs = outputs;
-    Renderer::new(ctx.gpu.clone(), scene, &o)
 }
 
 /// The seed of a study's noisy renders (the reference uses another).

@@ -5,12 +5,11 @@ use anyhow::Result;
 
 use super::Context;
 use super::plot::{Chart, Series, line_chart};
-use super::study::{STUDY_SEED, metric_cells, reference_image, renderer_for, scene_name, sizes};
+use super::study::{STUDY_SEED, StudyScene, metric_cells, reference_image, sizes};
 use super::table::{ResultTable, distinct, num};
-use crate::filters::ddf::{DdfSettings, Variant};
-use crate::filters::method::Method;
-use crate::render::Outputs;
-use crate::scene;
+use crate::filters::Configured;
+use crate::filters::ddf::{Ddf, DdfSettings};
+use crate::layout::outputs::{Output, OutputSet};
 
 /// A parameter of the sweep: its name and the values tried (Table 7.1).
 struct Param {
@@ -148,20 +147,11 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
     };
     for (name, spp, only) in &plan {
         let path = ctx.scene_file(name)?;
-        let name = scene_name(&path);
-        let scene = scene::load_scene(&path)?;
+        let study = StudyScene::load(&path, &s, STUDY_SEED)?;
+        let name = study.name.clone();
         let reference = reference_image(ctx, &path, &s)?;
-        let mut r = renderer_for(
-            ctx,
-            &scene,
-            &s,
-            STUDY_SEED,
-            Outputs {
-                features: true,
-                variance: true,
-                sample_vectors: None,
-            },
-        )?;
+        let outputs = OutputSet::of(&[Output::Colour, Output::Features, Output::Variance]);
+        let mut r = study.renderer(ctx, &s, outputs, *spp)?;
         let mut rendered = false;
         let mut runs: Vec<(String, String, DdfSettings)> = Vec::new();
         for p in sweep_params(ctx.quick) {
@@ -198,11 +188,9 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
                 r.render_samples(*spp)?;
                 rendered = true;
             }
-            let m = Method::Ddf {
-                settings: st,
-                variant: Variant::Rows { work_group: 64 },
-            };
-            let img = m.prepare(&ctx.gpu, &scene, &r)?.run(&r)?.image;
+            let m = Configured::typed::<Ddf>(st, &study.info)?;
+            let frame = r.frame();
+            let img = m.prepare(frame.info(), &ctx.gpu)?.run(&frame)?.image;
             let mut row = key;
             let cells = metric_cells(&img, &reference)?;
             row.extend([cells[0].clone(), cells[1].clone()]);

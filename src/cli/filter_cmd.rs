@@ -1,32 +1,29 @@
-//! `noisefree filter`: filters offline, from an AOV file written by `render --aovs` (the
-//! data-driven and à-trous filters) or a samples file written by `render --save-samples`
-//! (Random Parameter Filtering).
+//! `noisefree filter`: filters offline, from an AOV file written by `render --aovs` or a samples
+//! file written by `render --save-samples`. The file records the scene information and every
+//! filter's settings of the render that wrote it, so the result is the same bytes the render
+//! would have written with that filter (flags given here still win).
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
-use super::filter_args::{FilterArgs, Method};
-use crate::filters::UploadedBuffers;
-use crate::filters::atrous::AtrousFilter;
-use crate::filters::ddf::DdfFilter;
-use crate::filters::method::run_rpf;
-use crate::filters::rpf::samples::{SampleSet, is_sample_file};
+use crate::filters::{FilterRequest, Registry};
 use crate::gpu::Gpu;
 use crate::imaging;
-use crate::scene::Setting;
+use crate::render::Frame;
+use crate::stats::RenderRecord;
+use crate::stats::samples::{SampleSet, is_sample_file};
 
 #[derive(Args, Debug, Clone)]
 pub struct FilterCommandArgs {
-    /// An AOV file (`render --aovs`) or, for RPF, a samples file (`render --save-samples`).
+    /// An AOV file (`render --aovs`) or a samples file (`render --save-samples`).
     pub input: PathBuf,
-    /// The filter [default: rpf for a samples file, ddf for an AOV file].
-    #[arg(long, value_enum)]
-    pub method: Option<Method>,
-    /// RPF: the scene is outdoors (sigma^2_8 = 0.002 instead of 0.02, §5.1.4).
-    #[arg(long)]
-    pub outdoor: bool,
+    /// The filter [default: the one the render ran, else the first registered filter the file
+    /// holds the outputs for]. `none` writes the unfiltered image.
+    #[arg(long, visible_alias = "method", value_name = "NAME")]
+    pub filter: Option<String>,
     /// Tone-mapped sRGB PNG of the result.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -38,130 +35,100 @@ pub struct FilterCommandArgs {
     /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
     #[arg(long)]
     pub device: Option<usize>,
-    /// Run a device filter this many times and print min / median / max kernel time.
+    /// Run the filter this many times and print min / median / max time.
     #[arg(long, default_value_t = 1)]
     pub repeat: u32,
     #[arg(long, short)]
     pub quiet: bool,
-    #[command(flatten)]
-    pub filter: FilterArgs,
+    /// The filter settings given on the command line, per filter.
+    #[arg(skip)]
+    pub settings: BTreeMap<String, toml::Table>,
 }
 
-pub fn run(args: &FilterCommandArgs) -> Result<()> {
+/// The frame and record in an AOV or samples file.
+pub fn read_frame(path: &std::path::Path) -> Result<(Frame, RenderRecord)> {
+    if !path.exists() {
+        bail!("{}: no such file", path.display());
+    }
+    if is_sample_file(path) {
+        let set = SampleSet::read(path)?;
+        let record = set.record.clone();
+        Ok((set.into_frame()?, record))
+    } else {
+        crate::stats::aov::read_aov_exr(path)
+    }
+}
+
+pub fn run(args: &FilterCommandArgs, registry: &Registry) -> Result<()> {
     for p in [&args.out, &args.exr].into_iter().flatten() {
         imaging::check_output_path(p)?;
     }
     if args.out.is_none() && args.exr.is_none() {
         bail!("nothing to write: give --out FILE.png and/or --exr FILE.exr");
     }
-    if !args.input.exists() {
-        bail!("{}: no such file", args.input.display());
+    let input = args.input.display().to_string();
+    let (frame, record) = read_frame(&args.input)?;
+    if record.scene.is_none() {
+        eprintln!(
+            "warning: {input} records no scene information (another program or an older \
+             noisefree wrote it): the filters use their defaults and do not adapt to the scene"
+        );
     }
-    let samples_file = is_sample_file(&args.input);
-    let method = args
-        .method
-        .or(args.filter.filter)
-        .unwrap_or(if samples_file {
-            Method::Rpf
-        } else {
-            Method::Ddf
-        });
-    let setting = if args.outdoor {
-        Setting::Outdoor
+    let name = match args.filter.clone().or(record.filter.clone()) {
+        Some(n) => n,
+        None => registry
+            .filters()
+            .iter()
+            .find(|f| {
+                registry
+                    .configure(**f, &FilterRequest::default(), &frame.info().scene)
+                    .is_ok_and(|c| frame.outputs().covers(c.needs()))
+            })
+            .map(|f| f.name().to_string())
+            .with_context(|| format!("{input}: no filter can run on what this file holds"))?,
+    };
+    let (image, timings) = if name == "none" {
+        (frame.beauty()?, Vec::new())
     } else {
-        Setting::Indoor
-    };
-    let (image, what) = match method {
-        Method::Rpf => {
-            if !samples_file {
-                bail!(
-                    "{}: RPF filters a samples file (write one with `render --save-samples FILE`)",
-                    args.input.display()
-                );
-            }
-            let set = SampleSet::read(&args.input)?;
-            let settings = args.filter.rpf(None, setting)?;
-            let start = std::time::Instant::now();
-            let image = run_rpf(&set, &settings, !args.quiet)?;
-            println!(
-                "RPF filtered {}x{} ({} spp) in {:.1} s",
-                set.width,
-                set.height,
-                set.spp,
-                start.elapsed().as_secs_f64()
-            );
-            (image, args.input.display().to_string())
+        let filter = registry.get(&name)?;
+        let request = FilterRequest {
+            recorded: record.settings.clone(),
+            flags: args.settings.clone(),
+            ..Default::default()
+        };
+        let configured = registry.configure(filter, &request, &frame.info().scene)?;
+        frame
+            .require(configured.needs(), &format!("the {name} filter"))
+            .with_context(|| {
+                format!(
+                    "{input}: re-render with `noisefree render SCENE --filter {name} --aovs \
+                     FILE.exr` (or --save-samples FILE.bin for filters that read every sample)"
+                )
+            })?;
+        let gpu = Gpu::open(args.device)?;
+        let mut prepared = configured.prepare(frame.info(), &gpu)?;
+        prepared.show_progress(!args.quiet);
+        let mut times = Vec::new();
+        let mut image = None;
+        for _ in 0..args.repeat.max(1) {
+            let out = prepared.run(&frame).context("filtering")?;
+            times.push(out.time());
+            image = Some(out.image);
         }
-        m => {
-            if samples_file {
-                bail!(
-                    "{}: a samples file holds no per-pixel buffers; use --method rpf, or an AOV file",
-                    args.input.display()
-                );
-            }
-            let (buffers, meta) = crate::stats::aovs::read_aov_exr(&args.input)?;
-            let image = match m {
-                Method::None => buffers.beauty(),
-                Method::Ddf | Method::Atrous => {
-                    let gpu = Gpu::open(args.device)?;
-                    let up = UploadedBuffers::new(&gpu, &buffers)?;
-                    let mut times = Vec::new();
-                    let mut image = None;
-                    let mut ddf;
-                    let mut atrous;
-                    let run: &mut dyn FnMut() -> Result<crate::filters::Filtered> =
-                        if m == Method::Ddf {
-                            let (settings, variant) = args.filter.ddf(None)?;
-                            ddf = DdfFilter::new(
-                                gpu.clone(),
-                                &settings,
-                                variant,
-                                buffers.width,
-                                buffers.height,
-                            )?;
-                            &mut || ddf.run(&up.view())
-                        } else {
-                            let camera_text = meta.get("camera").with_context(|| {
-                            format!(
-                                "{}: no camera in the AOV file (re-render it with this version)",
-                                args.input.display()
-                            )
-                        })?;
-                            let camera = crate::stats::aovs::camera_from_text(camera_text)?;
-                            atrous = AtrousFilter::new(
-                                gpu.clone(),
-                                &args.filter.atrous(None)?,
-                                &camera,
-                                buffers.width,
-                                buffers.height,
-                            )?;
-                            &mut || atrous.run(&up.view())
-                        };
-                    for _ in 0..args.repeat.max(1) {
-                        let out = run().context("filtering")?;
-                        times.push(out.kernel_time);
-                        image = Some(out.image);
-                    }
-                    super::print_timings(
-                        &format!("{m:?} filter kernel time").to_lowercase(),
-                        &times,
-                    );
-                    image.expect("at least one run")
-                }
-                Method::Rpf => unreachable!("handled above"),
-            };
-            (
-                image,
-                format!("{} ({} spp)", args.input.display(), buffers.spp),
-            )
-        }
+        (image.expect("at least one run"), times)
     };
+    super::print_timings(&format!("{name} filter time"), &timings);
     if let Some(p) = &args.out {
         imaging::write_png(p, &image, args.exposure)?;
     }
     if let Some(p) = &args.exr {
         imaging::write_exr(p, &image)?;
     }
-    println!("filtered {}x{} from {what}", image.width, image.height);
+    println!(
+        "filtered {}x{} ({} spp) from {input} with {name}",
+        image.width,
+        image.height,
+        frame.info().spp
+    );
     Ok(())
 }

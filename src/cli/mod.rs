@@ -1,17 +1,16 @@
 //! The command line: `noisefree devices | render | filter | compare | reference | bench | cache`.
 
-mod filter_args;
 mod filter_cmd;
 mod render_cmd;
 mod tools;
 
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
+use crate::filters::Registry;
 use crate::gpu;
-pub use filter_args::{FilterArgs, Method};
 pub use filter_cmd::FilterCommandArgs;
-pub use render_cmd::{RenderArgs, RenderSummary, progressive, render};
+pub use render_cmd::{RenderArgs, RenderSummary, render};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -42,13 +41,39 @@ pub enum Command {
     Cache(tools::CacheArgs),
 }
 
-/// Runs the command line; returns the process exit code.
+/// The command line of a registry: the derived commands plus, on `render` and `filter`, one
+/// flag per setting of every filter (grouped by filter in `--help`).
+pub fn command(registry: &Registry) -> clap::Command {
+    let args = registry.clap_args();
+    Cli::command()
+        .mut_subcommand("render", |c| c.args(args.clone()))
+        .mut_subcommand("filter", |c| c.args(args.clone()))
+}
+
+/// Runs the command line with the built-in filters; returns the process exit code.
 pub fn main() -> i32 {
-    let cli = Cli::parse();
+    main_with(&Registry::builtin())
+}
+
+/// Runs the command line with the filters of `registry`; returns the process exit code.
+pub fn main_with(registry: &Registry) -> i32 {
+    let matches = command(registry).get_matches();
+    let mut cli = match Cli::from_arg_matches(&matches) {
+        Ok(c) => c,
+        Err(e) => e.exit(),
+    };
+    if let Some((_, sub)) = matches.subcommand() {
+        let settings = registry.flag_tables(sub);
+        match &mut cli.command {
+            Command::Render(a) => a.settings = settings,
+            Command::Filter(a) => a.settings = settings,
+            _ => {}
+        }
+    }
     let result = match cli.command {
         Command::Devices => devices(),
-        Command::Render(args) => render(&args).map(|_| ()),
-        Command::Filter(args) => filter_cmd::run(&args),
+        Command::Render(args) => render(&args, registry).map(|_| ()),
+        Command::Filter(args) => filter_cmd::run(&args, registry),
         Command::Compare(args) => tools::compare(&args),
         Command::Reference(args) => tools::reference(&args),
         Command::Bench(args) => {

@@ -1,19 +1,24 @@
 //! `noisefree render`: progressive rendering with a progress bar, optional filtering after
 //! each frame, images and AOVs out.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 
-use super::filter_args::FilterArgs;
+use crate::filters::{Configured, FilterRequest, Registry};
 use crate::gpu::Gpu;
 use crate::imaging;
-use crate::render::{RenderOptions, Renderer};
+use crate::layout::outputs::{Output, OutputSet};
+use crate::render::{
+    Budget, RenderOptions, Renderer, SceneArrays, SceneInfo, progress_bar, render_progressively,
+};
 use crate::scene;
+use crate::stats::RenderRecord;
+use crate::stats::samples::SampleSet;
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
@@ -81,11 +86,18 @@ pub struct RenderArgs {
     #[arg(long)]
     pub save_partial: bool,
     /// Also store every sample's Random Parameter Filtering vector (26 floats, thesis §5.1.1)
-    /// in a samples file for `noisefree filter FILE --method rpf`.
+    /// in a samples file for `noisefree filter FILE --filter rpf`.
     #[arg(long, value_name = "FILE.bin")]
     pub save_samples: Option<PathBuf>,
-    #[command(flatten)]
-    pub filter: FilterArgs,
+    /// Filter to apply: a registered filter (ddf, rpf, atrous, ...) or none [default: the
+    /// scene's [filter] method, else none]. Its settings are the flags under "Settings of the
+    /// ... filter" below, or the scene's [filter.NAME] table.
+    #[arg(long, value_name = "NAME")]
+    pub filter: Option<String>,
+    /// The filter settings given on the command line, per filter (filled from the flags the
+    /// registry adds, src/cli/mod.rs).
+    #[arg(skip)]
+    pub settings: BTreeMap<String, toml::Table>,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
@@ -183,60 +195,39 @@ pub fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::SeqCst)
 }
 
-/// Renders progressively until `spp` samples or the time limit, showing progress;
-/// `after_frame` runs after each launch. Stops early (after the launch in flight) on Ctrl-C.
-pub fn progressive(
-    renderer: &mut Renderer,
-    spp: u32,
-    time_limit: Option<f64>,
-    quiet: bool,
-    mut after_frame: impl FnMut(&Renderer) -> Result<()>,
-) -> Result<()> {
-    let bar = if quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(spp as u64)
+/// The filter `render` runs: the flag, else the scene's `[filter] method`; "none" or neither:
+/// no filter.
+fn chosen_filter<'a>(
+    args: &RenderArgs,
+    scene: &scene::Scene,
+    configured: &'a [Configured],
+) -> Result<Option<&'a Configured>> {
+    let name = match (&args.filter, &scene.filter.method) {
+        (Some(n), _) => n.as_str(),
+        (None, Some(n)) => n.as_str(),
+        (None, None) => return Ok(None),
     };
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} spp  {msg}  ETA {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let start = Instant::now();
-    let limit = time_limit.map(Duration::from_secs_f64);
-    // Launch sizes grow towards ~0.5 s per launch: responsive progress, few launches, and well
-    // under GPU watchdog limits. The image does not depend on the batching (tests/determinism).
-    let mut batch = 1u32;
-    while renderer.samples_done() < spp && !interrupted() {
-        if let Some(limit) = limit
-            && start.elapsed() >= limit
-        {
-            break;
-        }
-        let count = batch.min(spp - renderer.samples_done());
-        let stats = renderer.render_samples(count)?;
-        after_frame(renderer)?;
-        let per_sample = stats.kernel_time.as_secs_f64() / count as f64;
-        let mut next = (0.5 / per_sample.max(1e-6)) as u32;
-        if let Some(limit) = limit {
-            let left = limit.saturating_sub(start.elapsed()).as_secs_f64();
-            next = next.min((left / per_sample.max(1e-6)) as u32);
-        }
-        batch = next.clamp(1, batch.saturating_mul(4).max(1));
-        bar.set_position(renderer.samples_done() as u64);
-        let secs = renderer.kernel_time_total.as_secs_f64().max(1e-9);
-        bar.set_message(format!(
-            "{:.2} spp/s  {:.1} Mrays/s",
-            renderer.samples_done() as f64 / secs,
-            renderer.rays_total as f64 / secs / 1e6
-        ));
+    if name == "none" {
+        return Ok(None);
     }
-    bar.finish_and_clear();
-    Ok(())
+    match configured.iter().find(|c| c.name() == name) {
+        Some(c) => Ok(Some(c)),
+        None => {
+            let names: Vec<&str> = configured.iter().map(|c| c.name()).collect();
+            let origin = if args.filter.is_some() {
+                "--filter".to_string()
+            } else {
+                format!("{}: [filter] method", args.scene.display())
+            };
+            bail!(
+                "{origin}: no filter named {name:?}; noisefree has: none, {}",
+                names.join(", ")
+            )
+        }
+    }
 }
 
-pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
+pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     let start = Instant::now();
     let scene = scene::load_scene(&args.scene)?;
     for w in &scene.warnings {
@@ -270,43 +261,8 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         }
         options.frame.sample_clamp = c;
     }
-    let context = || format!("in {}", args.scene.display());
-    let method = args
-        .filter
-        .method(scene.filter.as_ref())
-        .with_context(context)?;
-    let filter_method = args
-        .filter
-        .build(method, scene.filter.as_ref(), scene.render.setting)
-        .with_context(context)?;
     options.all_features = args.all_features;
     options.local_size = args.local_size;
-    // The statistics stage and the sample vectors are compiled in only when something reads
-    // them.
-    if let Some(m) = &filter_method {
-        let need = m.outputs(spp);
-        options.outputs.features |= need.features;
-        options.outputs.variance |= need.variance;
-        options.outputs.sample_vectors = need.sample_vectors;
-    }
-    if args.aovs.is_some() || args.aov_png.is_some() {
-        options.outputs.features = true;
-        options.outputs.variance = true;
-    }
-    if args.save_samples.is_some() {
-        options.outputs.features = true;
-        options.outputs.sample_vectors = Some(spp);
-    }
-    if options.outputs.sample_vectors.is_some() {
-        let budget = crate::filters::rpf::samples::available_memory_bytes().unwrap_or(u64::MAX);
-        crate::filters::rpf::samples::check_memory(
-            options.frame.width,
-            options.frame.height,
-            spp,
-            budget,
-        )?;
-    }
-
     // Outputs: explicit paths must be writable now, before minutes of rendering.
     let png_path = args
         .out
@@ -341,11 +297,58 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     }
 
     let gpu = Gpu::open(args.device)?;
+    // The scene arrays first: the filters specialise to what they say (effects, camera, size).
+    let arrays = SceneArrays::build(&scene, &options.frame)?;
+    let info = SceneInfo::new(&scene, &arrays);
+    let request = FilterRequest {
+        scene: scene.filter.settings.clone(),
+        scene_origin: args.scene.display().to_string(),
+        scene_lines: scene.filter.lines.clone(),
+        flags: args.settings.clone(),
+        ..Default::default()
+    };
+    // Every filter is configured, so that the AOV file records settings for each.
+    let configured = registry.configure_all(&request, &info)?;
+    let chosen = chosen_filter(args, &scene, &configured)?;
+    for name in args.settings.keys() {
+        if chosen.is_none_or(|c| c.name() != name) {
+            eprintln!(
+                "warning: settings of the {name} filter are given, but {} (--filter {name} runs it)",
+                match chosen {
+                    Some(c) => format!("the {} filter runs", c.name()),
+                    None => "no filter runs".to_string(),
+                }
+            );
+        }
+    }
+    // The outputs are compiled in only when something reads them.
+    let mut outputs = OutputSet::colour();
+    if let Some(c) = chosen {
+        outputs = outputs.union(c.needs());
+    }
+    if args.aovs.is_some() || args.aov_png.is_some() {
+        outputs = outputs.union(OutputSet::of(&[Output::Features, Output::Variance]));
+    }
+    if args.save_samples.is_some() {
+        outputs = outputs.with(Output::Samples);
+    }
+    options.outputs = outputs;
+    if outputs.contains(Output::Samples) {
+        options.sample_capacity = spp;
+        let budget = crate::memory::available_memory_bytes().unwrap_or(u64::MAX);
+        crate::stats::samples::check_memory(
+            options.frame.width,
+            options.frame.height,
+            spp,
+            budget,
+        )?;
+    }
+
     let compile_start = Instant::now();
-    let mut renderer = Renderer::new(gpu.clone(), &scene, &options)?;
-    let mut filter = match &filter_method {
-        Some(m) => {
-            let mut f = m.prepare(&gpu, &scene, &renderer)?;
+    let mut renderer = Renderer::with_arrays(gpu.clone(), &scene, arrays, &options)?;
+    let mut filter = match chosen {
+        Some(c) => {
+            let mut f = c.prepare(renderer.frame().info(), &gpu)?;
             f.show_progress(!args.quiet);
             Some(f)
         }
@@ -378,17 +381,29 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
             );
         }
         println!("  camera: {}", renderer.arrays.focus_note);
+        println!("  outputs: {}", renderer.outputs().names().join(", "));
+        if let Some(c) = chosen {
+            println!("filter {} ({}):", c.name(), args.scene.display());
+            for line in c.describe().lines() {
+                println!("  {line}");
+            }
+        }
     }
     let mut filter_times = Vec::new();
     let mut last_filtered = None;
     catch_ctrl_c();
-    progressive(&mut renderer, spp, args.time_limit, args.quiet, |r| {
+    let bar = progress_bar(spp, args.quiet);
+    let budget = Budget {
+        spp,
+        time_limit: args.time_limit,
+    };
+    render_progressively(&mut renderer, budget, &bar, &interrupted, |r| {
         if args.timings
             && let Some(f) = filter.as_mut()
-            && f.on_device()
+            && f.interactive()
         {
-            let out = f.run(r)?;
-            filter_times.push(out.kernel_time.unwrap_or(out.wall_time));
+            let out = f.run(&r.frame())?;
+            filter_times.push(out.time());
             last_filtered = Some(out.image);
         }
         Ok(())
@@ -403,14 +418,14 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
         );
         last_filtered = None; // filter the final state below
     }
-    let buffers = renderer.read_buffers()?;
-    let unfiltered = buffers.beauty();
+    let frame = renderer.frame();
+    let unfiltered = frame.beauty()?;
     let image = match filter.as_mut() {
         Some(f) => match last_filtered {
             Some(img) => img,
             None => {
-                let out = f.run(&renderer)?;
-                filter_times.push(out.kernel_time.unwrap_or(out.wall_time));
+                let out = f.run(&frame)?;
+                filter_times.push(out.time());
                 out.image
             }
         },
@@ -423,23 +438,26 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
     if let Some(p) = &args.exr_unfiltered {
         imaging::write_exr(p, &unfiltered)?;
     }
+    let record = RenderRecord {
+        scene: Some(renderer.scene_info.clone()),
+        filter: chosen.map(|c| c.name().to_string()),
+        settings: configured
+            .iter()
+            .map(|c| (c.name().to_string(), c.requested().clone()))
+            .collect(),
+        extra: BTreeMap::from([
+            ("scene".to_string(), args.scene.display().to_string()),
+            ("spp".to_string(), renderer.samples_done().to_string()),
+        ]),
+    };
     if let Some(p) = &args.save_samples {
-        let (n, samples) = renderer.read_sample_vectors()?;
-        crate::filters::rpf::SampleSet::new(renderer.width(), renderer.height(), n, samples)?
-            .write(p)?;
+        SampleSet::from_frame(&frame, record.clone())?.write(p)?;
     }
     if let Some(p) = &args.aovs {
-        let mut meta = std::collections::BTreeMap::new();
-        meta.insert("scene".to_string(), args.scene.display().to_string());
-        meta.insert("seed".to_string(), renderer.arrays.params.seed.to_string());
-        meta.insert(
-            "camera".to_string(),
-            crate::stats::aovs::camera_to_text(&renderer.arrays.params),
-        );
-        crate::stats::aovs::write_aov_exr(p, &buffers, &meta)?;
+        crate::stats::aov::write_aov_exr(p, &frame, &record)?;
     }
     if let Some(dir) = &args.aov_png {
-        crate::stats::aovs::write_aov_pngs(dir, &buffers, args.exposure)?;
+        crate::stats::aov::write_aov_pngs(dir, &frame, args.exposure)?;
     }
     let summary = RenderSummary {
         width: renderer.width(),
@@ -464,14 +482,14 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary> {
             .map(|p| format!(", {}", p.display()))
             .unwrap_or_default()
     );
-    if let Some(m) = &filter_method {
-        let what = if m.name() == "rpf" {
-            "wall-clock"
-        } else {
+    if let (Some(c), Some(f)) = (chosen, &filter) {
+        let what = if f.interactive() {
             "kernel"
+        } else {
+            "wall-clock"
         };
         super::print_timings(
-            &format!("{} filter ({what} time)", m.name()),
+            &format!("{} filter ({what} time)", c.name()),
             &summary.filter_times,
         );
     }

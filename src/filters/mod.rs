@@ -1,92 +1,147 @@
-//! Denoising filters over the shared per-pixel buffers ([`crate::stats::PixelBuffers`] on the
-//! host, [`DeviceBuffers`] on the device). Every filter reads the same buffers and produces an
-//! RGB image, so new filters (the axis-aligned, sheared and path-density filters of the other
-//! papers) plug in beside the data-driven one.
+//! Denoising filters as plug-ins over the renderer's declared outputs.
+//!
+//! A filter is one module (and its kernel file under kernels/filters/) that implements
+//! [`FilterKind`]: its name, its settings struct (declared once with [`filter_settings!`]), the
+//! outputs it needs from the renderer, how it adapts to the scene, and how it is prepared for
+//! a frame size and run on a [`Frame`] — the one input type that the live renderer and the AOV
+//! reader both build. Adding a filter is its own files plus one line in [`builtin_filters!`]
+//! below; `render`, `filter` and `bench` find it through the [`Registry`].
 
-pub mod atrous;
-pub mod ddf;
-pub mod method;
-pub mod rpf;
+pub mod registry;
+pub mod settings;
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Result;
-use ocl::Buffer;
 
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
-use crate::layout::{FilterVector, GBuffer, StatsState};
-use crate::stats::PixelBuffers;
+use crate::layout::outputs::OutputSet;
+use crate::render::{Frame, FrameInfo, SceneInfo};
+pub use registry::{Configured, FilterRequest, Registry};
+pub use settings::{Auto, DeclaredSettings, FieldDoc};
 
-/// The per-pixel buffers on the device, as the renderer leaves them or as uploaded from an
-/// AOV file.
-pub struct DeviceBuffers<'a> {
-    pub width: u32,
-    pub height: u32,
-    pub filter_vectors: &'a Buffer<FilterVector>,
-    /// Welford sums S_n or variances, per `variance_factor`.
-    pub gbuffers: &'a Buffer<GBuffer>,
-    /// Mean first-bounce directions (StatsState).
-    pub stats_state: &'a Buffer<StatsState>,
-    /// Multiplies `gbuffers` to give variances: 1/(n-1) for sums, 1 for variances.
-    pub variance_factor: f32,
-    /// Multiplies depths before comparing them ([`crate::stats::depth_scale`]).
-    pub depth_scale: f32,
-}
+/// The filters noisefree has: one line each (module :: type), in the order of `--help`, of
+/// the registry and of the studies' tables.
+macro_rules! builtin_filters {
+    ($($module:ident :: $kind:ident),* $(,)?) => {
+        $(pub mod $module;)*
 
-/// Device copies of host buffers (for filtering offline, e.g. from an AOV file).
-pub struct UploadedBuffers {
-    pub filter_vectors: Buffer<FilterVector>,
-    pub gbuffers: Buffer<GBuffer>,
-    pub stats_state: Buffer<StatsState>,
-    pub width: u32,
-    pub height: u32,
-    pub scene_size: f32,
-}
-
-impl UploadedBuffers {
-    pub fn new(gpu: &Gpu, b: &PixelBuffers) -> Result<UploadedBuffers> {
-        let variances = b
-            .variances
-            .clone()
-            .unwrap_or_else(|| vec![GBuffer::default(); b.filter_vectors.len()]);
-        let states: Vec<StatsState> = match &b.directions {
-            Some(d) => d
-                .iter()
-                .map(|d| StatsState {
-                    direction_mean: *d,
-                    ..Default::default()
-                })
-                .collect(),
-            None => vec![StatsState::default(); b.filter_vectors.len()],
-        };
-        Ok(UploadedBuffers {
-            filter_vectors: gpu.upload(&b.filter_vectors)?,
-            gbuffers: gpu.upload(&variances)?,
-            stats_state: gpu.upload(&states)?,
-            width: b.width,
-            height: b.height,
-            scene_size: b.scene_size,
-        })
-    }
-
-    pub fn view(&self) -> DeviceBuffers<'_> {
-        DeviceBuffers {
-            width: self.width,
-            height: self.height,
-            filter_vectors: &self.filter_vectors,
-            gbuffers: &self.gbuffers,
-            stats_state: &self.stats_state,
-            variance_factor: 1.0,
-            depth_scale: crate::stats::depth_scale(self.scene_size),
+        /// Every built-in filter.
+        pub fn builtin() -> Vec<&'static dyn Filter> {
+            vec![$(&$module::$kind as &'static dyn Filter),*]
         }
+    };
+}
+
+builtin_filters! {
+    ddf::Ddf,       // the data-driven filter (thesis ch. 6)
+    rpf::Rpf,       // Random Parameter Filtering (thesis ch. 5)
+    atrous::Atrous, // the edge-avoiding à-trous wavelet filter (Dammertz et al. 2010)
+}
+
+/// A filter, as its module declares it. Implement this; the registry sees it as a [`Filter`].
+pub trait FilterKind: Send + Sync + 'static {
+    type Settings: DeclaredSettings;
+    /// The name on the command line (`--filter NAME`), in scene files (`[filter.NAME]`) and in
+    /// reports.
+    const NAME: &'static str;
+    /// One line for `--help` and reports.
+    const SUMMARY: &'static str;
+
+    /// Checks settings; the error names the setting and the allowed values.
+    fn check(_settings: &Self::Settings) -> Result<()> {
+        Ok(())
+    }
+
+    /// Decides what `auto` means for this scene (the filters' "simulate only what a scene calls
+    /// for"): returns one note per decision, for `--explain`.
+    fn specialise(_settings: &mut Self::Settings, _scene: &SceneInfo) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// The outputs the renderer must gather for these settings.
+    fn needs(settings: &Self::Settings) -> OutputSet;
+
+    /// Builds the filter for frames like `frame` (size, scene) on `gpu`.
+    fn prepare(
+        settings: &Self::Settings,
+        frame: &FrameInfo,
+        gpu: &Arc<Gpu>,
+    ) -> Result<Box<dyn PreparedFilter>>;
+}
+
+/// A filter as the registry sees it (object safe; implemented for every [`FilterKind`]).
+pub trait Filter: Send + Sync {
+    fn name(&self) -> &'static str;
+    fn summary(&self) -> &'static str;
+    fn fields(&self) -> &'static [FieldDoc];
+    fn flag_prefix(&self) -> &'static str;
+    /// The default settings as a table.
+    fn defaults(&self) -> toml::Table;
+    /// The filter with `requested` settings (a full table: defaults with every layer on
+    /// top), checked and specialised to `scene`.
+    fn configure(&self, requested: toml::Table, scene: &SceneInfo) -> Result<Configured>;
+}
+
+impl<K: FilterKind> Filter for K {
+    fn name(&self) -> &'static str {
+        K::NAME
+    }
+
+    fn summary(&self) -> &'static str {
+        K::SUMMARY
+    }
+
+    fn fields(&self) -> &'static [FieldDoc] {
+        K::Settings::fields()
+    }
+
+    fn flag_prefix(&self) -> &'static str {
+        K::Settings::FLAG_PREFIX
+    }
+
+    fn defaults(&self) -> toml::Table {
+        settings::to_table(&K::Settings::default())
+    }
+
+    fn configure(&self, requested: toml::Table, scene: &SceneInfo) -> Result<Configured> {
+        let what = format!("[filter.{}]", K::NAME);
+        let mut typed: K::Settings = settings::from_table(&requested, &what)?;
+        K::check(&typed).map_err(|e| e.context(what.clone()))?;
+        let notes = K::specialise(&mut typed, scene);
+        Ok(Configured::new::<K>(requested, typed, notes))
     }
 }
 
-/// A filtered image and the kernel time it took.
-pub struct Filtered {
+/// A filter ready to run on frames of one size.
+pub trait PreparedFilter {
+    fn run(&mut self, frame: &Frame) -> Result<FilterRun>;
+
+    /// Fast enough to run after every frame of a progressive render (the device filters).
+    fn interactive(&self) -> bool {
+        true
+    }
+
+    /// Shows a progress bar while a slow (host) filter runs.
+    fn show_progress(&mut self, _on: bool) {}
+}
+
+/// A filter's result on one frame.
+pub struct FilterRun {
     pub image: RgbImage,
-    pub kernel_time: Duration,
+    /// Wall-clock time of the filter, including reading buffers back where it needs to.
+    pub wall_time: Duration,
+    /// Device kernel time (OpenCL profiling events), for device filters.
+    pub kernel_time: Option<Duration>,
+}
+
+impl FilterRun {
+    /// The kernel time where there is one, else the wall-clock time.
+    pub fn time(&self) -> Duration {
+        self.kernel_time.unwrap_or(self.wall_time)
+    }
 }
 
 /// min / median / max of a list of durations (the thesis reports lower and upper bounds).

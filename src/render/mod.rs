@@ -1,8 +1,13 @@
-//! The renderer: uploads the scene arrays, builds the megakernel specialised to the scene, and
-//! adds samples progressively to the per-pixel FilterVector buffer (thesis §4.2.3, §4.3).
+//! The renderer: uploads the scene arrays, builds the megakernel specialised to the scene and
+//! to the outputs asked for, and adds samples progressively to the per-pixel outputs (thesis
+//! §4.2.3, §4.3). Which buffers exist, and how they are bound to the kernel, comes from the
+//! output table of src/layout/outputs.rs; what the renderer leaves is read through a
+//! [`Frame`].
 
 pub mod cpu;
 pub mod features;
+pub mod frame;
+pub mod progressive;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -12,19 +17,24 @@ use ocl::{Buffer, Event, Kernel};
 
 pub use crate::arrays::{FrameSettings, SceneArrays};
 use crate::gpu::{Gpu, event_duration, round_up};
+use crate::layout::outputs::{BUFFERS, BufferId, Output, OutputSet};
 use crate::layout::{
-    BvhNode, FilterVector, Float4, GBuffer, Light, Material, SampleVector, SceneParams, Sphere,
-    StatsState, TextureInfo, TriangleGeom, TriangleShading,
+    BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
+    TriangleShading,
 };
 use crate::scene::Scene;
-use crate::stats::PixelBuffers;
-pub use features::{FeatureSet, Outputs};
+pub use features::FeatureSet;
+pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
+pub use progressive::{Budget, progress_bar, render_progressively};
 
 /// How to render, besides the scene itself.
 #[derive(Clone, Debug)]
 pub struct RenderOptions {
     pub frame: FrameSettings,
-    pub outputs: Outputs,
+    /// The outputs to gather (colour is always gathered).
+    pub outputs: OutputSet,
+    /// Samples per pixel the per-sample outputs keep (with [`Output::Samples`]).
+    pub sample_capacity: u32,
     /// Build the generic kernel with every effect compiled in (for comparison).
     pub all_features: bool,
     /// Work-group size; None lets the driver choose. The image does not depend on it.
@@ -37,7 +47,8 @@ impl RenderOptions {
     pub fn for_scene(scene: &Scene) -> Self {
         RenderOptions {
             frame: FrameSettings::from_scene(scene),
-            outputs: Outputs::default(),
+            outputs: OutputSet::colour(),
+            sample_capacity: 0,
             all_features: false,
             local_size: None,
             debug_counters: false,
@@ -84,10 +95,6 @@ pub struct LaunchStats {
     pub rays: u64,
 }
 
-/// Positions of the per-launch arguments of kernels/render/pathtrace.cl `render`.
-const ARG_SAMPLE_BASE: u32 = 17;
-const ARG_SAMPLE_COUNT: u32 = 18;
-
 /// What the debug counters of kernels/arrays/trace.cl count (same order as COUNT_*).
 pub const DEBUG_COUNTERS: [&str; 12] = [
     "lens samples",
@@ -108,16 +115,14 @@ pub struct Renderer {
     pub gpu: Arc<Gpu>,
     pub arrays: SceneArrays,
     pub features: FeatureSet,
-    /// Running means per pixel (eq. 6.1, 6.5).
-    pub film: Buffer<FilterVector>,
-    /// Running S_n per pixel (eq. 6.2, 6.6); one dummy element unless variances are wanted.
-    pub gbuffers: Buffer<GBuffer>,
-    /// Mean first-bounce directions and the depth shift (see kernels/render/film.cl).
-    pub stats_state: Buffer<StatsState>,
-    ray_counts: Buffer<u32>,
-    /// Every sample's vector for RPF; one dummy element unless requested.
-    pub sample_vectors: Buffer<SampleVector>,
+    /// What filters may know about the scene (recorded in AOV files).
+    pub scene_info: SceneInfo,
+    outputs: OutputSet,
     sample_capacity: u32,
+    /// One buffer per entry of the output table: allocated when its output is on, a
+    /// one-element stand-in otherwise.
+    buffers: Vec<(BufferId, Buffer<u8>)>,
+    ray_counts: Buffer<u32>,
     debug_counters: Buffer<u32>,
     kernel: Kernel,
     _scene: DeviceScene,
@@ -126,41 +131,33 @@ pub struct Renderer {
     pub kernel_time_total: Duration,
 }
 
-/// Bytes the RPF sample vectors of a w x h image at `spp` take (26 * 4 * spp * w * h).
-pub fn sample_vector_bytes(width: u32, height: u32, spp: u32) -> u64 {
-    width as u64 * height as u64 * spp as u64 * std::mem::size_of::<SampleVector>() as u64
-}
-
-/// Bytes of device memory the per-pixel buffers of a w x h image take.
-pub fn film_bytes(width: u32, height: u32, variance: bool) -> u64 {
-    let px = width as u64 * height as u64;
-    let mut per_pixel = std::mem::size_of::<FilterVector>() as u64 + 4;
-    if variance {
-        per_pixel += (std::mem::size_of::<GBuffer>() + std::mem::size_of::<StatsState>()) as u64;
-    }
-    px * per_pixel
-}
-
 impl Renderer {
     pub fn new(gpu: Arc<Gpu>, scene: &Scene, options: &RenderOptions) -> Result<Renderer> {
-        let frame = &options.frame;
-        // Refuse impossible sizes before building anything.
-        let pixels = frame.width as usize * frame.height as usize;
-        gpu.check_alloc(
-            pixels as u64 * std::mem::size_of::<FilterVector>() as u64,
-            "FilterVector film",
-        )?;
-        let variance = options.outputs.variance;
-        gpu.check_total(
-            film_bytes(frame.width, frame.height, variance),
-            "the per-pixel buffers",
-        )?;
+        check_size(&gpu, options)?;
+        let arrays = SceneArrays::build(scene, &options.frame)?;
+        Renderer::with_arrays(gpu, scene, arrays, options)
+    }
 
-        let arrays = SceneArrays::build(scene, frame)?;
-        let features = if options.all_features {
-            FeatureSet::all_features(scene, options.outputs)
+    /// A renderer over arrays already built from `scene` with `options.frame` (the caller
+    /// needed them first, e.g. for [`SceneInfo`]).
+    pub fn with_arrays(
+        gpu: Arc<Gpu>,
+        scene: &Scene,
+        arrays: SceneArrays,
+        options: &RenderOptions,
+    ) -> Result<Renderer> {
+        check_size(&gpu, options)?;
+        let frame = &options.frame;
+        let outputs = options.outputs.closed();
+        let capacity = if outputs.contains(Output::Samples) {
+            options.sample_capacity.max(1)
         } else {
-            FeatureSet::for_scene(scene, options.outputs)
+            0
+        };
+        let features = if options.all_features {
+            FeatureSet::all_features(scene, outputs)
+        } else {
+            FeatureSet::for_scene(scene, outputs)
         };
         let mut defines = features.defines();
         defines.push((
@@ -169,78 +166,73 @@ impl Renderer {
         ));
         let program = gpu.program("render/pathtrace.cl", &defines, "")?;
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
-        let film = gpu.zeroed::<FilterVector>(pixels, "FilterVector film")?;
-        // Only what is asked for is allocated: without variances these are one element each.
-        let stats_pixels = if variance { pixels } else { 1 };
-        let gbuffers = gpu.zeroed::<GBuffer>(stats_pixels, "variance GBuffer")?;
-        let stats_state = gpu.zeroed::<StatsState>(stats_pixels, "statistics state")?;
-        let sample_capacity = options.outputs.sample_vectors.unwrap_or(0);
-        let sample_len = if sample_capacity > 0 {
-            let bytes = sample_vector_bytes(frame.width, frame.height, sample_capacity);
-            gpu.check_alloc(
-                bytes,
-                "RPF sample vectors (26 floats per sample, thesis §5.1.1)",
-            )?;
-            gpu.check_total(
-                bytes + film_bytes(frame.width, frame.height, variance),
-                "the RPF sample vectors and per-pixel buffers",
-            )?;
-            pixels * sample_capacity as usize
-        } else {
-            1
-        };
-        let sample_vectors = gpu.zeroed::<SampleVector>(sample_len, "RPF sample vector")?;
+        let (w, h) = (frame.width, frame.height);
+        // Only what is asked for is allocated: the others are one-element stand-ins.
+        let buffers = BUFFERS
+            .iter()
+            .map(|b| {
+                let bytes = if outputs.contains(b.id.owner()) {
+                    b.bytes(w, h, capacity) as usize
+                } else {
+                    b.element_bytes
+                };
+                Ok((b.id, gpu.zeroed::<u8>(bytes, b.doc)?))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let pixels = w as usize * h as usize;
         let debug_counters = gpu.zeroed::<u32>(DEBUG_COUNTERS.len(), "debug counter")?;
         let ray_counts = gpu.zeroed::<u32>(pixels, "ray count")?;
 
-        let (w, h) = (frame.width as usize, frame.height as usize);
         let mut builder = Kernel::builder();
         builder
             .program(&program)
             .name("render")
             .queue(gpu.queue.clone());
+        let (wu, hu) = (w as usize, h as usize);
         match options.local_size {
             Some(l) => {
                 builder
-                    .global_work_size([round_up(w, l[0]), round_up(h, l[1])])
+                    .global_work_size([round_up(wu, l[0]), round_up(hu, l[1])])
                     .local_work_size(l);
             }
             None => {
-                builder.global_work_size([w, h]);
+                builder.global_work_size([wu, hu]);
             }
         }
+        // Every argument by name, in the kernel's order (checked against the kernel's own
+        // argument names by tests/layout.rs).
         let d = &device_scene;
         builder
-            .arg(&d.params)
-            .arg(&d.nodes)
-            .arg(&d.tri_geom)
-            .arg(&d.tri_shading)
-            .arg(&d.spheres)
-            .arg(&d.materials)
-            .arg(&d.textures)
-            .arg(&d.texels)
-            .arg(&d.lights)
-            .arg(&d.light_cdf)
-            .arg(&film)
-            .arg(&gbuffers)
-            .arg(&stats_state)
-            .arg(&ray_counts)
-            .arg(&sample_vectors)
-            .arg(sample_capacity)
-            .arg(&debug_counters)
-            .arg(0u32)
-            .arg(0u32);
+            .arg_named("params", &d.params)
+            .arg_named("nodes", &d.nodes)
+            .arg_named("tri_geom", &d.tri_geom)
+            .arg_named("tri_shading", &d.tri_shading)
+            .arg_named("spheres", &d.spheres)
+            .arg_named("materials", &d.materials)
+            .arg_named("textures", &d.textures)
+            .arg_named("texels", &d.texels)
+            .arg_named("lights", &d.lights)
+            .arg_named("light_cdf", &d.light_cdf);
+        for (id, b) in &buffers {
+            builder.arg_named(id.decl().name, b);
+        }
+        builder
+            .arg_named("ray_counts", &ray_counts)
+            .arg_named("debug_counters", &debug_counters)
+            .arg_named("sample_capacity", capacity)
+            .arg_named("sample_base", 0u32)
+            .arg_named("sample_count", 0u32);
         let kernel = builder.build().context("creating the render kernel")?;
+        let scene_info = SceneInfo::new(scene, &arrays);
         Ok(Renderer {
             gpu,
             arrays,
             features,
-            film,
-            gbuffers,
-            stats_state,
+            scene_info,
+            outputs,
+            sample_capacity: capacity,
+            buffers,
             ray_counts,
-            sample_vectors,
-            sample_capacity,
             debug_counters,
             kernel,
             _scene: device_scene,
@@ -250,12 +242,42 @@ impl Renderer {
         })
     }
 
+    /// The names of the render kernel's arguments in the order they are bound.
+    pub fn argument_names() -> Vec<&'static str> {
+        let mut v = vec![
+            "params",
+            "nodes",
+            "tri_geom",
+            "tri_shading",
+            "spheres",
+            "materials",
+            "textures",
+            "texels",
+            "lights",
+            "light_cdf",
+        ];
+        v.extend(BUFFERS.iter().map(|b| b.name));
+        v.extend([
+            "ray_counts",
+            "debug_counters",
+            "sample_capacity",
+            "sample_base",
+            "sample_count",
+        ]);
+        v
+    }
+
     pub fn width(&self) -> u32 {
         self.arrays.params.image_width
     }
 
     pub fn height(&self) -> u32 {
         self.arrays.params.image_height
+    }
+
+    /// The outputs this renderer gathers.
+    pub fn outputs(&self) -> OutputSet {
+        self.outputs
     }
 
     /// Samples per pixel accumulated so far.
@@ -268,8 +290,8 @@ impl Renderer {
         if count == 0 {
             return Ok(LaunchStats::default());
         }
-        self.kernel.set_arg(ARG_SAMPLE_BASE, self.samples_done)?;
-        self.kernel.set_arg(ARG_SAMPLE_COUNT, count)?;
+        self.kernel.set_arg("sample_base", self.samples_done)?;
+        self.kernel.set_arg("sample_count", count)?;
         let mut event = Event::empty();
         // SAFETY: every buffer argument is alive (owned by self) and sized for the global range.
         unsafe {
@@ -293,85 +315,27 @@ impl Renderer {
         })
     }
 
-    /// Reads the FilterVector means back to the host.
-    pub fn read_film(&self) -> Result<Vec<FilterVector>> {
-        let mut out = vec![FilterVector::default(); self.film.len()];
-        self.film
-            .read(&mut out)
-            .enq()
-            .context("reading the film from the device")?;
-        out.truncate(self.width() as usize * self.height() as usize);
-        Ok(out)
-    }
-
-    /// The statistics every filter reads: F and, if they were gathered, the feature variances
-    /// S_n / (n - 1) and mean first-bounce directions.
-    pub fn read_buffers(&self) -> Result<PixelBuffers> {
-        let filter_vectors = self.read_film()?;
-        let (variances, directions) = if self.features.is_on("OUTPUT_VARIANCE") {
-            let mut s = vec![GBuffer::default(); self.gbuffers.len()];
-            self.gbuffers
-                .read(&mut s)
-                .enq()
-                .context("reading the variance GBuffer")?;
-            let mut st = vec![StatsState::default(); self.stats_state.len()];
-            self.stats_state
-                .read(&mut st)
-                .enq()
-                .context("reading the statistics state")?;
-            (
-                Some(crate::stats::variances_from_sums(&s, self.samples_done)),
-                Some(st.iter().map(|s| s.direction_mean).collect()),
-            )
-        } else {
-            (None, None)
-        };
-        Ok(PixelBuffers {
-            width: self.width(),
-            height: self.height(),
-            spp: self.samples_done,
-            filter_vectors,
-            variances,
-            directions,
-            scene_size: self.arrays.params.offset_scale,
-        })
-    }
-
-    /// The device buffers for filters that run on the device after each frame.
-    pub fn device_buffers(&self) -> crate::filters::DeviceBuffers<'_> {
-        let n = self.samples_done;
-        crate::filters::DeviceBuffers {
-            width: self.width(),
-            height: self.height(),
-            filter_vectors: &self.film,
-            gbuffers: &self.gbuffers,
-            stats_state: &self.stats_state,
-            variance_factor: if n > 1 { 1.0 / (n - 1) as f32 } else { 0.0 },
-            depth_scale: crate::stats::depth_scale(self.arrays.params.offset_scale),
-        }
-    }
-
-    /// Every stored sample vector, pixel-major (index = pixel * spp + sample), for the
-    /// samples rendered so far (at most the capacity asked for).
-    pub fn read_sample_vectors(&self) -> Result<(u32, Vec<SampleVector>)> {
-        if self.sample_capacity == 0 {
-            anyhow::bail!("sample vectors were not requested for this render");
-        }
-        let spp = self.samples_done.min(self.sample_capacity);
-        let mut all = vec![SampleVector::default(); self.sample_vectors.len()];
-        self.sample_vectors
-            .read(&mut all)
-            .enq()
-            .context("reading the RPF sample vectors")?;
-        if spp == self.sample_capacity {
-            return Ok((spp, all));
-        }
-        let cap = self.sample_capacity as usize;
-        let out = all
-            .chunks(cap)
-            .flat_map(|px| px[..spp as usize].iter().copied())
+    /// The outputs as they are now, for filters, AOV files and images. Cheap: it shares the
+    /// device buffers and reads them back only where asked.
+    pub fn frame(&self) -> Frame {
+        let buffers = self
+            .buffers
+            .iter()
+            .filter(|(id, _)| self.outputs.contains(id.owner()))
+            .map(|(id, b)| (*id, b.clone()))
             .collect();
-        Ok((spp, out))
+        Frame::on_device(
+            FrameInfo {
+                width: self.width(),
+                height: self.height(),
+                spp: self.samples_done,
+                sample_capacity: self.sample_capacity,
+                scene: self.scene_info.clone(),
+            },
+            self.outputs,
+            self.gpu.clone(),
+            buffers,
+        )
     }
 
     /// The debug counters (all zero unless built with `debug_counters`), named by
@@ -384,4 +348,18 @@ impl Renderer {
             .context("reading the debug counters")?;
         Ok(c)
     }
+}
+
+/// Refuses sizes the device cannot hold, before anything is built.
+fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
+    let (w, h) = (options.frame.width, options.frame.height);
+    let outputs = options.outputs.closed();
+    let capacity = options.sample_capacity.max(1);
+    for b in outputs.buffers() {
+        gpu.check_alloc(b.bytes(w, h, capacity), b.doc)?;
+    }
+    gpu.check_total(
+        outputs.bytes(w, h, capacity) + 4 * w as u64 * h as u64,
+        &format!("the per-pixel outputs ({})", outputs.names().join(", ")),
+    )
 }

@@ -23,9 +23,11 @@ pub struct SceneFile {
     pub meshes: Vec<Spanned<MeshSection>>,
     #[serde(default, rename = "light")]
     pub lights: Vec<Spanned<LightSection>>,
-    /// Filter parameters (the command line wins over them).
+    /// `[filter]`: `method = "<name>"` and one `[filter.<name>]` table of settings per filter
+    /// (the command line wins over them). Checked against the filter registry when a command
+    /// runs a filter (src/filters/registry.rs), since the scene does not know the filters.
     #[serde(default)]
-    pub filter: Option<FilterSection>,
+    pub filter: Option<Spanned<toml::Table>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -224,39 +226,4 @@ pub struct LightSection {
     pub uv_scale: Option<Spanned<[f32; 2]>>,
     #[serde(default)]
     pub uv_shift: Option<Spanned<[f32; 2]>>,
-}
-
-/// `[filter]`: which filter runs after rendering and its parameters. Every field is optional;
-/// the command line overrides it. See scenes/README.md.
-#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct FilterSection {
-    /// "none", "ddf" (the data-driven filter), "rpf" or "atrous".
-    pub method: Option<String>,
-    pub kw: Option<u32>,
-    pub holes: Option<bool>,
-    pub sigma_dc: Option<f32>,
-    pub sigma_ic: Option<f32>,
-    /// sigma_f for depth, normal, texture, direction, texture2.
-    pub sigma_f: Option<[f32; 5]>,
-    /// Variance scales s_f, same order.
-    pub variance_scale: Option<[f32; 5]>,
-    /// "thesis" (eq. 6.14 as printed) or "difference".
-    pub direction: Option<String>,
-    pub texture2: Option<bool>,
-    /// Kernel variant: "naive", "vector" or "rows".
-    pub variant: Option<String>,
-    pub work_group: Option<u32>,
-    /// RPF: sigma^2_8 of eq. 5.17 [default: from [render] setting: 0.02 indoor, 0.002 outdoor].
-    pub rpf_sigma8: Option<f32>,
-    /// RPF: seed of the neighbourhood sampling.
-    pub rpf_seed: Option<u32>,
-    /// A-trous: passes (default 5).
-    pub atrous_iterations: Option<u32>,
-    /// A-trous: colour, normal and position sigmas.
-    pub atrous_sigma_color: Option<f32>,
-    pub atrous_sigma_normal: Option<f32>,
-    pub atrous_sigma_position: Option<f32>,
-    /// A-trous: filter light divided by albedo (true) or the beauty (false).
-    pub atrous_demodulate: Option<bool>,
 }

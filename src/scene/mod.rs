@@ -70,7 +70,8 @@ pub(crate) fn check_file_kind(
 }
 
 /// "indoor" or "outdoor" (RPF's sigma^2_8, thesis §5.1.4).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Setting {
     Indoor,
     Outdoor,
@@ -102,6 +103,46 @@ pub struct Camera {
     /// Explicit focal distance; with `autofocus` it is found by tracing the view direction.
     pub focal_distance: Option<f32>,
     pub autofocus: bool,
+}
+
+/// The camera as the renderer and the filters use it: an orthonormal basis, the field of view
+/// and the thin lens (thesis §4.2.2 "Camera", Fig. 4.8). One type for the megakernel's
+/// parameters (src/arrays) and for filters that turn depths back into positions.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CameraBasis {
+    pub origin: Vec3,
+    /// Unit view direction, target − origin.
+    pub forward: Vec3,
+    /// Unit right vector of the image plane.
+    pub right: Vec3,
+    /// Unit up vector of the image plane.
+    pub up: Vec3,
+    /// tan(vertical fov / 2).
+    pub tan_half_fov: f32,
+    /// Thin-lens radius, 0 for a pinhole.
+    pub lens_radius: f32,
+    /// Distance from the lens to the plane in focus (after autofocus, where the renderer ran
+    /// it; the scene's value or 1 otherwise).
+    pub focal_distance: f32,
+}
+
+impl CameraBasis {
+    /// The basis of a scene's camera: forward = normalize(target − origin), right =
+    /// normalize(forward × up), up = right × forward.
+    pub fn new(camera: &Camera) -> CameraBasis {
+        let forward = (camera.target - camera.origin).normalize();
+        let right = forward.cross(camera.up).normalize();
+        let up = right.cross(forward);
+        CameraBasis {
+            origin: camera.origin,
+            forward,
+            right,
+            up,
+            tan_half_fov: (camera.fov_degrees.to_radians() * 0.5).tan(),
+            lens_radius: camera.lens_radius,
+            focal_distance: camera.focal_distance.unwrap_or(1.0),
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -174,6 +215,18 @@ pub struct Environment {
     pub uv_shift: Vec2,
 }
 
+/// The scene file's `[filter]` table as written: the filter to run and one table of settings
+/// per filter. The filter registry checks names and settings (src/filters/registry.rs).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FilterConfig {
+    /// `method = "<name>"`: the filter `render` runs when the command line names none.
+    pub method: Option<String>,
+    /// `[filter.<name>]` tables.
+    pub settings: std::collections::BTreeMap<String, toml::Table>,
+    /// 1-based line of each `[filter.<name>]` table (or of `[filter]` when written inline).
+    pub lines: std::collections::BTreeMap<String, usize>,
+}
+
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// The scene file; relative asset paths were resolved against its folder.
@@ -186,7 +239,7 @@ pub struct Scene {
     pub triangles: Vec<Triangle>,
     pub environment: Option<Environment>,
     /// The `[filter]` table, for the filters.
-    pub filter: Option<file::FilterSection>,
+    pub filter: FilterConfig,
     /// Problems repaired while loading (degenerate triangles, bad normals), reported once.
     pub warnings: Vec<String>,
 }

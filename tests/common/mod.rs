@@ -15,28 +15,7 @@ pub fn gpu() -> Arc<Gpu> {
 
 /// Every feature switch on: for probe kernels that do not depend on the scene.
 pub fn generic_defines() -> Vec<(String, String)> {
-    [
-        "HAS_TRIANGLES",
-        "HAS_SPHERES",
-        "HAS_TEXTURES",
-        "HAS_ENV",
-        "HAS_ENV_TEXTURE",
-        "HAS_SPHERE_LIGHTS",
-        "HAS_TRIANGLE_LIGHTS",
-        "HAS_DIFFUSE",
-        "HAS_SPECULAR",
-        "HAS_GLASS",
-        "HAS_METAL",
-        "HAS_DOF",
-        "HAS_RUSSIAN_ROULETTE",
-        "NEXT_EVENT_ESTIMATION",
-        "OUTPUT_FEATURES",
-        "OUTPUT_VARIANCE",
-        "OUTPUT_SAMPLES",
-    ]
-    .iter()
-    .map(|d| (d.to_string(), "1".to_string()))
-    .collect()
+    noisefree::render::features::generic_defines()
 }
 
 pub fn repo_path(rel: &str) -> PathBuf {
@@ -150,7 +129,7 @@ pub fn render_film(
     while r.samples_done() < spp {
         r.render_samples(batch.min(spp - r.samples_done())).unwrap();
     }
-    r.read_film().unwrap()
+    r.frame().filter_vectors().unwrap().to_vec()
 }
 
 pub fn options(scene: &Scene, width: u32, height: u32, seed: u32) -> RenderOptions {
@@ -288,8 +267,8 @@ impl TestRng {
 pub fn device_welford(
     streams: &[Vec<f32>],
     chunk: usize,
-) -> (Vec<FilterVector>, Vec<noisefree::layout::GBuffer>) {
-    use noisefree::layout::{GBuffer, StatsState};
+) -> (Vec<FilterVector>, Vec<noisefree::layout::WelfordSums>) {
+    use noisefree::layout::outputs::{BUFFERS, BufferId};
     let gpu = gpu();
     let program = gpu
         .program("test/probes.cl", &generic_defines(), "")
@@ -297,35 +276,165 @@ pub fn device_welford(
     let (pixels, len) = (streams.len(), streams[0].len());
     let flat: Vec<f32> = streams.iter().flatten().copied().collect();
     let stream = gpu.upload(&flat).unwrap();
-    let f = gpu.zeroed::<FilterVector>(pixels, "F").unwrap();
-    let gb = gpu.zeroed::<GBuffer>(pixels, "GB").unwrap();
-    let st = gpu.zeroed::<StatsState>(pixels, "state").unwrap();
-    let kernel = ocl::Kernel::builder()
-        .program(&program)
+    // Every output buffer of the render kernel, one sample per pixel where per-sample.
+    let buffers: Vec<(BufferId, ocl::Buffer<u8>)> = BUFFERS
+        .iter()
+        .map(|b| {
+            let bytes = b.bytes(pixels as u32, 1, 1) as usize;
+            (b.id, gpu.zeroed::<u8>(bytes, b.name).unwrap())
+        })
+        .collect();
+    let mut kb = ocl::Kernel::builder();
+    kb.program(&program)
         .name("probe_film")
         .queue(gpu.queue.clone())
         .global_work_size(pixels)
         .arg(&stream)
         .arg(len as u32)
-        .arg(0u32)
-        .arg(0u32)
-        .arg(&f)
-        .arg(&gb)
-        .arg(&st)
-        .arg(pixels as u32)
-        .build()
-        .unwrap();
+        .arg_named("first", 0u32)
+        .arg_named("count", 0u32);
+    for (_, b) in &buffers {
+        kb.arg(b);
+    }
+    let kernel = kb.arg(pixels as u32).build().unwrap();
     let mut first = 0;
     while first < len {
         let count = chunk.min(len - first);
-        kernel.set_arg(2, first as u32).unwrap();
-        kernel.set_arg(3, count as u32).unwrap();
+        kernel.set_arg("first", first as u32).unwrap();
+        kernel.set_arg("count", count as u32).unwrap();
         unsafe { kernel.enq().unwrap() };
         first += count;
     }
-    let mut fv = vec![FilterVector::default(); pixels];
-    let mut s = vec![GBuffer::default(); pixels];
-    f.read(&mut fv).enq().unwrap();
-    gb.read(&mut s).enq().unwrap();
+    let read = |id: BufferId| {
+        let b = &buffers.iter().find(|(i, _)| *i == id).unwrap().1;
+        let mut h = noisefree::render::HostBuffer::zeroed(b.len());
+        b.read(h.as_bytes_mut()).enq().unwrap();
+        h
+    };
+    let fv = read(BufferId::FilterVectors)
+        .as_slice::<FilterVector>()
+        .to_vec();
+    let s = read(BufferId::WelfordSums)
+        .as_slice::<noisefree::layout::WelfordSums>()
+        .to_vec();
     (fv, s)
+}
+
+/// Host-side per-pixel buffers for building test frames: the FilterVector means and, where
+/// given, the feature variances and mean first-bounce directions, like an AOV file holds them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Buffers {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub filter_vectors: Vec<FilterVector>,
+    pub variances: Option<Vec<noisefree::layout::WelfordSums>>,
+    pub directions: Option<Vec<[f32; 3]>>,
+    pub scene: noisefree::render::SceneInfo,
+}
+
+impl Buffers {
+    /// Zero variances and directions, a scene of size `scene_size` (0: unknown).
+    pub fn new(
+        width: u32,
+        height: u32,
+        filter_vectors: Vec<FilterVector>,
+        scene_size: f32,
+    ) -> Self {
+        let n = filter_vectors.len();
+        let mut scene = noisefree::render::SceneInfo::unknown();
+        scene.scene_size = scene_size;
+        Buffers {
+            width,
+            height,
+            spp: 8,
+            filter_vectors,
+            variances: Some(vec![Default::default(); n]),
+            directions: Some(vec![[0.0; 3]; n]),
+            scene,
+        }
+    }
+
+    /// The frame these buffers describe (variances as variances, as from an AOV file).
+    pub fn frame(&self) -> noisefree::render::Frame {
+        use noisefree::layout::outputs::{BufferId, Output, OutputSet};
+        use noisefree::layout::{DepthShift, WelfordState};
+        use noisefree::render::{FrameInfo, HostBuffer, VarianceForm};
+        let n = self.filter_vectors.len();
+        let mut outputs = OutputSet::of(&[Output::Colour, Output::Features]);
+        let mut buffers = vec![
+            (
+                BufferId::FilterVectors,
+                HostBuffer::from_slice(&self.filter_vectors),
+            ),
+            (
+                BufferId::DepthShifts,
+                HostBuffer::from_slice(&vec![DepthShift::default(); n]),
+            ),
+        ];
+        if let Some(v) = &self.variances {
+            outputs = outputs.with(Output::Variance);
+            buffers.push((BufferId::WelfordSums, HostBuffer::from_slice(v)));
+            let state: Vec<WelfordState> = (0..n)
+                .map(|i| WelfordState {
+                    direction_mean: self.directions.as_ref().map_or([0.0; 3], |d| d[i]),
+                    ..Default::default()
+                })
+                .collect();
+            buffers.push((BufferId::WelfordState, HostBuffer::from_slice(&state)));
+        }
+        noisefree::render::Frame::on_host(
+            FrameInfo {
+                width: self.width,
+                height: self.height,
+                spp: self.spp,
+                sample_capacity: 0,
+                scene: self.scene.clone(),
+            },
+            outputs,
+            VarianceForm::Variances,
+            buffers,
+        )
+        .unwrap_or_else(|e| panic!("{e:#}"))
+    }
+
+    /// A frame's buffers on the host (variances formed as the kernels form them).
+    pub fn of_frame(f: &noisefree::render::Frame) -> Buffers {
+        use noisefree::layout::outputs::{BufferId, Output};
+        use noisefree::layout::{WelfordState, WelfordSums};
+        let (variances, directions) = if f.outputs().contains(Output::Variance) {
+            let s: &[WelfordSums] = f.host_slice(BufferId::WelfordSums).unwrap();
+            let st: &[WelfordState] = f.host_slice(BufferId::WelfordState).unwrap();
+            (
+                Some(
+                    s.iter()
+                        .map(|g| noisefree::stats::scaled(g, f.variance_factor()))
+                        .collect(),
+                ),
+                Some(st.iter().map(|s| s.direction_mean).collect()),
+            )
+        } else {
+            (None, None)
+        };
+        Buffers {
+            width: f.width(),
+            height: f.height(),
+            spp: f.info().spp,
+            filter_vectors: f.filter_vectors().unwrap().to_vec(),
+            variances,
+            directions,
+            scene: f.info().scene.clone(),
+        }
+    }
+
+    pub fn beauty(&self) -> noisefree::imaging::RgbImage {
+        noisefree::imaging::RgbImage::beauty(self.width, self.height, &self.filter_vectors)
+    }
+}
+
+/// Renders `spp` samples of `scene` with `outputs` in one launch and returns the frame.
+pub fn render_frame(scene: &Scene, options: &RenderOptions, spp: u32) -> noisefree::render::Frame {
+    let mut r = Renderer::new(gpu(), scene, options).unwrap_or_else(|e| panic!("{e:#}"));
+    r.render_samples(spp).unwrap();
+    r.frame()
 }

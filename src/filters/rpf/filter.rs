@@ -70,7 +70,7 @@ impl<'a> Iteration<'a> {
             t,
             table: OffsetTable::new(box_size),
             draws: draws(box_size, set.spp, settings.sample_fraction),
-            sigma2: weights::base_variance(settings.sigma2_8, set.spp),
+            sigma2: weights::base_variance(settings.sigma2_8(), set.spp),
         }
     }
 }

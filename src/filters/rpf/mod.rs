@@ -40,20 +40,26 @@
 
 pub mod mi;
 pub mod preprocess;
-pub mod samples;
 pub mod weights;
 
 mod filter;
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
+use super::{Auto, FilterKind, FilterRun, PreparedFilter};
+use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
+use crate::layout::outputs::{Output, OutputSet};
+use crate::render::{Frame, FrameInfo, SceneInfo};
+use crate::scene::Setting;
+pub use crate::stats::samples::{self, SampleSet, check_memory, memory_bytes};
 pub use filter::PixelInfo;
-pub use samples::{SampleSet, check_memory, memory_bytes};
 pub use weights::Weights;
 
 /// σ²_8 of eq. 5.17 for indoor scenes ("noisy").
@@ -63,24 +69,17 @@ pub const SIGMA2_8_OUTDOOR: f32 = 0.002;
 /// The box sizes of the four iterations (§5.1.2).
 pub const BOX_SIZES: [u32; 4] = [55, 35, 17, 7];
 
-/// Indoor or outdoor: picks σ²_8 (eq. 5.17).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SceneKind {
-    Indoor,
-    Outdoor,
-}
-
-impl SceneKind {
-    pub fn sigma2_8(self) -> f32 {
-        match self {
-            SceneKind::Indoor => SIGMA2_8_INDOOR,
-            SceneKind::Outdoor => SIGMA2_8_OUTDOOR,
-        }
+/// σ²_8 of eq. 5.17 for a scene's setting: indoor scenes are noisier.
+pub fn sigma2_8_for(setting: Setting) -> f32 {
+    match setting {
+        Setting::Indoor => SIGMA2_8_INDOOR,
+        Setting::Outdoor => SIGMA2_8_OUTDOOR,
     }
 }
 
 /// Which colours the range term of eq. 5.2 compares (see `filter.rs`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum RangeColors {
     /// The colours of the previous iteration (the default reading).
     Current,
@@ -88,62 +87,57 @@ pub enum RangeColors {
     Original,
 }
 
-/// Parameters of RPF; [`Default`] is the thesis's setting for an indoor scene.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RpfSettings {
-    /// σ²_8 of eq. 5.17 (a variance): 0.02 indoors, 0.002 outdoors ([`SceneKind`]).
-    pub sigma2_8: f32,
-    /// Seed of the neighbourhood sampling.
-    pub seed: u32,
-    /// Box size b of each iteration, largest first (§5.1.2: 55, 35, 17, 7). The box covers the
-    /// offsets −⌊b/2⌋..=⌊b/2⌋ (an even b is widened by one); σ_p = b/4.
-    pub box_sizes: Vec<u32>,
-    /// Histogram buckets per variable for the mutual information (Alg. 7; 2 to 16). Default 5,
-    /// as in the NVIDIA reference implementation ([`mi`]).
-    pub mi_buckets: usize,
-    /// M = ⌊b² · spp · sample_fraction⌋ samples considered per pixel (§5.1.2: ½).
-    pub sample_fraction: f32,
-    /// Standard deviations a world position may lie from the pixel's mean (Alg. 6 line 8: 30).
-    pub world_position_tolerance: f32,
-    /// Standard deviations a normal or texture value may lie from the mean (Alg. 6 line 8: 3).
-    pub feature_tolerance: f32,
-    /// Floor under the tolerance, in feature units (Alg. 6 line 8: 0.1; see [`preprocess`]).
-    pub tolerance_floor: f32,
-    /// Colours of the range term of eq. 5.2.
-    pub range_colors: RangeColors,
-}
-
-impl Default for RpfSettings {
-    fn default() -> Self {
-        RpfSettings {
-            sigma2_8: SIGMA2_8_INDOOR,
-            seed: 0,
-            box_sizes: BOX_SIZES.to_vec(),
-            mi_buckets: 5,
-            sample_fraction: 0.5,
-            world_position_tolerance: 30.0,
-            feature_tolerance: 3.0,
-            tolerance_floor: 0.1,
-            range_colors: RangeColors::Current,
-        }
+crate::filter_settings! {
+    /// Parameters of RPF (thesis ch. 5).
+    pub struct RpfSettings, flags "rpf-" {
+        /// σ²_8 of eq. 5.17 (a variance); auto: from the scene's [render] setting, 0.02
+        /// indoors, 0.002 outdoors (§5.1.4).
+        pub sigma2_8: Auto<f32> = Auto::Auto,
+        /// Seed of the neighbourhood sampling.
+        pub seed: u32 = 0,
+        /// Box size b of each iteration, largest first (§5.1.2: 55, 35, 17, 7). The box covers
+        /// the offsets −⌊b/2⌋..=⌊b/2⌋ (an even b is widened by one); σ_p = b/4.
+        pub box_sizes: Vec<u32> = BOX_SIZES.to_vec(),
+        /// Histogram buckets per variable for the mutual information (Alg. 7; 2 to 16), as in
+        /// the NVIDIA reference implementation.
+        pub mi_buckets: usize = 5,
+        /// M = ⌊b² · spp · sample_fraction⌋ samples considered per pixel (§5.1.2: ½).
+        pub sample_fraction: f32 = 0.5,
+        /// Standard deviations a world position may lie from the pixel's mean (Alg. 6 line 8:
+        /// 30).
+        pub world_position_tolerance: f32 = 30.0,
+        /// Standard deviations a normal or texture value may lie from the mean (Alg. 6 line
+        /// 8: 3).
+        pub feature_tolerance: f32 = 3.0,
+        /// Floor under the tolerance, in feature units (Alg. 6 line 8: 0.1).
+        pub tolerance_floor: f32 = 0.1,
+        /// Colours of the range term of eq. 5.2: "current" (the previous iteration's) or
+        /// "original".
+        pub range_colors: RangeColors = RangeColors::Current,
     }
 }
 
 impl RpfSettings {
-    /// The defaults with σ²_8 for `kind`.
-    pub fn for_scene(kind: SceneKind) -> Self {
+    /// The defaults with σ²_8 for `setting`.
+    pub fn for_setting(setting: Setting) -> Self {
         RpfSettings {
-            sigma2_8: kind.sigma2_8(),
+            sigma2_8: Auto::Set(sigma2_8_for(setting)),
             ..Default::default()
         }
     }
 
+    /// σ²_8 (auto, before specialisation: the indoor value).
+    pub fn sigma2_8(&self) -> f32 {
+        self.sigma2_8.or(SIGMA2_8_INDOOR)
+    }
+
     /// Checks every parameter; errors say which and why.
     pub fn validate(&self) -> Result<()> {
-        if !(self.sigma2_8 > 0.0 && self.sigma2_8.is_finite()) {
+        let sigma2_8 = self.sigma2_8();
+        if !(sigma2_8 > 0.0 && sigma2_8.is_finite()) {
             bail!(
-                "RPF sigma2_8 must be a positive variance (0.02 indoors, 0.002 outdoors), got {}",
-                self.sigma2_8
+                "RPF sigma2_8 must be a positive variance (0.02 indoors, 0.002 outdoors), got \
+                 {sigma2_8}"
             );
         }
         if self.box_sizes.is_empty() {
@@ -395,4 +389,92 @@ fn try_vec(n: usize, what: &str) -> Result<Vec<[f32; 3]>> {
         )
     })?;
     Ok(v)
+}
+
+/// RPF in the registry.
+pub struct Rpf;
+
+impl FilterKind for Rpf {
+    type Settings = RpfSettings;
+    const NAME: &'static str = "rpf";
+    const SUMMARY: &'static str =
+        "Random Parameter Filtering, thesis ch. 5 (on the host; slow, reads every sample)";
+
+    fn check(s: &RpfSettings) -> Result<()> {
+        s.validate()
+    }
+
+    /// σ²_8 on auto follows the scene's indoor/outdoor setting (§5.1.4).
+    fn specialise(s: &mut RpfSettings, scene: &SceneInfo) -> Vec<String> {
+        if !s.sigma2_8.is_auto() {
+            return Vec::new();
+        }
+        let v = sigma2_8_for(scene.setting);
+        s.sigma2_8 = Auto::Set(v);
+        vec![format!(
+            "sigma2_8 = {v}: the scene is {} (§5.1.4)",
+            match scene.setting {
+                Setting::Indoor => "indoors",
+                Setting::Outdoor => "outdoors",
+            }
+        )]
+    }
+
+    /// Every sample's vector (§5.1.1).
+    fn needs(_: &RpfSettings) -> OutputSet {
+        OutputSet::of(&[Output::Samples])
+    }
+
+    fn prepare(
+        s: &RpfSettings,
+        _frame: &FrameInfo,
+        _gpu: &Arc<Gpu>,
+    ) -> Result<Box<dyn PreparedFilter>> {
+        Ok(Box::new(RpfRun {
+            settings: s.clone(),
+            progress: false,
+        }))
+    }
+}
+
+/// RPF ready to run: it runs on the host, on the frame's sample vectors.
+pub struct RpfRun {
+    settings: RpfSettings,
+    progress: bool,
+}
+
+impl PreparedFilter for RpfRun {
+    fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
+        let start = Instant::now();
+        frame.require(Rpf::needs(&self.settings), "Random Parameter Filtering")?;
+        let set = SampleSet::from_frame(frame, Default::default())?;
+        let image = if self.progress {
+            let bar = indicatif::ProgressBar::new(1000);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{spinner} {msg:32} [{elapsed_precise}] {bar:30} ETA {eta}",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            let callback = progress_bar_callback(&bar, &self.settings.box_sizes);
+            let out = filter_with_progress(&set, &self.settings, &callback);
+            bar.finish_and_clear();
+            out?.image
+        } else {
+            filter(&set, &self.settings)?
+        };
+        Ok(FilterRun {
+            image,
+            wall_time: start.elapsed(),
+            kernel_time: None,
+        })
+    }
+
+    fn interactive(&self) -> bool {
+        false
+    }
+
+    fn show_progress(&mut self, on: bool) {
+        self.progress = on;
+    }
 }

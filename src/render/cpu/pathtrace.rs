@@ -234,7 +234,7 @@ pub fn sample_direct_light(
     bounce: u32,
     rays: &mut u32,
 ) -> Vec3 {
-    let p = offset_ray_origin(surface_p, ng, s.params.offset_scale);
+    let p = offset_ray_origin(surface_p, ng, s.params.scene_size);
     let light = &s.lights[select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT))];
     let r1 = rng_uniform(key, bounce, DIM_LIGHT_U);
     let r2 = rng_uniform(key, bounce, DIM_LIGHT_V);
@@ -405,7 +405,7 @@ pub fn trace_path(
         if opt.next_event_estimation {
             count_emission = sc.specular;
         }
-        o = offset_ray_origin(sf.p, sc.offset_normal, params.offset_scale);
+        o = offset_ray_origin(sf.p, sc.offset_normal, params.scene_size);
         d = sc.direction;
     }
     let limit = params.sample_clamp;
@@ -422,19 +422,22 @@ pub fn trace_path(
 }
 
 /// Renders samples [sample_base, sample_base + count) into `means` (FilterVector lanes, one
-/// [f32; 16] per pixel), exactly as the kernel folds them (eq. 6.5). Returns rays traced.
+/// [f32; 16] per pixel) and `shifts` (DepthShift: K and the mean of depth - K), exactly as
+/// kernels/render/film.cl folds them without variances (eq. 6.5). Returns rays traced.
 pub fn render(
     s: &SceneArrays,
     opt: ReferenceOptions,
     means: &mut [[f32; 16]],
+    shifts: &mut [[f32; 2]],
     sample_base: u32,
     count: u32,
 ) -> u64 {
     let w = s.params.image_width;
     means
         .par_iter_mut()
+        .zip(shifts.par_iter_mut())
         .enumerate()
-        .map(|(pixel, mean)| {
+        .map(|(pixel, (mean, shift))| {
             let (x, y) = (pixel as u32 % w, pixel as u32 / w);
             let mut rays = 0u32;
             for k in 0..count {
@@ -442,11 +445,22 @@ pub fn render(
                 let key = rng_sample_key(s.params.seed, pixel as u32, sample);
                 let x16 = trace_path(s, opt, x, y, key, &mut rays).to_array();
                 let n = (sample + 1) as f32;
-                for (m, v) in mean.iter_mut().zip(x16) {
-                    *m += (v - *m) / n;
+                for (i, (m, v)) in mean.iter_mut().zip(x16).enumerate() {
+                    if i == DEPTH_LANE {
+                        if sample == 0 {
+                            *shift = [v, 0.0];
+                        }
+                        shift[1] += ((v - shift[0]) - shift[1]) / n;
+                        *m = shift[0] + shift[1];
+                    } else {
+                        *m += (v - *m) / n;
+                    }
                 }
             }
             rays as u64
         })
         .sum()
 }
+
+/// The depth lane of [`PathSample::to_array`] (FilterVector.depth).
+const DEPTH_LANE: usize = 6;

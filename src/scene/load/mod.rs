@@ -202,7 +202,7 @@ impl Resolver<'_> {
             spheres,
             triangles,
             environment,
-            filter: raw.filter,
+            filter: self.filter_config(raw.filter)?,
             warnings: self.warnings,
         })
     }
@@ -257,5 +257,66 @@ impl Resolver<'_> {
         } else {
             self.folder.join(p)
         }
+    }
+}
+
+impl Resolver<'_> {
+    /// `[filter]`: `method` names the filter to run, every other key is a table of one
+    /// filter's settings. The names and settings are checked by the filter registry.
+    fn filter_config(
+        &self,
+        table: Option<Spanned<toml::Table>>,
+    ) -> Result<super::FilterConfig, SceneError> {
+        let mut config = super::FilterConfig::default();
+        let Some(table) = table else {
+            return Ok(config);
+        };
+        let span = table.span();
+        let header = self.src.position(span.start).0;
+        for (key, value) in table.into_inner() {
+            match (key.as_str(), value) {
+                ("method", toml::Value::String(m)) => config.method = Some(m),
+                ("method", other) => {
+                    return Err(self.src.error(
+                        span.clone(),
+                        "[filter] method",
+                        format!(
+                            "[filter] method must be a filter name, got {}",
+                            other.type_str()
+                        ),
+                    ));
+                }
+                (name, toml::Value::Table(t)) => {
+                    let line = self.table_line(&format!("filter.{name}")).unwrap_or(header);
+                    config.lines.insert(name.to_string(), line);
+                    config.settings.insert(name.to_string(), t);
+                }
+                (name, _) => {
+                    return Err(self.src.error(
+                        span.clone(),
+                        "[filter]",
+                        format!(
+                            "[filter] {name}: a filter's settings live in its own table, e.g. \
+                             [filter.ddf] {name} = ... (see scenes/README.md)"
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(config)
+    }
+
+    /// The 1-based line of the table header `[name]` in the scene file.
+    fn table_line(&self, name: &str) -> Option<usize> {
+        self.src
+            .text
+            .lines()
+            .position(|l| {
+                l.trim()
+                    .strip_prefix('[')
+                    .and_then(|r| r.strip_suffix(']'))
+                    .is_some_and(|inner| inner.trim() == name)
+            })
+            .map(|i| i + 1)
     }
 }

@@ -1,25 +1,30 @@
-//! The RPF sample vectors of one image (thesis §5.1.1, Table 5.1), their memory budget and the
-//! `samples.bin` file that stores them.
+//! The per-sample output of a render: the RPF sample vectors of one image (thesis §5.1.1,
+//! Table 5.1), their memory budget and the `samples.bin` file that stores them with a record of
+//! the render ([`RenderRecord`]), so that `noisefree filter samples.bin` repeats what the
+//! render did.
 //!
-//! # The `samples.bin` format (version 1)
+//! # The `samples.bin` format (version 2)
 //!
 //! Everything is little-endian. A 28-byte header:
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic, the ASCII bytes `NFRPFSMP` |
-//! | 8 | 4 | version, `u32` = 1 |
+//! | 8 | 4 | version, `u32` = 2 (1: the same without the record) |
 //! | 12 | 4 | width in pixels, `u32` ≥ 1 |
 //! | 16 | 4 | height in pixels, `u32` ≥ 1 |
 //! | 20 | 4 | samples per pixel, `u32` ≥ 1 |
 //! | 24 | 4 | floats per sample, `u32` = 26 |
 //!
-//! then `width · height · spp` sample vectors of 26 `f32` each (104 bytes), pixel-major:
+//! then (version 2) a `u32` byte count and that many bytes of UTF-8 TOML: the render record
+//! (scene information and filter settings, as text attributes), then `width · height · spp`
+//! sample vectors of 26 `f32` each (104 bytes), pixel-major:
 //! sample `s` of pixel `(x, y)` is vector number `(y · width + x) · spp + s`. The 26 floats of
 //! a vector are the fields of [`SampleVector`] in declaration order: `position[2]`,
 //! `random[6]` (u, v, t, x, y, z), `world1[3]`, `normal1[3]`, `world2[3]`, `normal2[3]`,
 //! `texture1[3]`, `color[3]`. Every float is finite. The file is exactly
-//! `28 + 104 · width · height · spp` bytes long; anything else is an error.
+//! `28 + 4 + record bytes + 104 · width · height · spp` bytes long (version 1: `28 + 104 ·
+//! width · height · spp`); anything else is an error.
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -27,8 +32,11 @@ use std::path::Path;
 
 use anyhow::{Context as _, Result, bail};
 
+use super::RenderRecord;
 use crate::layout::SampleVector;
+use crate::layout::outputs::{BufferId, Output, OutputSet};
 pub use crate::memory::{available_memory_bytes, human_bytes};
+use crate::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 
 /// Floats per sample vector (Table 5.1): 2 + 6 + 15 + 3.
 pub const FLOATS_PER_SAMPLE: usize = 26;
@@ -36,8 +44,10 @@ pub const FLOATS_PER_SAMPLE: usize = 26;
 pub const BYTES_PER_SAMPLE: u64 = (FLOATS_PER_SAMPLE * 4) as u64;
 /// First eight bytes of a `samples.bin` file.
 pub const MAGIC: [u8; 8] = *b"NFRPFSMP";
-/// The version this code writes and reads.
-pub const VERSION: u32 = 1;
+/// The version this code writes (it reads 1 and 2).
+pub const VERSION: u32 = 2;
+/// Longest render record a file may carry.
+pub const MAX_RECORD_BYTES: u32 = 1 << 20;
 /// Header bytes before the first sample vector.
 pub const HEADER_BYTES: u64 = 28;
 
@@ -130,13 +140,15 @@ pub fn check_memory(width: u32, height: u32, spp: u32, budget: u64) -> Result<()
     )
 }
 
-/// The sample vectors of one image, pixel-major: `samples[(y · width + x) · spp + s]`.
+/// The sample vectors of one image, pixel-major: `samples[(y · width + x) · spp + s]`, and
+/// what the render recorded about itself.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SampleSet {
     pub width: u32,
     pub height: u32,
     pub spp: u32,
     pub samples: Vec<SampleVector>,
+    pub record: RenderRecord,
 }
 
 impl SampleSet {
@@ -147,6 +159,7 @@ impl SampleSet {
             height,
             spp,
             samples,
+            record: RenderRecord::default(),
         };
         set.validate()?;
         Ok(set)
@@ -236,6 +249,15 @@ impl SampleSet {
         ] {
             w.write_all(&v.to_le_bytes())?;
         }
+        let record = toml::to_string(&self.record.to_attributes())?;
+        if record.len() > MAX_RECORD_BYTES as usize {
+            bail!(
+                "the render record is {} bytes, more than a samples file holds",
+                record.len()
+            );
+        }
+        w.write_all(&(record.len() as u32).to_le_bytes())?;
+        w.write_all(record.as_bytes())?;
         let mut buf = Vec::with_capacity(BYTES_PER_SAMPLE as usize * 4096);
         for chunk in self.samples.chunks(4096) {
             buf.clear();
@@ -283,9 +305,32 @@ impl SampleSet {
         }
         let word = |i: usize| u32::from_le_bytes(header[8 + 4 * i..12 + 4 * i].try_into().unwrap());
         let (version, width, height, spp, floats) = (word(0), word(1), word(2), word(3), word(4));
-        if version != VERSION {
-            bail!("unsupported RPF sample file version {version} (this build reads {VERSION})");
+        if version != 1 && version != VERSION {
+            bail!(
+                "unsupported RPF sample file version {version} (this build reads 1 and {VERSION})"
+            );
         }
+        let (record, record_bytes) = if version >= 2 {
+            if len < HEADER_BYTES + 4 {
+                bail!("truncated file: the header ends before the render record's length");
+            }
+            let mut n = [0u8; 4];
+            r.read_exact(&mut n)
+                .context("reading the render record's length")?;
+            let n = u32::from_le_bytes(n);
+            if n > MAX_RECORD_BYTES || HEADER_BYTES + 4 + n as u64 > len {
+                bail!("the render record claims {n} bytes: a damaged or truncated file");
+            }
+            let mut text = vec![0u8; n as usize];
+            r.read_exact(&mut text)
+                .context("reading the render record")?;
+            let text = String::from_utf8(text).context("the render record is not UTF-8 text")?;
+            let attributes: std::collections::BTreeMap<String, String> = toml::from_str(&text)
+                .map_err(|e| anyhow::anyhow!("the render record: {}", e.message()))?;
+            (RenderRecord::from_attributes(&attributes)?, 4 + n as u64)
+        } else {
+            (RenderRecord::default(), 0)
+        };
         if floats as usize != FLOATS_PER_SAMPLE {
             bail!("the header says {floats} floats per sample; RPF sample vectors have 26");
         }
@@ -293,7 +338,7 @@ impl SampleSet {
             bail!("the header says {width}x{height} at {spp} spp: every size must be at least 1");
         }
         let payload = memory_bytes(width, height, spp);
-        let expected = HEADER_BYTES.saturating_add(payload);
+        let expected = (HEADER_BYTES + record_bytes).saturating_add(payload);
         if len < expected {
             bail!(
                 "truncated file: {width}x{height} at {spp} spp needs {expected} bytes but the \
@@ -341,6 +386,7 @@ impl SampleSet {
             height,
             spp,
             samples,
+            record,
         };
         set.validate()?;
         Ok(set)
@@ -355,4 +401,48 @@ pub fn is_sample_file(path: &Path) -> bool {
         .and_then(|mut f| f.read_exact(&mut magic))
         .is_ok()
         && magic == MAGIC
+}
+
+impl SampleSet {
+    /// The sample vectors of a frame: the samples stored so far, pixel-major (a live frame's
+    /// buffer holds `sample_capacity` per pixel; only the first `spp` are taken).
+    pub fn from_frame(frame: &Frame, record: RenderRecord) -> Result<SampleSet> {
+        let info = frame.info();
+        let all: &[SampleVector] = frame.host_slice(BufferId::SampleVectors)?;
+        let (stored, capacity) = (
+            info.samples_stored() as usize,
+            info.sample_capacity as usize,
+        );
+        let samples = if stored == capacity {
+            all.to_vec()
+        } else {
+            all.chunks(capacity)
+                .flat_map(|px| px[..stored].iter().copied())
+                .collect()
+        };
+        let mut set = SampleSet::new(info.width, info.height, stored as u32, samples)?;
+        set.record = record;
+        Ok(set)
+    }
+
+    /// A frame that holds these samples (and nothing else), with the recorded scene
+    /// information where there is one.
+    pub fn into_frame(self) -> Result<Frame> {
+        let info = FrameInfo {
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            sample_capacity: self.spp,
+            scene: self.record.scene.clone().unwrap_or_else(SceneInfo::unknown),
+        };
+        Frame::on_host(
+            info,
+            OutputSet::of(&[Output::Samples]),
+            VarianceForm::Variances,
+            vec![(
+                BufferId::SampleVectors,
+                HostBuffer::from_slice(&self.samples),
+            )],
+        )
+    }
 }

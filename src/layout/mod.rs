@@ -1,14 +1,25 @@
-//! The one source of truth for every struct shared by the host and the OpenCL kernels.
+//! The one source of truth for everything the host shares with the OpenCL kernels.
 //!
-//! Each struct is declared once, in Rust, with the [`device_structs!`] macro. The macro emits
-//! the `#[repr(C)]` Rust struct and, at run time, the OpenCL C declaration that mirrors it.
-//! `kernels/layout.cl` is that generated text, committed so a reader of the kernels sees the
-//! structs; `tests/layout.rs` checks that the committed file equals the generated text and asks
-//! the device for `sizeof` and every field offset, comparing them with Rust's.
+//! - Every shared struct is declared once, here, with the [`device_structs!`] macro. The macro
+//!   emits the `#[repr(C)]` Rust struct and, at run time, the OpenCL C declaration that mirrors
+//!   it, with a `#define` for the float lane of every field of the per-pixel structs
+//!   ([`cl`]).
+//! - Every per-pixel (and per-sample) output of the renderer is declared once, in the table of
+//!   [`outputs`]: its buffers, element layout, feature switch and AOV channels. Kernel
+//!   arguments, `-D` switches, allocation, AOV files and the layout test all come from it.
+//!
+//! `kernels/layout.cl` and `kernels/render/outputs.cl` are the generated texts, committed so a
+//! reader of the kernels sees them; `tests/layout.rs` checks that the committed files equal the
+//! generated ones and asks the device for `sizeof` and every field offset, comparing them with
+//! Rust's.
+
 //!
 //! OpenCL vector types are 16-byte (`float4`), 8-byte (`float2`) or 64-byte (`float16`) aligned,
 //! so they are mirrored by the aligned wrappers [`Float2`], [`Float4`] and [`Float16`]. `float3`
 //! is never used in a shared struct: it is 16 bytes in OpenCL and 12 in Rust.
+
+pub mod cl;
+pub mod outputs;
 
 use std::fmt::Write as _;
 
@@ -185,7 +196,7 @@ device_structs! {
         pub sample_clamp: f32,
         /// Size of the scene (largest extent of its bounds): the unit of the absolute part of
         /// the secondary-ray origin offset (kernels/geometry.cl), so it works at any scale.
-        pub offset_scale: f32,
+        pub scene_size: f32,
         pub pad1: u32,
         pub pad2: u32,
     }
@@ -307,33 +318,38 @@ device_structs! {
         pub albedo2: [f32; 3],
     }
 
-    /// The variance GBuffer GB of eq. 6.2, held as Welford's running sums of squared
-    /// deviations S_n (eq. 6.6); the variance S_n / (n - 1) is formed only when a filter asks
-    /// for it. 13 floats padded to one float16 (§6.3.1).
+    /// The thesis's variance WelfordSums GB (eq. 6.2), held as Welford's running sums of squared
+    /// deviations S_n (eq. 6.6): the variance S_n / (n - 1) is formed only where a filter reads
+    /// it. 13 floats padded to one float16 (§6.3.1).
     #[align(64)]
-    pub struct GBuffer {
+    pub struct WelfordSums {
         pub depth: f32,
         pub normal: [f32; 3],
         pub albedo: [f32; 3],
-        /// Direction leaving the first hit (its mean lives in StatsState, not in F).
+        /// Direction leaving the first hit (its mean lives in WelfordState, not in F).
         pub direction: [f32; 3],
         pub albedo2: [f32; 3],
         pub pad: [f32; 3],
     }
 
-    /// Running state of the statistics that is neither a FilterVector mean nor an S_n: the
-    /// mean first-bounce direction, the depth shift and the Kahan compensation of every S_n
-    /// (see kernels/render/film.cl on float32).
-    #[align(32)]
-    pub struct StatsState {
+    /// The rest of Welford's running state (eq. 6.6), neither a FilterVector mean nor an S_n:
+    /// the mean first-bounce direction and the Kahan compensation of every S_n (see
+    /// kernels/render/film.cl on float32).
+    #[align(16)]
+    pub struct WelfordState {
         pub direction_mean: [f32; 3],
-        /// The pixel's first depth sample K; depth is accumulated as x - K.
-        pub depth_shift: f32,
-        /// Running mean of x - K; F.depth = K + this.
-        pub depth_shifted_mean: f32,
-        pub pad: [f32; 3],
-        /// Kahan compensation of each GBuffer lane's S_n (13 used).
+        pub pad: f32,
+        /// Kahan compensation of each WelfordSums lane's S_n (13 used).
         pub s_compensation: [f32; 16],
+    }
+
+    /// The depth mean on shifted data (see kernels/render/film.cl): F.depth = shift + mean.
+    #[align(8)]
+    pub struct DepthShift {
+        /// The pixel's first depth sample K.
+        pub shift: f32,
+        /// Running mean of x - K (eq. 6.5).
+        pub mean: f32,
     }
 
     /// Parameters of the data-driven filter for one run (thesis Tables 6.2, 6.3).
@@ -403,29 +419,6 @@ device_structs! {
     }
 }
 
-/// Every shared struct, for the generated header and the layout test.
-pub fn all_declarations() -> Vec<(&'static str, String, Vec<FieldLayout>, usize)> {
-    fn one<T: DeviceStruct>() -> (&'static str, String, Vec<FieldLayout>, usize) {
-        (T::NAME, T::cl_declaration(), T::fields(), T::size())
-    }
-    vec![
-        one::<SceneParams>(),
-        one::<BvhNode>(),
-        one::<TriangleGeom>(),
-        one::<TriangleShading>(),
-        one::<Sphere>(),
-        one::<Material>(),
-        one::<TextureInfo>(),
-        one::<Light>(),
-        one::<FilterVector>(),
-        one::<GBuffer>(),
-        one::<StatsState>(),
-        one::<DdfParams>(),
-        one::<SampleVector>(),
-        one::<AtrousParams>(),
-    ]
-}
-
 pub const MATERIAL_DIFFUSE: u32 = 0;
 pub const MATERIAL_SPECULAR: u32 = 1;
 pub const MATERIAL_GLASS: u32 = 2;
@@ -439,96 +432,15 @@ pub const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
 /// differences of the Welford update and of the filter weights stay finite in float32.
 pub const SKY_DEPTH: f32 = 1.0e9;
 
-/// Constants shared by host and kernels, emitted as `#define`s: (name, OpenCL literal, comment).
-pub fn shared_constants() -> Vec<(&'static str, String, &'static str)> {
-    let u = |v: u32| format!("{v}u");
-    vec![
-        (
-            "MATERIAL_DIFFUSE",
-            u(MATERIAL_DIFFUSE),
-            "Lambertian, Alg. 5",
-        ),
-        (
-            "MATERIAL_SPECULAR",
-            u(MATERIAL_SPECULAR),
-            "perfect mirror, eq. 4.7",
-        ),
-        (
-            "MATERIAL_GLASS",
-            u(MATERIAL_GLASS),
-            "Schlick Fresnel + Snell, eqs. 4.8-4.10",
-        ),
-        (
-            "MATERIAL_METAL",
-            u(MATERIAL_METAL),
-            "normalised Phong lobe around the mirror direction",
-        ),
-        (
-            "MATERIAL_EMITTER",
-            u(MATERIAL_EMITTER),
-            "a light surface: emits, reflects nothing",
-        ),
-        ("LIGHT_SPHERE", u(LIGHT_SPHERE), ""),
-        ("LIGHT_TRIANGLE", u(LIGHT_TRIANGLE), ""),
-        (
-            "LEAF_COUNT_SHIFT",
-            u(LEAF_COUNT_SHIFT),
-            "BvhNode.leaf = first | count << LEAF_COUNT_SHIFT",
-        ),
-        ("LEAF_FIRST_MASK", format!("{LEAF_FIRST_MASK:#x}u"), ""),
-        (
-            "SKY_DEPTH",
-            format!("{SKY_DEPTH:e}f"),
-            "depth of a camera ray that escapes (§6.3.4)",
-        ),
-    ]
-}
-
-/// The OpenCL header text for `kernels/layout.cl`.
-pub fn generated_cl_header() -> String {
-    let mut s = String::new();
-    s.push_str(
-        "// GENERATED from src/layout.rs by `NOISEFREE_BLESS=1 cargo test --test layout`.\n",
-    );
-    s.push_str(
-        "// Do not edit: change src/layout.rs instead. tests/layout.rs checks that this file\n",
-    );
-    s.push_str("// is current and that the device lays every struct out exactly as Rust does.\n");
-    s.push_str("#ifndef NOISEFREE_LAYOUT_CL\n#define NOISEFREE_LAYOUT_CL\n\n");
-    for (name, value, doc) in shared_constants() {
-        if doc.is_empty() {
-            let _ = writeln!(s, "#define {name} {value}");
-        } else {
-            let _ = writeln!(s, "#define {name} {value} // {doc}");
-        }
-    }
-    for (_, decl, _, _) in all_declarations() {
-        s.push('\n');
-        s.push_str(&decl);
-    }
-    s.push_str("\n#endif\n");
-    s
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn filter_vector_and_gbuffer_are_one_float16_each() {
+    fn filter_vector_and_welford_sums_are_one_float16_each() {
         assert_eq!(std::mem::size_of::<FilterVector>(), 64);
         assert_eq!(std::mem::align_of::<FilterVector>(), 64);
-        assert_eq!(std::mem::size_of::<GBuffer>(), 64);
-        assert_eq!(std::mem::size_of::<StatsState>(), 96);
-    }
-
-    #[test]
-    fn sky_depth_literal_round_trips() {
-        let lit = shared_constants()
-            .into_iter()
-            .find(|c| c.0 == "SKY_DEPTH")
-            .unwrap()
-            .1;
-        assert_eq!(lit.trim_end_matches('f').parse::<f32>().unwrap(), SKY_DEPTH);
+        assert_eq!(std::mem::size_of::<WelfordSums>(), 64);
+        assert_eq!(std::mem::size_of::<WelfordState>(), 80);
     }
 }

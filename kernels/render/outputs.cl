@@ -1,0 +1,22 @@
+// GENERATED from src/layout/outputs.rs by `NOISEFREE_BLESS=1 cargo test --test layout`.
+// Do not edit: change src/layout/outputs.rs instead. tests/layout.rs checks that this file
+// is current and that the device lays every struct out exactly as Rust does.
+#ifndef NOISEFREE_OUTPUTS_CL
+#define NOISEFREE_OUTPUTS_CL
+
+// Every output buffer of the megakernel, one parameter each, in table order. A
+// buffer whose output is off is bound to a one-element stand-in.
+#define RENDER_OUTPUT_PARAMS __global float* filter_vectors, __global float* depth_shifts, __global float* welford_sums, __global float* welford_state, __global float* positions, __global float* sample_vectors
+#define RENDER_OUTPUT_ARGS filter_vectors, depth_shifts, welford_sums, welford_state, positions, sample_vectors
+
+#if !defined(OUTPUT_FEATURES) || !defined(OUTPUT_VARIANCE) || !defined(OUTPUT_POSITION) || !defined(OUTPUT_SAMPLES)
+#error "noisefree: an output switch is missing from the build options"
+#endif
+#if OUTPUT_VARIANCE && !OUTPUT_FEATURES
+#error "noisefree: OUTPUT_VARIANCE needs OUTPUT_FEATURES (variance needs features)"
+#endif
+#if OUTPUT_SAMPLES && !OUTPUT_FEATURES
+#error "noisefree: OUTPUT_SAMPLES needs OUTPUT_FEATURES (samples needs features)"
+#endif
+
+#endif

@@ -1,0 +1,185 @@
+//! The data-driven filter on the device: kernels/filters/ddf.cl, built once per variant and
+//! option set (the disk cache keeps the binaries).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context as _, Result, bail};
+use ocl::{Buffer, Event, Kernel};
+
+use super::{DdfSettings, DirectionTerm, Variant};
+use crate::filters::{FilterRun, PreparedFilter};
+use crate::gpu::{Gpu, event_duration, round_up};
+use crate::imaging::RgbImage;
+use crate::layout::outputs::BufferId;
+use crate::layout::{DdfParams, Float4};
+use crate::render::Frame;
+
+impl Variant {
+    fn define(self) -> u32 {
+        match self {
+            Variant::Naive => 0,
+            Variant::Vector => 1,
+            Variant::Rows => 2,
+        }
+    }
+}
+
+/// The kernel of one variant and option set, for one image size.
+pub struct DdfKernel {
+    gpu: Arc<Gpu>,
+    kernel: Kernel,
+    params: Buffer<DdfParams>,
+    out: Buffer<Float4>,
+    settings: DdfSettings,
+    width: u32,
+    height: u32,
+}
+
+impl DdfKernel {
+    /// The filter for `settings` (specialised: `auto` sky and texture2 read as on).
+    pub fn new(gpu: Arc<Gpu>, settings: &DdfSettings, width: u32, height: u32) -> Result<Self> {
+        DdfKernel::with_work_group(gpu, settings, width, height, None)
+    }
+
+    /// Like [`DdfKernel::new`]; the naive and vector variants run in work-groups of
+    /// `work_group` x 1 pixels when given (the driver chooses otherwise). The rows variant's
+    /// work-group is `settings.work_group`.
+    pub fn with_work_group(
+        gpu: Arc<Gpu>,
+        settings: &DdfSettings,
+        width: u32,
+        height: u32,
+        work_group: Option<usize>,
+    ) -> Result<Self> {
+        settings.validate()?;
+        let flag = |b: bool| (b as u32).to_string();
+        let defines = vec![
+            (
+                "DDF_VARIANT".to_string(),
+                settings.variant.define().to_string(),
+            ),
+            ("DDF_SKY".to_string(), flag(settings.keeps_sky())),
+            ("DDF_TEXTURE2".to_string(), flag(settings.uses_texture2())),
+            (
+                "DDF_DIRECTION".to_string(),
+                flag(settings.direction == DirectionTerm::Difference),
+            ),
+        ];
+        let program = gpu.program("filters/ddf.cl", &defines, "")?;
+        let pixels = width as usize * height as usize;
+        let params = gpu.upload(&[settings.params(width, height, 1.0, 1.0)])?;
+        let out = gpu.zeroed::<Float4>(pixels, "filtered image")?;
+        let (w, h) = (width as usize, height as usize);
+        let mut b = Kernel::builder();
+        b.program(&program)
+            .name("ddf_filter")
+            .queue(gpu.queue.clone());
+        // The inputs are set per run, from the frame.
+        b.arg_named("p", &params)
+            .arg_named("f", None::<&Buffer<u8>>)
+            .arg_named("gb", None::<&Buffer<u8>>)
+            .arg_named("state", None::<&Buffer<u8>>)
+            .arg_named("out", &out);
+        match settings.variant {
+            Variant::Rows => {
+                let work_group = settings.work_group as usize;
+                let max = gpu.summary.max_work_group_size;
+                if max > 0 && work_group > max {
+                    bail!(
+                        "work-group size {work_group} is not supported by {} (max {max})",
+                        gpu.summary.name
+                    );
+                }
+                // One float16 per work-item: 64 bytes x work-group size (§6.3.2).
+                b.arg_local::<ocl::prm::Float16>(work_group);
+                b.global_work_size([round_up(w, work_group), h])
+                    .local_work_size([work_group, 1]);
+            }
+            _ => match work_group {
+                Some(wg) if wg > 0 => {
+                    b.global_work_size([round_up(w, wg), h])
+                        .local_work_size([wg, 1]);
+                }
+                _ => {
+                    b.global_work_size([w, h]);
+                }
+            },
+        }
+        let kernel = b
+            .build()
+            .context("creating the data-driven filter kernel")?;
+        Ok(DdfKernel {
+            gpu,
+            kernel,
+            params,
+            out,
+            settings: settings.clone(),
+            width,
+            height,
+        })
+    }
+
+    pub fn variant(&self) -> Variant {
+        self.settings.variant
+    }
+
+    /// Filters `frame` (which must be width x height); returns the image and the kernel time.
+    pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
+        let start = Instant::now();
+        if frame.width() != self.width || frame.height() != self.height {
+            bail!(
+                "the filter was built for {}x{}, the frame is {}x{}",
+                self.width,
+                self.height,
+                frame.width(),
+                frame.height()
+            );
+        }
+        frame.require(
+            <super::Ddf as crate::filters::FilterKind>::needs(&self.settings),
+            "the data-driven filter",
+        )?;
+        let depth_scale = crate::stats::depth_scale(frame.info().scene.scene_size);
+        let p = self.settings.params(
+            self.width,
+            self.height,
+            frame.variance_factor(),
+            depth_scale,
+        );
+        self.params.write(std::slice::from_ref(&p)).enq()?;
+        self.kernel
+            .set_arg("f", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
+        self.kernel
+            .set_arg("gb", frame.device(&self.gpu, BufferId::WelfordSums)?)?;
+        self.kernel
+            .set_arg("state", frame.device(&self.gpu, BufferId::WelfordState)?)?;
+        let mut event = Event::empty();
+        // SAFETY: all buffers outlive the launch (we wait for it) and hold width x height pixels.
+        unsafe {
+            self.kernel
+                .cmd()
+                .enew(&mut event)
+                .enq()
+                .context("launching the data-driven filter")?;
+        }
+        let kernel_time = event_duration(&event)?;
+        let mut out = vec![Float4::default(); self.out.len()];
+        self.out.read(&mut out).enq()?;
+        Ok(FilterRun {
+            image: RgbImage {
+                width: self.width,
+                height: self.height,
+                pixels: out.iter().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
+            },
+            wall_time: start.elapsed(),
+            kernel_time: Some(kernel_time),
+        })
+    }
+}
+
+impl PreparedFilter for DdfKernel {
+    fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter(frame)
+    }
+}

@@ -1,0 +1,469 @@
+//! Every per-pixel (and per-sample) output of the megakernel, declared once.
+//!
+//! An [`Output`] is what a filter asks for ("the feature variances"); it owns device buffers
+//! ([`BufferDecl`], laid out as one shared struct per pixel or per sample) or lanes of another
+//! output's buffer, is compiled in by one `-D` switch, may need other outputs, and names its AOV
+//! channels. From this table come:
+//! - the megakernel's output parameters and their order (`RENDER_OUTPUT_PARAMS` in the
+//!   generated kernels/render/outputs.cl) and the host's binding of them, by name;
+//! - the `-D OUTPUT_*` switches and the checks that they were all given;
+//! - buffer allocation and its memory check (src/render);
+//! - the AOV channels, written and read back (src/stats/aov.rs): a file without an optional
+//!   output still loads when the chosen filter does not need it;
+//! - the layout test's device sizes, and the generic defines of the test kernels.
+//!
+//! Adding an output: a row in [`OUTPUTS`] (and its buffer in [`BUFFERS`]), the kernel code that
+//! writes it (kernels/render/film.cl), and the filter that reads it.
+
+use std::mem::{offset_of, size_of};
+
+use super::{DepthShift, FilterVector, Float4, SampleVector, WelfordState, WelfordSums};
+
+/// A group of per-pixel outputs switched on together.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Output {
+    /// The direct and indirect light means of the FilterVector (eq. 6.1): always on.
+    Colour,
+    /// The first-hit feature means of the FilterVector: depth, normal, albedo, albedo2.
+    Features,
+    /// Welford's running S_n of every feature (the variance GBuffer, eq. 6.2) and the mean
+    /// first-bounce direction.
+    Variance,
+    /// The mean world position of the first hit (over the samples that hit a surface).
+    Position,
+    /// Every sample's Random Parameter Filtering vector (thesis §5.1.1, Table 5.1).
+    Samples,
+}
+
+/// A device buffer of the megakernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum BufferId {
+    FilterVectors,
+    DepthShifts,
+    WelfordSums,
+    WelfordState,
+    Positions,
+    SampleVectors,
+}
+
+/// How many elements a buffer holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Per {
+    Pixel,
+    /// `sample_capacity` elements per pixel, pixel-major (index = pixel · capacity + sample).
+    Sample,
+}
+
+#[derive(Debug)]
+pub struct BufferDecl {
+    pub id: BufferId,
+    /// The kernel parameter and the name in messages.
+    pub name: &'static str,
+    /// The shared struct of one element (src/layout/mod.rs).
+    pub element: &'static str,
+    pub element_bytes: usize,
+    pub per: Per,
+    pub doc: &'static str,
+}
+
+/// How an AOV channel relates to the buffer lane it comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChannelScale {
+    AsIs,
+    /// The lane holds Welford's S_n; the channel holds the variance S_n / (n − 1).
+    Variance,
+}
+
+#[derive(Debug)]
+pub struct ChannelDecl {
+    /// `layer.channel`, as standard EXR tools group them.
+    pub name: &'static str,
+    pub buffer: BufferId,
+    /// Float lane within one element.
+    pub lane: usize,
+    pub scale: ChannelScale,
+}
+
+#[derive(Debug)]
+pub struct OutputDecl {
+    pub output: Output,
+    /// Name in messages, `--explain` and the AOV header.
+    pub name: &'static str,
+    /// The `-D` switch that compiles it into the megakernel; None: always compiled in.
+    pub switch: Option<&'static str>,
+    pub requires: &'static [Output],
+    /// Buffers this output owns (allocated only when it is on).
+    pub buffers: &'static [BufferId],
+    pub channels: &'static [ChannelDecl],
+    pub doc: &'static str,
+}
+
+const fn lane(byte_offset: usize) -> usize {
+    byte_offset / 4
+}
+
+const fn ch(name: &'static str, buffer: BufferId, lane: usize) -> ChannelDecl {
+    ChannelDecl {
+        name,
+        buffer,
+        lane,
+        scale: ChannelScale::AsIs,
+    }
+}
+
+const fn var(name: &'static str, lane: usize) -> ChannelDecl {
+    ChannelDecl {
+        name,
+        buffer: BufferId::WelfordSums,
+        lane,
+        scale: ChannelScale::Variance,
+    }
+}
+
+use BufferId::*;
+
+const F_DIRECT: usize = lane(offset_of!(FilterVector, direct));
+const F_INDIRECT: usize = lane(offset_of!(FilterVector, indirect));
+const F_DEPTH: usize = lane(offset_of!(FilterVector, depth));
+const F_NORMAL: usize = lane(offset_of!(FilterVector, normal));
+const F_ALBEDO: usize = lane(offset_of!(FilterVector, albedo));
+const F_ALBEDO2: usize = lane(offset_of!(FilterVector, albedo2));
+const S_DEPTH: usize = lane(offset_of!(WelfordSums, depth));
+const S_NORMAL: usize = lane(offset_of!(WelfordSums, normal));
+const S_ALBEDO: usize = lane(offset_of!(WelfordSums, albedo));
+const S_DIRECTION: usize = lane(offset_of!(WelfordSums, direction));
+const S_ALBEDO2: usize = lane(offset_of!(WelfordSums, albedo2));
+const W_DIRECTION: usize = lane(offset_of!(WelfordState, direction_mean));
+
+/// Every output buffer, in the order of the megakernel's parameters.
+pub const BUFFERS: &[BufferDecl] = &[
+    BufferDecl {
+        id: FilterVectors,
+        name: "filter_vectors",
+        element: "FilterVector",
+        element_bytes: size_of::<FilterVector>(),
+        per: Per::Pixel,
+        doc: "FilterVector F per pixel (eq. 6.1, one float16, §6.2.1)",
+    },
+    BufferDecl {
+        id: DepthShifts,
+        name: "depth_shifts",
+        element: "DepthShift",
+        element_bytes: size_of::<DepthShift>(),
+        per: Per::Pixel,
+        doc: "depth mean on shifted data per pixel (F.depth = shift + mean)",
+    },
+    BufferDecl {
+        id: WelfordSums,
+        name: "welford_sums",
+        element: "WelfordSums",
+        element_bytes: size_of::<WelfordSums>(),
+        per: Per::Pixel,
+        doc: "Welford S_n of every feature per pixel (the variance GBuffer, eq. 6.2)",
+    },
+    BufferDecl {
+        id: WelfordState,
+        name: "welford_state",
+        element: "WelfordState",
+        element_bytes: size_of::<WelfordState>(),
+        per: Per::Pixel,
+        doc: "Welford state per pixel (mean direction, depth shift, Kahan compensation)",
+    },
+    BufferDecl {
+        id: Positions,
+        name: "positions",
+        element: "float4",
+        element_bytes: size_of::<Float4>(),
+        per: Per::Pixel,
+        doc: "mean first-hit world position per pixel (xyz) and the samples that hit (w)",
+    },
+    BufferDecl {
+        id: SampleVectors,
+        name: "sample_vectors",
+        element: "SampleVector",
+        element_bytes: size_of::<SampleVector>(),
+        per: Per::Sample,
+        doc: "RPF sample vectors (26 floats per sample, thesis §5.1.1)",
+    },
+];
+
+/// Every output. The AOV file lists the channels in this order.
+pub const OUTPUTS: &[OutputDecl] = &[
+    OutputDecl {
+        output: Output::Colour,
+        name: "colour",
+        switch: None,
+        requires: &[],
+        buffers: &[FilterVectors],
+        channels: &[
+            ch("direct.R", FilterVectors, F_DIRECT),
+            ch("direct.G", FilterVectors, F_DIRECT + 1),
+            ch("direct.B", FilterVectors, F_DIRECT + 2),
+            ch("indirect.R", FilterVectors, F_INDIRECT),
+            ch("indirect.G", FilterVectors, F_INDIRECT + 1),
+            ch("indirect.B", FilterVectors, F_INDIRECT + 2),
+        ],
+        doc: "mean direct and indirect light (eq. 6.1)",
+    },
+    OutputDecl {
+        output: Output::Features,
+        name: "features",
+        switch: Some("OUTPUT_FEATURES"),
+        requires: &[Output::Colour],
+        buffers: &[DepthShifts],
+        channels: &[
+            ch("depth.Z", FilterVectors, F_DEPTH),
+            ch("normal.X", FilterVectors, F_NORMAL),
+            ch("normal.Y", FilterVectors, F_NORMAL + 1),
+            ch("normal.Z", FilterVectors, F_NORMAL + 2),
+            ch("albedo.R", FilterVectors, F_ALBEDO),
+            ch("albedo.G", FilterVectors, F_ALBEDO + 1),
+            ch("albedo.B", FilterVectors, F_ALBEDO + 2),
+            ch("albedo2.R", FilterVectors, F_ALBEDO2),
+            ch("albedo2.G", FilterVectors, F_ALBEDO2 + 1),
+            ch("albedo2.B", FilterVectors, F_ALBEDO2 + 2),
+        ],
+        doc: "mean first-hit depth, normal, albedo and albedo2 (eq. 6.1)",
+    },
+    OutputDecl {
+        output: Output::Variance,
+        name: "variance",
+        switch: Some("OUTPUT_VARIANCE"),
+        requires: &[Output::Features],
+        buffers: &[WelfordSums, WelfordState],
+        channels: &[
+            ch("direction.X", WelfordState, W_DIRECTION),
+            ch("direction.Y", WelfordState, W_DIRECTION + 1),
+            ch("direction.Z", WelfordState, W_DIRECTION + 2),
+            var("var.depth", S_DEPTH),
+            var("var.normal.X", S_NORMAL),
+            var("var.normal.Y", S_NORMAL + 1),
+            var("var.normal.Z", S_NORMAL + 2),
+            var("var.albedo.R", S_ALBEDO),
+            var("var.albedo.G", S_ALBEDO + 1),
+            var("var.albedo.B", S_ALBEDO + 2),
+            var("var.direction.X", S_DIRECTION),
+            var("var.direction.Y", S_DIRECTION + 1),
+            var("var.direction.Z", S_DIRECTION + 2),
+            var("var.albedo2.R", S_ALBEDO2),
+            var("var.albedo2.G", S_ALBEDO2 + 1),
+            var("var.albedo2.B", S_ALBEDO2 + 2),
+        ],
+        doc: "feature variances (eq. 6.2) and the mean first-bounce direction",
+    },
+    OutputDecl {
+        output: Output::Position,
+        name: "position",
+        switch: Some("OUTPUT_POSITION"),
+        requires: &[Output::Colour],
+        buffers: &[Positions],
+        channels: &[
+            ch("position.X", Positions, 0),
+            ch("position.Y", Positions, 1),
+            ch("position.Z", Positions, 2),
+            ch("position.hits", Positions, 3),
+        ],
+        doc: "mean first-hit world position (over the samples that hit a surface)",
+    },
+    OutputDecl {
+        output: Output::Samples,
+        name: "samples",
+        switch: Some("OUTPUT_SAMPLES"),
+        requires: &[Output::Features],
+        buffers: &[SampleVectors],
+        channels: &[],
+        doc: "every sample's RPF vector (thesis §5.1.1); kept in a samples file, not the AOVs",
+    },
+];
+
+impl Output {
+    pub fn decl(self) -> &'static OutputDecl {
+        OUTPUTS
+            .iter()
+            .find(|o| o.output == self)
+            .expect("every output is in OUTPUTS")
+    }
+
+    pub fn name(self) -> &'static str {
+        self.decl().name
+    }
+
+    fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
+}
+
+impl BufferId {
+    pub fn decl(self) -> &'static BufferDecl {
+        BUFFERS
+            .iter()
+            .find(|b| b.id == self)
+            .expect("every buffer is in BUFFERS")
+    }
+
+    /// The output that owns this buffer.
+    pub fn owner(self) -> Output {
+        OUTPUTS
+            .iter()
+            .find(|o| o.buffers.contains(&self))
+            .expect("every buffer has an owner")
+            .output
+    }
+}
+
+/// A set of outputs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct OutputSet(u32);
+
+impl OutputSet {
+    /// Colour only: what every render writes.
+    pub fn colour() -> OutputSet {
+        OutputSet::of(&[Output::Colour])
+    }
+
+    /// Exactly these outputs (what a filter reads, what a file holds).
+    pub fn of(outputs: &[Output]) -> OutputSet {
+        outputs.iter().fold(OutputSet::default(), |s, &o| s.with(o))
+    }
+
+    /// This set and `o`.
+    pub fn with(self, o: Output) -> OutputSet {
+        OutputSet(self.0 | o.bit())
+    }
+
+    /// This set with everything its outputs need to be computed, colour always: what the
+    /// megakernel must be built with (the sample vectors reuse the features, the variances
+    /// update the feature means).
+    pub fn closed(self) -> OutputSet {
+        let mut s = self.with(Output::Colour);
+        loop {
+            let next = s
+                .iter()
+                .flat_map(|o| o.decl().requires.iter().copied())
+                .fold(s, |acc, r| acc.with(r));
+            if next == s {
+                return s;
+            }
+            s = next;
+        }
+    }
+
+    pub fn union(self, other: OutputSet) -> OutputSet {
+        OutputSet(self.0 | other.0)
+    }
+
+    pub fn contains(self, o: Output) -> bool {
+        self.0 & o.bit() != 0
+    }
+
+    /// Every output of `other` is in this set.
+    pub fn covers(self, other: OutputSet) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// The outputs in table order.
+    pub fn iter(self) -> impl Iterator<Item = Output> {
+        OUTPUTS
+            .iter()
+            .map(|o| o.output)
+            .filter(move |&o| self.contains(o))
+    }
+
+    /// The buffers of the outputs in this set, in parameter order.
+    pub fn buffers(self) -> impl Iterator<Item = &'static BufferDecl> {
+        BUFFERS.iter().filter(move |b| self.contains(b.id.owner()))
+    }
+
+    pub fn names(self) -> Vec<&'static str> {
+        self.iter().map(Output::name).collect()
+    }
+
+    /// Bytes the buffers of this set take for a w × h image holding `sample_capacity` samples
+    /// per pixel in its per-sample buffers.
+    pub fn bytes(self, width: u32, height: u32, sample_capacity: u32) -> u64 {
+        self.buffers()
+            .map(|b| b.bytes(width, height, sample_capacity))
+            .sum()
+    }
+}
+
+impl BufferDecl {
+    /// Elements of this buffer for a w × h image.
+    pub fn elements(&self, width: u32, height: u32, sample_capacity: u32) -> u64 {
+        let pixels = width as u64 * height as u64;
+        match self.per {
+            Per::Pixel => pixels,
+            Per::Sample => pixels * sample_capacity as u64,
+        }
+    }
+
+    pub fn bytes(&self, width: u32, height: u32, sample_capacity: u32) -> u64 {
+        self.elements(width, height, sample_capacity) * self.element_bytes as u64
+    }
+
+    /// The AOV channels that come from this buffer.
+    pub fn channels(&self) -> impl Iterator<Item = &'static ChannelDecl> {
+        let id = self.id;
+        OUTPUTS
+            .iter()
+            .flat_map(|o| o.channels.iter())
+            .filter(move |c| c.buffer == id)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn requirements_close_and_colour_is_everywhere() {
+        let s = OutputSet::of(&[Output::Variance]);
+        assert!(!s.contains(Output::Features));
+        let s = s.closed();
+        assert!(s.contains(Output::Features) && s.contains(Output::Colour));
+        assert!(
+            OutputSet::of(&[Output::Samples])
+                .closed()
+                .contains(Output::Features)
+        );
+        for o in OUTPUTS {
+            assert!(
+                OutputSet::of(&[o.output]).closed().contains(Output::Colour),
+                "{}",
+                o.name
+            );
+        }
+    }
+
+    #[test]
+    fn table_is_consistent() {
+        // Every buffer has exactly one owner; every channel lane lies inside its element;
+        // channel names are unique; switches are unique.
+        for b in BUFFERS {
+            let owners = OUTPUTS.iter().filter(|o| o.buffers.contains(&b.id)).count();
+            assert_eq!(owners, 1, "{}", b.name);
+            assert_eq!(b.element_bytes % 4, 0, "{}: elements are floats", b.name);
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for o in OUTPUTS {
+            for c in o.channels {
+                assert!(c.lane < c.buffer.decl().element_bytes / 4, "{}", c.name);
+                assert!(names.insert(c.name), "duplicate channel {}", c.name);
+            }
+        }
+        let switches: std::collections::BTreeSet<_> =
+            OUTPUTS.iter().filter_map(|o| o.switch).collect();
+        assert_eq!(
+            switches.len(),
+            OUTPUTS.iter().filter(|o| o.switch.is_some()).count()
+        );
+    }
+
+    #[test]
+    fn bytes_per_pixel_and_per_sample() {
+        let s = OutputSet::of(&[Output::Variance]).closed();
+        assert_eq!(s.bytes(2, 3, 0), 6 * (64 + 8 + 64 + 80));
+        let r = OutputSet::of(&[Output::Samples]).closed();
+        assert_eq!(r.bytes(2, 3, 4), 6 * (64 + 8) + 6 * 4 * 104);
+    }
+}

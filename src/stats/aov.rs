@@ -1,0 +1,264 @@
+//! Arbitrary output variables (AOVs): every per-pixel output of a render as one multi-channel
+//! OpenEXR that standard tools read (`layer.channel` names) and that `noisefree filter` reads
+//! back, plus false-colour PNGs of each buffer for people (like the thesis's Figs. 4.3, 6.3,
+//! 6.4).
+//!
+//! The channels come from the output table (src/layout/outputs.rs): whatever outputs the
+//! render gathered are written, and reading takes whichever complete outputs a file holds, so a
+//! file without an optional output (variances, positions) still loads, and a filter that needs
+//! it says so. Variances are stored as variances (S_n / (n − 1)), the form tools expect; the
+//! header holds the [`RenderRecord`] (scene information, filter settings).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Result, anyhow, bail};
+
+use super::{RenderRecord, feature_variance_sums};
+use crate::imaging::{RgbImage, colormap, write_atomically, write_png, write_rgb8_png};
+use crate::layout::outputs::{BufferId, ChannelScale, OUTPUTS, Output, OutputSet};
+use crate::layout::{FilterVector, SKY_DEPTH, WelfordSums};
+use crate::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
+
+/// Writes the frame's per-pixel outputs as one OpenEXR layer with named channels, plus the
+/// beauty (`R`, `G`, `B`) for viewers and a constant `spp` channel; `record` goes into the
+/// header as text attributes `noisefree.<key>`.
+pub fn write_aov_exr(path: &Path, frame: &Frame, record: &RenderRecord) -> Result<()> {
+    use exr::prelude::*;
+    let info = frame.info();
+    let n = info.pixels();
+    let beauty = frame.beauty()?;
+    let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        list.push(AnyChannel::new(
+            *name,
+            FlatSamples::F32(beauty.pixels.iter().map(|p| p[c]).collect()),
+        ));
+    }
+    let variance = match frame.variance_form() {
+        VarianceForm::Sums => frame.variance_factor(),
+        VarianceForm::Variances => 1.0,
+    };
+    for o in OUTPUTS
+        .iter()
+        .filter(|o| frame.outputs().contains(o.output))
+    {
+        for c in o.channels {
+            let floats = frame.host(c.buffer)?.floats();
+            let stride = c.buffer.decl().element_bytes / 4;
+            let scale = match c.scale {
+                ChannelScale::AsIs => None,
+                ChannelScale::Variance => Some(variance),
+            };
+            let values: Vec<f32> = (0..n)
+                .map(|i| {
+                    let v = floats[i * stride + c.lane];
+                    scale.map_or(v, |s| v * s)
+                })
+                .collect();
+            list.push(AnyChannel::new(c.name, FlatSamples::F32(values)));
+        }
+    }
+    list.push(AnyChannel::new(
+        "spp",
+        FlatSamples::F32(vec![info.spp as f32; n]),
+    ));
+    let mut attributes = LayerAttributes::named("noisefree");
+    for (k, v) in record.to_attributes() {
+        attributes.other.insert(
+            Text::from(format!("noisefree.{k}").as_str()),
+            AttributeValue::Text(Text::from(v.as_str())),
+        );
+    }
+    let layer = Layer::new(
+        (info.width as usize, info.height as usize),
+        attributes,
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(list)),
+    );
+    let image = Image::from_layer(layer);
+    write_atomically(path, |tmp| {
+        image
+            .write()
+            .to_file(tmp)
+            .map_err(|e| anyhow!("encoding OpenEXR: {e}"))
+    })
+}
+
+/// Reads an AOV file written by [`write_aov_exr`] (or any EXR with the same channel names):
+/// every output whose channels are all present. Colour (`direct.*`, `indirect.*`) is required.
+pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
+    use exr::prelude::*;
+    let fail = |e: &dyn std::fmt::Display| anyhow!("{}: cannot read OpenEXR: {e}", path.display());
+    // The header first: a damaged one can claim an image too large to allocate.
+    let per_pixel: usize = crate::layout::outputs::BUFFERS
+        .iter()
+        .filter(|b| b.per == crate::layout::outputs::Per::Pixel)
+        .map(|b| b.element_bytes)
+        .sum();
+    crate::imaging::check_exr_memory(path, per_pixel as u64).map_err(|e| fail(&e))?;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| fail(&e))?;
+    let layer = &image.layer_data;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let channel = |name: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+    };
+    let n = w * h;
+    // An output is in the file when all its channels are; a partial one is damage.
+    let mut outputs = OutputSet::default();
+    for o in OUTPUTS.iter().filter(|o| !o.channels.is_empty()) {
+        let present = o.channels.iter().filter(|c| channel(c.name).is_some());
+        let count = present.count();
+        if count == o.channels.len() {
+            outputs = outputs.with(o.output);
+        } else if count > 0 || o.output == Output::Colour {
+            let missing = o
+                .channels
+                .iter()
+                .find(|c| channel(c.name).is_none())
+                .expect("one is missing");
+            bail!(
+                "{}: not a complete noisefree AOV file: channel {:?} of the {} output is missing",
+                path.display(),
+                missing.name,
+                o.name
+            );
+        }
+    }
+    let mut buffers: Vec<(BufferId, HostBuffer)> = outputs
+        .buffers()
+        .map(|b| (b.id, HostBuffer::zeroed(b.element_bytes * n)))
+        .collect();
+    // Features live in the colour output's buffer.
+    for o in OUTPUTS.iter().filter(|o| outputs.contains(o.output)) {
+        for c in o.channels {
+            let data = channel(c.name).expect("checked above");
+            let stride = c.buffer.decl().element_bytes / 4;
+            let (_, buf) = buffers
+                .iter_mut()
+                .find(|(id, _)| *id == c.buffer)
+                .expect("the owner's buffer");
+            let floats = buf.floats_mut();
+            for (i, v) in data.sample_data.values_as_f32().enumerate().take(n) {
+                if !v.is_finite() {
+                    bail!(
+                        "{}: channel {} has a non-finite value at pixel ({}, {})",
+                        path.display(),
+                        c.name,
+                        i % w,
+                        i / w
+                    );
+                }
+                floats[i * stride + c.lane] = v;
+            }
+        }
+    }
+    let spp = channel("spp")
+        .and_then(|c| c.sample_data.values_as_f32().next())
+        .ok_or_else(|| anyhow!("{}: channel \"spp\" is missing", path.display()))?;
+    if !(spp >= 1.0 && spp.fract() == 0.0 && spp < 1e9) {
+        bail!(
+            "{}: channel spp holds {spp}, expected a positive whole number",
+            path.display()
+        );
+    }
+    let mut attributes = BTreeMap::new();
+    for (k, v) in &layer.attributes.other {
+        if let (Some(key), AttributeValue::Text(t)) = (k.to_string().strip_prefix("noisefree."), v)
+        {
+            attributes.insert(key.to_string(), t.to_string());
+        }
+    }
+    let record = RenderRecord::from_attributes(&attributes)
+        .map_err(|e| anyhow!("{}: the render record in the header: {e:#}", path.display()))?;
+    let info = FrameInfo {
+        width: w as u32,
+        height: h as u32,
+        spp: spp as u32,
+        sample_capacity: 0,
+        scene: record.scene.clone().unwrap_or_else(SceneInfo::unknown),
+    };
+    let frame = Frame::on_host(info, outputs, VarianceForm::Variances, buffers)?;
+    Ok((frame, record))
+}
+
+/// One false-colour PNG per buffer in `dir` (which is created): the light buffers tone-mapped,
+/// depth as grey (near bright, sky black), normals as 0.5 + 0.5 n, albedos as they are, and each
+/// feature variance (sum over its components) on a log scale from 1e-4 (dark) to 1 (bright)
+/// with the colour map of src/imaging.
+pub fn write_aov_pngs(dir: &Path, frame: &Frame, exposure: f32) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|e| anyhow!("creating {}: {e}", dir.display()))?;
+    let (w, h) = (frame.width(), frame.height());
+    let fv: &[FilterVector] = frame.filter_vectors()?;
+    let image = |f: &dyn Fn(&FilterVector) -> [f32; 3]| RgbImage {
+        width: w,
+        height: h,
+        pixels: fv.iter().map(f).collect(),
+    };
+    let mut written = Vec::new();
+    let mut save = |name: &str, img: &RgbImage, exposure: f32| -> Result<()> {
+        let p = dir.join(format!("{name}.png"));
+        write_png(&p, img, exposure)?;
+        written.push(p);
+        Ok(())
+    };
+    save("beauty", &frame.beauty()?, exposure)?;
+    save("direct", &image(&|f| f.direct), exposure)?;
+    save("indirect", &image(&|f| f.indirect), exposure)?;
+    if frame.outputs().contains(Output::Features) {
+        let finite_depths = fv.iter().map(|f| f.depth).filter(|d| *d < SKY_DEPTH * 0.5);
+        let (lo, hi) = finite_depths.fold((f32::INFINITY, 0.0f32), |(lo, hi), d| {
+            (lo.min(d), hi.max(d))
+        });
+        save(
+            "depth",
+            &image(&|f| {
+                if f.depth >= SKY_DEPTH * 0.5 || !(hi > lo) {
+                    return [0.0; 3];
+                }
+                let v = 1.0 - 0.9 * (f.depth - lo) / (hi - lo);
+                [v; 3]
+            }),
+            0.0,
+        )?;
+        save("normal", &image(&|f| f.normal.map(|c| 0.5 + 0.5 * c)), 0.0)?;
+        save("albedo", &image(&|f| f.albedo), 0.0)?;
+        save("albedo2", &image(&|f| f.albedo2), 0.0)?;
+    }
+    if frame.outputs().contains(Output::Variance) {
+        let sums: &[WelfordSums] = frame.host_slice(BufferId::WelfordSums)?;
+        let factor = frame.variance_factor();
+        let names = [
+            "var_depth",
+            "var_normal",
+            "var_albedo",
+            "var_direction",
+            "var_albedo2",
+        ];
+        for (k, name) in names.iter().enumerate() {
+            let bytes: Vec<u8> = sums
+                .iter()
+                .flat_map(|g| {
+                    let v = feature_variance_sums(&super::scaled(g, factor))[k].max(0.0) as f64;
+                    let t = ((v.max(1e-12).log10() + 4.0) / 4.0).clamp(0.0, 1.0);
+                    colormap(if v > 0.0 { t } else { 0.0 })
+                })
+                .collect();
+            let p = dir.join(format!("{name}.png"));
+            write_rgb8_png(&p, &bytes, w, h)?;
+            written.push(p);
+        }
+    }
+    Ok(written)
+}
