@@ -39,6 +39,8 @@ pub fn ray_triangle(o: Vec3, d: Vec3, p1: Vec3, p2: Vec3, p3: Vec3) -> Option<(f
     }
     let vec1 = o - p1;
     let u = vec1.dot(c) / det;
+    // Written as in kernels/geometry.cl: a NaN u passes here as it does there.
+    #[allow(clippy::manual_range_contains)]
     if u < 0.0 || u > 1.0 {
         return None;
     }

@@ -14,6 +14,7 @@ use ocl::enums::{DeviceInfo, DeviceInfoResult, ProfilingInfo, ProgramInfo, Progr
 use ocl::flags::{DeviceType, MemFlags};
 use ocl::{Buffer, Context, Device, Event, OclPrm, Platform, Program, Queue};
 
+use crate::imaging::RgbImage;
 use crate::kernels;
 pub use crate::memory::human_bytes;
 
@@ -448,6 +449,44 @@ pub fn event_duration(event: &Event) -> Result<Duration> {
     let start = event.profiling_info(ProfilingInfo::Start)?.time()?;
     let end = event.profiling_info(ProfilingInfo::End)?.time()?;
     Ok(Duration::from_nanos(end.saturating_sub(start)))
+}
+
+/// Enqueues `kernel` and returns its profiling event (the caller waits on it, e.g. with
+/// [`event_duration`]).
+///
+/// # Safety
+/// Every buffer argument of `kernel` must be alive and sized for its global range until the
+/// event completes.
+pub unsafe fn enqueue(kernel: &ocl::Kernel, what: &str) -> Result<Event> {
+    let mut event = Event::empty();
+    // SAFETY: the caller's contract.
+    unsafe {
+        kernel
+            .cmd()
+            .enew(&mut event)
+            .enq()
+            .with_context(|| format!("launching {what}"))?;
+    }
+    Ok(event)
+}
+
+/// The first `width × height` pixels of a device image of `float4`s (rgb, w unused).
+pub fn read_rgb(
+    buffer: &ocl::Buffer<crate::layout::Float4>,
+    width: u32,
+    height: u32,
+) -> Result<RgbImage> {
+    let mut out = vec![crate::layout::Float4::default(); buffer.len()];
+    buffer
+        .read(&mut out)
+        .enq()
+        .context("reading an image back")?;
+    out.truncate(width as usize * height as usize);
+    Ok(RgbImage {
+        width,
+        height,
+        pixels: out.iter().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
+    })
 }
 
 /// Rounds `n` up to a multiple of `m`.

@@ -5,26 +5,39 @@
 
 mod common;
 
-use std::sync::OnceLock;
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 use common::*;
 use glam::Vec3;
-use noisefree::filters::UploadedBuffers;
-use noisefree::filters::atrous::{
-    AtrousCamera, AtrousFilter, AtrousSettings, B3, pixel_direction, reference,
-};
+use noisefree::filters::Auto;
+use noisefree::filters::atrous::{AtrousKernel, AtrousSettings, B3, pixel_direction, reference};
 use noisefree::imaging::RgbImage;
+use noisefree::layout::outputs::{Output, OutputSet};
 use noisefree::layout::{FilterVector, SKY_DEPTH};
 use noisefree::metrics::mse_luv;
 use noisefree::render::Renderer;
-use noisefree::scene::Scene;
-use noisefree::stats::PixelBuffers;
+use noisefree::scene::{CameraBasis, Scene};
 
-fn device(b: &PixelBuffers, cam: &AtrousCamera, s: &AtrousSettings) -> RgbImage {
-    let gpu = gpu();
-    let up = UploadedBuffers::new(&gpu, b).unwrap();
-    let mut f = AtrousFilter::new(gpu, s, cam, b.width, b.height).unwrap();
-    f.run(&up.view()).unwrap().image
+fn device(b: &Buffers, cam: &CameraBasis, s: &AtrousSettings) -> RgbImage {
+    let mut f = AtrousKernel::new(gpu(), s, cam, b.width, b.height).unwrap();
+    f.filter(&b.frame()).unwrap().image
+}
+
+/// The plain Rust reference on host buffers.
+fn host(b: &Buffers, cam: &CameraBasis, s: &AtrousSettings) -> RgbImage {
+    reference(&b.frame(), cam, s).unwrap()
+}
+
+/// Settings with every sigma set to `sigma`.
+fn all_sigmas(sigma: f32, demodulate: bool) -> AtrousSettings {
+    AtrousSettings {
+        sigma_color: Auto::Set(sigma),
+        sigma_normal: Auto::Set(sigma),
+        sigma_position: Auto::Set(sigma),
+        demodulate,
+        ..Default::default()
+    }
 }
 
 fn max_rel_diff(a: &RgbImage, b: &RgbImage) -> f32 {
@@ -55,17 +68,16 @@ fn settings(demodulate: bool) -> AtrousSettings {
 }
 
 /// Renders `scene` and returns its buffers and camera.
-fn render(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> (PixelBuffers, AtrousCamera) {
+fn render(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> (Buffers, CameraBasis) {
     let mut o = options(scene, w, h, seed);
-    o.outputs.features = true;
+    o.outputs = OutputSet::of(&[Output::Features]);
     let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
     while r.samples_done() < spp {
         r.render_samples((spp - r.samples_done()).min(256)).unwrap();
     }
-    (
-        r.read_buffers().unwrap(),
-        AtrousCamera::from(&r.arrays.params),
-    )
+    let frame = r.frame();
+    assert_eq!(frame.info().scene.camera, r.arrays.camera());
+    (Buffers::of_frame(&frame), r.arrays.camera())
 }
 
 /// A small Cornell box with a mirror and a sphere (mirror reflections, curved normals).
@@ -89,42 +101,36 @@ material = "red"
     scene_from_toml(&cornell("max_depth = 3", extra))
 }
 
-fn cornell_diffuse_scene() -> Scene {
-    noisefree::scene::load_scene(&repo_path("scenes/cornell_diffuse.toml")).unwrap()
-}
-
 /// An arbitrary, oblique camera for synthetic buffers.
-fn test_camera() -> AtrousCamera {
+fn test_camera() -> CameraBasis {
     let forward = Vec3::new(0.3, -0.2, -1.0).normalize();
     let right = forward.cross(Vec3::Y).normalize();
-    AtrousCamera {
+    CameraBasis {
         origin: Vec3::new(0.5, 2.0, 7.0),
         forward,
         right,
         up: right.cross(forward),
         tan_half_fov: 0.4,
+        lens_radius: 0.0,
+        focal_distance: 1.0,
     }
 }
 
 /// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector.
-fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffers {
+fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> Buffers {
     let filter_vectors: Vec<_> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| f(x, y))
         .collect();
-    PixelBuffers {
-        width: w,
-        height: h,
-        spp: 8,
-        filter_vectors,
+    Buffers {
         variances: None,
         directions: None,
-        scene_size: 100.0,
+        ..Buffers::new(w, h, filter_vectors, 100.0)
     }
 }
 
 /// Random features: noisy light, a few depth layers, random normals and albedos, some sky.
-fn random_buffers(w: u32, h: u32, seed: u64) -> PixelBuffers {
+fn random_buffers(w: u32, h: u32, seed: u64) -> Buffers {
     let mut rng = TestRng(seed);
     let fvs: Vec<FilterVector> = (0..w * h)
         .map(|_| {
@@ -166,14 +172,16 @@ fn fv(light: [f32; 3], depth: f32, normal: [f32; 3], albedo: [f32; 3]) -> Filter
     }
 }
 
-fn check_against_reference(b: &PixelBuffers, cam: &AtrousCamera, s: &AtrousSettings, what: &str) {
-    let want = reference(b, cam, s).unwrap();
+fn check_against_reference(b: &Buffers, cam: &CameraBasis, s: &AtrousSettings, what: &str) {
+    let want = host(b, cam, s);
     assert_finite(&want, what);
     let got = device(b, cam, s);
     assert_finite(&got, what);
     let d = max_rel_diff(&got, &want);
+    // Measured on PoCL: at most 5.9e-7 over every case of this file. The bound, 1e-5, leaves
+    // ~17 x for devices whose exp differs by the few ulp OpenCL allows.
     assert!(
-        d <= 1e-4,
+        d <= 1e-5,
         "{what} {s:?}: max relative difference {d:e} between kernel and reference"
     );
 }
@@ -182,7 +190,7 @@ fn check_against_reference(b: &PixelBuffers, cam: &AtrousCamera, s: &AtrousSetti
 fn kernel_matches_the_rust_reference_on_rendered_buffers() {
     // 70 x 45: no multiple of any work-group size.
     let (b, cam) = render(&cornell_with_spheres(), 70, 45, 8, 1);
-    let (d, dcam) = render(&cornell_diffuse_scene(), 61, 37, 4, 2);
+    let (d, dcam) = render(&bundled("cornell_diffuse"), 61, 37, 4, 2);
     for demodulate in [true, false] {
         for iterations in [0, 1, 5, 7] {
             let s = AtrousSettings {
@@ -194,9 +202,9 @@ fn kernel_matches_the_rust_reference_on_rendered_buffers() {
             check_against_reference(&d, &dcam, &s, "cornell diffuse");
         }
         let s = AtrousSettings {
-            sigma_color: 0.1,
-            sigma_normal: 0.05,
-            sigma_position: 0.5,
+            sigma_color: Auto::Set(0.1),
+            sigma_normal: Auto::Set(0.05),
+            sigma_position: Auto::Set(0.5),
             demodulate,
             ..Default::default()
         };
@@ -254,16 +262,10 @@ fn constant_image_stays_constant() {
     });
     for demodulate in [true, false] {
         for sigma in [1e-6, 1.0, 1e6] {
-            let s = AtrousSettings {
-                sigma_color: sigma,
-                sigma_normal: sigma,
-                sigma_position: sigma,
-                demodulate,
-                ..Default::default()
-            };
+            let s = all_sigmas(sigma, demodulate);
             for (what, out) in [
                 ("kernel", device(&b, &test_camera(), &s)),
-                ("reference", reference(&b, &test_camera(), &s).unwrap()),
+                ("reference", host(&b, &test_camera(), &s)),
             ] {
                 for p in &out.pixels {
                     for (c, want) in p.iter().zip([0.3, 0.2, 0.1]) {
@@ -281,7 +283,7 @@ fn constant_image_stays_constant() {
 #[test]
 fn no_nan_with_degenerate_features_all_sky_and_extreme_sigmas() {
     let (rendered, cam) = render(&cornell_with_spheres(), 40, 30, 2, 5);
-    let cases: Vec<(&str, PixelBuffers, AtrousCamera)> = vec![
+    let cases: Vec<(&str, Buffers, CameraBasis)> = vec![
         ("rendered", rendered, cam),
         // Zero-variance features: every pixel has the same depth, normal and albedo.
         (
@@ -316,19 +318,13 @@ fn no_nan_with_degenerate_features_all_sky_and_extreme_sigmas() {
     for (what, b, cam) in &cases {
         for demodulate in [true, false] {
             for sigma in [1e-6f32, 1e-3, 1.0, 1e3, 1e6] {
-                let s = AtrousSettings {
-                    sigma_color: sigma,
-                    sigma_normal: sigma,
-                    sigma_position: sigma,
-                    demodulate,
-                    ..Default::default()
-                };
+                let s = all_sigmas(sigma, demodulate);
                 let got = device(b, cam, &s);
                 assert_finite(
                     &got,
                     &format!("{what} sigma {sigma} demodulate {demodulate}"),
                 );
-                let want = reference(b, cam, &s).unwrap();
+                let want = host(b, cam, &s);
                 assert_finite(&want, &format!("reference {what} sigma {sigma}"));
             }
         }
@@ -379,36 +375,20 @@ fn huge_sigmas_give_the_b3_blur_and_tiny_sigmas_the_input() {
     let (b, cam) = render(&cornell_with_spheres(), 48, 40, 4, 9);
     // The box is closed: no sky, so with every weight 1 the filter is the plain blur.
     assert!(b.filter_vectors.iter().all(|f| f.depth < SKY_DEPTH));
-    let huge = AtrousSettings {
-        sigma_color: 1e6,
-        sigma_normal: 1e6,
-        sigma_position: 1e6,
-        demodulate: false,
-        ..Default::default()
-    };
+    let huge = all_sigmas(1e6, false);
     let blur = b3_blur(&b.beauty(), 5);
     let got = device(&b, &cam, &huge);
     let d = max_rel_diff(&got, &blur);
-    assert!(d < 1e-4, "sigma 1e6 vs the B3 blur: {d:e}");
+    // Measured 3.5e-7; bound 1e-5 (~30 x, for other devices' rounding).
+    assert!(d < 1e-5, "sigma 1e6 vs the B3 blur: {d:e}");
 
-    let tiny = AtrousSettings {
-        sigma_color: 1e-6,
-        sigma_normal: 1e-6,
-        sigma_position: 1e-6,
-        ..Default::default()
-    };
     for demodulate in [true, false] {
-        let got = device(
-            &b,
-            &cam,
-            &AtrousSettings {
-                demodulate,
-                ..tiny.clone()
-            },
-        );
+        let got = device(&b, &cam, &all_sigmas(1e-6, demodulate));
         let d = max_rel_diff(&got, &b.beauty());
+        // Measured 1.1e-7 demodulated (a division and a multiplication by the albedo: ~2
+        // ulp), 6.7e-8 for the beauty; bound 1e-6.
         assert!(
-            d < 1e-5,
+            d < 1e-6,
             "sigma 1e-6 (demodulate {demodulate}) vs the input: {d:e}"
         );
     }
@@ -433,7 +413,8 @@ fn sky_passes_through_and_is_never_a_neighbour() {
     let (a, b) = (make(0.123_456_7), make(1000.0));
     for demodulate in [true, false] {
         let s = AtrousSettings {
-            sigma_color: 1e6, // no colour edge-stopping: only the sky rule keeps them apart
+            // No colour edge-stopping: only the sky rule keeps them apart.
+            sigma_color: Auto::Set(1e6),
             demodulate,
             ..Default::default()
         };
@@ -449,8 +430,30 @@ fn sky_passes_through_and_is_never_a_neighbour() {
                 assert_eq!(oa.pixels[i], ob.pixels[i], "the sky leaked into a surface");
             }
         }
-        // The surfaces were filtered.
-        assert!(max_rel_diff(&oa, &a.beauty()) > 1e-2);
+        // The surfaces were filtered: with σ_colour off and one depth and normal they are
+        // blurred flat. Measured: the variance of the surface pixels drops from 0.0203 to
+        // 5.8e-5 demodulated, 4.0e-5 for the beauty (0.29 %, 0.19 %); bound 1 %.
+        let surfaces: Vec<usize> = (0..a.filter_vectors.len())
+            .filter(|&i| a.filter_vectors[i].depth < SKY_DEPTH)
+            .collect();
+        let variance = |img: &RgbImage| {
+            let n = surfaces.len() as f64;
+            let m = surfaces
+                .iter()
+                .map(|&i| img.pixels[i][0] as f64)
+                .sum::<f64>()
+                / n;
+            surfaces
+                .iter()
+                .map(|&i| (img.pixels[i][0] as f64 - m).powi(2))
+                .sum::<f64>()
+                / n
+        };
+        let (before, after) = (variance(&a.beauty()), variance(&oa));
+        assert!(
+            after < 0.01 * before,
+            "demodulate {demodulate}: surface variance {before} -> {after}"
+        );
     }
 }
 
@@ -460,14 +463,16 @@ fn depth_and_normal_edges_are_kept() {
     // guide; colour edge-stopping is off, so only that guide can keep the halves apart.
     let noise = |x: u32, y: u32| ((x * 7 + y * 13) % 5) as f32 * 0.02;
     let light = move |x: u32, y: u32| [if x < 16 { 0.2 } else { 0.8 } + noise(x, y); 3];
-    let cam = AtrousCamera {
+    let cam = CameraBasis {
         origin: Vec3::ZERO,
         forward: -Vec3::Z,
         right: Vec3::X,
         up: Vec3::Y,
         tan_half_fov: 0.5,
+        lens_radius: 0.0,
+        focal_distance: 1.0,
     };
-    let cases: Vec<(&str, PixelBuffers)> = vec![
+    let cases: Vec<(&str, Buffers)> = vec![
         (
             "depth",
             synthetic(32, 16, |x, y| {
@@ -489,7 +494,7 @@ fn depth_and_normal_edges_are_kept() {
     ];
     for (what, b) in cases {
         let s = AtrousSettings {
-            sigma_color: 1e6,
+            sigma_color: Auto::Set(1e6),
             ..Default::default()
         };
         let out = device(&b, &cam, &s);
@@ -497,8 +502,10 @@ fn depth_and_normal_edges_are_kept() {
             for x in 0..32u32 {
                 let want = if x < 16 { 0.24 } else { 0.84 };
                 let got = out.pixels[(y * 32 + x) as usize][0];
+                // Measured: at most 0.0028 from the half's mean (depth), 0.0015 (normal);
+                // bound 0.01, a sixtieth of the step between the halves.
                 assert!(
-                    (got - want).abs() < 0.05,
+                    (got - want).abs() < 0.01,
                     "{what} edge bled at ({x},{y}): {got} vs {want}"
                 );
             }
@@ -514,7 +521,8 @@ fn reconstructed_positions_lie_on_the_rendered_walls() {
     // mean depth is over jittered samples, the reconstruction uses the pixel centre).
     let scene = scene_from_toml(&cornell("max_depth = 1", ""));
     let (b, cam) = render(&scene, 40, 30, 64, 3);
-    assert_eq!(cam, AtrousCamera::from_scene(&scene));
+    // A pinhole camera: the renderer's basis is the scene camera's.
+    assert_eq!(cam, CameraBasis::new(&scene.camera));
     let p = AtrousSettings::default().params(&cam, b.width, b.height, 0);
     let walls: [([f32; 3], usize, f32); 4] = [
         ([0.0, 0.0, 1.0], 2, -1.0),
@@ -532,6 +540,8 @@ fn reconstructed_positions_lie_on_the_rendered_walls() {
             let d = pixel_direction(&p, i as u32 % b.width, i as u32 / b.width);
             let coord = cam.origin[*axis] + f.depth * d[*axis];
             let footprint = f.depth * 2.0 * cam.tan_half_fov / b.height as f32;
+            // Measured: at most 0.098 footprints (a pixel's mean depth averages jittered
+            // samples, the reconstruction uses the pixel centre): the bound has no slack.
             assert!(
                 (coord - plane).abs() < 0.1 * footprint,
                 "pixel {i} on wall {k}: {coord} instead of {plane} (footprint {footprint})"
@@ -539,7 +549,8 @@ fn reconstructed_positions_lie_on_the_rendered_walls() {
             seen[k] += 1;
         }
     }
-    assert!(seen.iter().all(|&n| n > 20), "wall pixels seen: {seen:?}");
+    // Seen: [324, 120, 270, 270].
+    assert!(seen.iter().all(|&n| n >= 100), "wall pixels seen: {seen:?}");
 }
 
 #[test]
@@ -552,82 +563,146 @@ fn settings_are_validated() {
             ..ok.clone()
         },
         AtrousSettings {
-            sigma_color: 0.0,
+            sigma_color: Auto::Set(0.0),
             ..ok.clone()
         },
         AtrousSettings {
-            sigma_normal: f32::NAN,
+            sigma_normal: Auto::Set(f32::NAN),
             ..ok.clone()
         },
         AtrousSettings {
-            sigma_position: f32::INFINITY,
+            sigma_position: Auto::Set(f32::INFINITY),
             ..ok.clone()
         },
         AtrousSettings {
-            sigma_position: -1.0,
+            sigma_position: Auto::Set(-1.0),
             ..ok.clone()
         },
     ] {
         assert!(bad.validate().is_err(), "{bad:?} was accepted");
-        assert!(AtrousFilter::new(gpu(), &bad, &test_camera(), 4, 4).is_err());
+        assert!(AtrousKernel::new(gpu(), &bad, &test_camera(), 4, 4).is_err());
     }
     let b = random_buffers(4, 4, 1);
-    let mut f = AtrousFilter::new(gpu(), &ok, &test_camera(), 5, 4).unwrap();
-    let up = UploadedBuffers::new(&gpu(), &b).unwrap();
-    assert!(f.run(&up.view()).is_err(), "a size mismatch was accepted");
+    let mut f = AtrousKernel::new(gpu(), &ok, &test_camera(), 5, 4).unwrap();
+    assert!(
+        f.filter(&b.frame()).is_err(),
+        "a size mismatch was accepted"
+    );
 }
 
-// ---- The bundled Cornell diffuse scene (thesis Fig. 7.1a) at 128 x 128. ----
+// ---- Bundled scenes (thesis Fig. 7.1) at 128 x 128, 8 spp, against 1024 spp. ----
+//
+// The defaults were tuned (the `sweep` below) on scenes/cornell_diffuse.toml at 128 x 128,
+// 8 spp, seed 7 against a 1024-spp reference at seed 100. The quality bounds are checked on
+// scenes/cornell_plane.toml (textures, glass, a mirror and the airplane mesh: none of it in
+// the tuning scene) at seed 3, so they say how the defaults do on a scene they were not
+// fitted to; the tuning scene is kept at another seed (11) for the numbers the defaults'
+// doc quotes, and for the scale experiment.
 
 const SIZE: u32 = 128;
 
-/// The 1024-spp reference of the scene at scale 1 and 1000, each rendered once per binary.
-fn truth_at(scale: f32) -> &'static RgbImage {
-    static TRUTH: OnceLock<RgbImage> = OnceLock::new();
-    static TRUTH_1000: OnceLock<RgbImage> = OnceLock::new();
-    let cell = if scale == 1.0 { &TRUTH } else { &TRUTH_1000 };
-    cell.get_or_init(|| {
-        let scene = cornell_diffuse_scene().scaled(scale);
-        render(&scene, SIZE, SIZE, 1024, 100).0.beauty()
-    })
+fn bundled(name: &str) -> Scene {
+    noisefree::scene::load_scene(&repo_path(&format!("scenes/{name}.toml"))).unwrap()
 }
 
-fn truth() -> &'static RgbImage {
-    truth_at(1.0)
+/// Samples per pixel of a bundled scene's reference: 1024, but 512 for cornell_plane, whose
+/// airplane mesh makes it twice as slow on PoCL (its reference noise then adds about 1 / 64
+/// of the 8-spp noise to every MSE against it, about 1 %: the bounds below hold it).
+fn truth_spp(name: &str) -> u32 {
+    if name == "cornell_plane" { 512 } else { 1024 }
 }
 
-/// (filtered MSE, unfiltered MSE, kernel time) of 8 spp of the scene at `scale` against its
-/// own 1024-spp reference.
-fn filtered_error(scale: f32, s: &AtrousSettings) -> (f64, f64, std::time::Duration) {
-    let scene = cornell_diffuse_scene().scaled(scale);
-    let (noisy, cam) = render(&scene, SIZE, SIZE, 8, 7);
-    let gpu = gpu();
-    let up = UploadedBuffers::new(&gpu, &noisy).unwrap();
-    let mut f = AtrousFilter::new(gpu, s, &cam, SIZE, SIZE).unwrap();
-    let out = f.run(&up.view()).unwrap();
-    let truth = truth_at(scale);
+/// The reference of a bundled scene at `scale`, rendered once per binary (the lock is held
+/// while rendering, so two tests never render the same reference).
+fn truth(name: &str, scale: f32) -> Arc<RgbImage> {
+    static TRUTHS: Mutex<BTreeMap<String, Arc<RgbImage>>> = Mutex::new(BTreeMap::new());
+    let mut truths = TRUTHS.lock().unwrap_or_else(|e| e.into_inner());
+    truths
+        .entry(format!("{name} x{scale}"))
+        .or_insert_with(|| {
+            let scene = bundled(name).scaled(scale);
+            Arc::new(render(&scene, SIZE, SIZE, truth_spp(name), 100).0.beauty())
+        })
+        .clone()
+}
+
+/// (filtered MSE, unfiltered MSE, kernel time) of 8 spp of a bundled scene at `scale` with
+/// `seed` against its own reference.
+fn filtered_error(
+    name: &str,
+    scale: f32,
+    seed: u32,
+    s: &AtrousSettings,
+) -> (f64, f64, std::time::Duration) {
+    let scene = bundled(name).scaled(scale);
+    let (noisy, cam) = render(&scene, SIZE, SIZE, 8, seed);
+    let mut f = AtrousKernel::new(gpu(), s, &cam, SIZE, SIZE).unwrap();
+    let out = f.filter(&noisy.frame()).unwrap();
+    let truth = truth(name, scale);
     (
-        mse_luv(&out.image, truth).unwrap(),
-        mse_luv(&noisy.beauty(), truth).unwrap(),
-        out.kernel_time,
+        mse_luv(&out.image, &truth).unwrap(),
+        mse_luv(&noisy.beauty(), &truth).unwrap(),
+        out.kernel_time
+            .expect("a device filter reports its kernel time"),
     )
 }
 
 #[test]
-fn filtering_lowers_the_error_on_cornell_diffuse() {
-    for demodulate in [true, false] {
-        let (e, unfiltered, t) = filtered_error(1.0, &settings(demodulate));
+fn filtering_lowers_the_error_on_a_scene_it_was_not_tuned_on() {
+    // Measured (PoCL, reference at 512 spp): MSE-LUV 31.54 filtered / 68.92 unfiltered =
+    // 0.458 demodulated, 49.01 / 68.92 = 0.711 filtering the beauty. Bounds: 1.25 x the
+    // measured ratio (0.57, 0.89); 1.5 x would allow 1.07 for the beauty, i.e. no
+    // improvement at all. Demodulating must also beat filtering the beauty (textures!).
+    let mut errors = Vec::new();
+    for (demodulate, bound) in [(true, 0.57), (false, 0.89)] {
+        let (e, unfiltered, t) = filtered_error("cornell_plane", 1.0, 3, &settings(demodulate));
         eprintln!(
-            "demodulate {demodulate}: filtered MSE {e:.5}, unfiltered {unfiltered:.5}, \
-             kernel time {t:?}"
+            "cornell_plane seed 3, demodulate {demodulate}: filtered MSE {e:.5}, unfiltered \
+             {unfiltered:.5} (ratio {:.4}), kernel time {t:?}",
+            e / unfiltered
         );
         assert!(t > std::time::Duration::ZERO);
-        let bound = if demodulate { 0.3 } else { 0.6 };
         assert!(
             e < bound * unfiltered,
             "demodulate {demodulate}: filtered MSE {e} vs unfiltered {unfiltered}"
         );
+        errors.push(e);
     }
+    assert!(
+        errors[0] < errors[1],
+        "demodulated {} vs beauty {}",
+        errors[0],
+        errors[1]
+    );
+}
+
+#[test]
+fn filtering_lowers_the_error_on_cornell_diffuse() {
+    // The tuning scene at a seed the sweep did not use (11, not 7). Measured (PoCL): MSE-LUV
+    // 4.887 / 30.98 = 0.158 demodulated, 13.21 / 30.98 = 0.426 for the beauty (at the tuning
+    // seed 7 the defaults' doc quotes 5.19 / 30.9 = 0.168 and 13.0 / 30.9 = 0.421). Bounds:
+    // 1.25 x the measured ratio (0.20, 0.53), as above. Demodulating must also beat
+    // filtering the beauty, as the doc claims.
+    let mut errors = Vec::new();
+    for (demodulate, bound) in [(true, 0.20), (false, 0.53)] {
+        let (e, unfiltered, _) = filtered_error("cornell_diffuse", 1.0, 11, &settings(demodulate));
+        eprintln!(
+            "cornell_diffuse seed 11, demodulate {demodulate}: filtered MSE {e:.5}, \
+             unfiltered {unfiltered:.5} (ratio {:.4})",
+            e / unfiltered
+        );
+        assert!(
+            e < bound * unfiltered,
+            "demodulate {demodulate}: filtered MSE {e} vs unfiltered {unfiltered}"
+        );
+        errors.push(e);
+    }
+    assert!(
+        errors[0] < errors[1],
+        "demodulated {} vs beauty {}",
+        errors[0],
+        errors[1]
+    );
 }
 
 #[test]
@@ -642,15 +717,16 @@ fn scaling_the_scene_keeps_the_filtered_error() {
     for f in &mut big.filter_vectors {
         f.depth *= 1000.0;
     }
-    let big_cam = AtrousCamera {
+    let big_cam = CameraBasis {
         origin: cam.origin * 1000.0,
         ..cam
     };
     for demodulate in [true, false] {
         let s = settings(demodulate);
         let d = max_rel_diff(&device(&a, &cam, &s), &device(&big, &big_cam, &s));
+        // Measured 9.5e-7; bound 1e-5.
         assert!(
-            d < 1e-4,
+            d < 1e-5,
             "demodulate {demodulate}: scaled buffers differ by {d:e}"
         );
     }
@@ -659,14 +735,18 @@ fn scaling_the_scene_keeps_the_filtered_error() {
     // darker, so the error against the scale-1 reference says more about the renderer.)
     for demodulate in [true, false] {
         let s = settings(demodulate);
-        let (e1, u1, _) = filtered_error(1.0, &s);
-        let (e1000, u1000, _) = filtered_error(1000.0, &s);
+        let (e1, u1, _) = filtered_error("cornell_diffuse", 1.0, 7, &s);
+        let (e1000, u1000, _) = filtered_error("cornell_diffuse", 1000.0, 7, &s);
         eprintln!(
             "demodulate {demodulate}: filtered MSE {e1:.5} at scale 1, {e1000:.5} at scale \
              1000 (unfiltered {u1:.5}, {u1000:.5})"
         );
+        // Measured: 5.18528 vs 5.18527 demodulated, 13.03464 vs 13.03465 for the beauty
+        // (2e-6 apart, relative). Bound 1e-3, 500 x that: room for another device's rounding
+        // and for the renderer, whose two scales differ slightly, but not for a filter that
+        // depends on the scene's scale (the old bound, 10 %, would have let one through).
         assert!(
-            (e1000 - e1).abs() < 0.1 * e1,
+            (e1000 - e1).abs() < 1e-3 * e1,
             "demodulate {demodulate}: scaling the scene changed the filtered MSE from {e1} \
              to {e1000}"
         );
@@ -678,13 +758,13 @@ fn scaling_the_scene_keeps_the_filtered_error() {
 #[test]
 #[ignore]
 fn sweep() {
-    let scene = cornell_diffuse_scene();
+    let scene = bundled("cornell_diffuse");
     let (noisy, cam) = render(&scene, SIZE, SIZE, 8, 7);
-    let gpu = gpu();
-    let up = UploadedBuffers::new(&gpu, &noisy).unwrap();
+    let frame = noisy.frame();
+    let truth = truth("cornell_diffuse", 1.0);
     eprintln!(
         "unfiltered MSE {:.5}",
-        mse_luv(&noisy.beauty(), truth()).unwrap()
+        mse_luv(&noisy.beauty(), &truth).unwrap()
     );
     // (demodulate, sigma_color, sigma_normal, sigma_position values)
     type Grid = Vec<(bool, Vec<f32>, Vec<f32>, Vec<f32>)>;
@@ -708,15 +788,15 @@ fn sweep() {
             for &sigma_normal in &ns {
                 for &sigma_position in &ps {
                     let s = AtrousSettings {
-                        sigma_color,
-                        sigma_normal,
-                        sigma_position,
+                        sigma_color: Auto::Set(sigma_color),
+                        sigma_normal: Auto::Set(sigma_normal),
+                        sigma_position: Auto::Set(sigma_position),
                         demodulate,
                         ..Default::default()
                     };
-                    let mut f = AtrousFilter::new(gpu.clone(), &s, &cam, SIZE, SIZE).unwrap();
-                    let out = f.run(&up.view()).unwrap();
-                    let e = mse_luv(&out.image, truth()).unwrap();
+                    let mut f = AtrousKernel::new(gpu(), &s, &cam, SIZE, SIZE).unwrap();
+                    let out = f.filter(&frame).unwrap();
+                    let e = mse_luv(&out.image, &truth).unwrap();
                     eprintln!(
                         "demodulate {demodulate} colour {sigma_color} normal {sigma_normal} \
                          position {sigma_position}: {e:.5}"
@@ -732,14 +812,12 @@ fn sweep() {
 #[test]
 #[ignore]
 fn timing() {
-    let (b, cam) = render(&cornell_diffuse_scene(), 512, 512, 1, 1);
+    let (b, cam) = render(&bundled("cornell_diffuse"), 512, 512, 1, 1);
+    let frame = b.frame();
     let gpu = gpu();
-    let up = UploadedBuffers::new(&gpu, &b).unwrap();
     for demodulate in [true, false] {
-        let mut f = AtrousFilter::new(gpu.clone(), &settings(demodulate), &cam, 512, 512).unwrap();
-        let times: Vec<_> = (0..7)
-            .map(|_| f.run(&up.view()).unwrap().kernel_time)
-            .collect();
+        let mut f = AtrousKernel::new(gpu.clone(), &settings(demodulate), &cam, 512, 512).unwrap();
+        let times: Vec<_> = (0..7).map(|_| f.filter(&frame).unwrap().time()).collect();
         let (lo, med, hi) = noisefree::filters::time_summary(&times).unwrap();
         eprintln!(
             "{} 512x512 demodulate {demodulate}: min {lo:?} median {med:?} max {hi:?}",

@@ -5,26 +5,46 @@
 mod common;
 
 use common::*;
-use noisefree::filters::UploadedBuffers;
-use noisefree::filters::ddf::{DdfFilter, DdfSettings, DirectionTerm, Variant, reference};
+use noisefree::filters::Auto;
+use noisefree::filters::ddf::{DdfKernel, DdfSettings, DirectionTerm, Variant, reference};
 use noisefree::imaging::RgbImage;
-use noisefree::layout::{FilterVector, GBuffer, SKY_DEPTH};
+use noisefree::layout::outputs::{Output, OutputSet};
+use noisefree::layout::{FilterVector, SKY_DEPTH};
 use noisefree::metrics::mse_luv;
-use noisefree::stats::PixelBuffers;
 
-const VARIANTS: [Variant; 4] = [
-    Variant::Naive,
-    Variant::Vector,
-    Variant::Rows { work_group: 64 },
-    Variant::Rows { work_group: 256 },
+/// Every kernel variant: (variant, work-group of the rows variant).
+const VARIANTS: [(Variant, u32); 4] = [
+    (Variant::Naive, 64),
+    (Variant::Vector, 64),
+    (Variant::Rows, 64),
+    (Variant::Rows, 256),
 ];
 
-fn device(b: &PixelBuffers, s: &DdfSettings, v: Variant) -> RgbImage {
-    let gpu = gpu();
-    let up = UploadedBuffers::new(&gpu, b).unwrap();
-    let mut f = DdfFilter::new(gpu, s, v, b.width, b.height).unwrap();
-    f.run(&up.view()).unwrap().image
+fn label((v, wg): (Variant, u32)) -> String {
+    match v {
+        Variant::Rows => format!("rows/{wg}"),
+        _ => format!("{v:?}").to_lowercase(),
+    }
 }
+
+/// The device kernel of variant `v` with settings `s` on `b`.
+fn device(b: &Buffers, s: &DdfSettings, (variant, work_group): (Variant, u32)) -> RgbImage {
+    let s = DdfSettings {
+        variant,
+        work_group,
+        ..s.clone()
+    };
+    let mut f = DdfKernel::new(gpu(), &s, b.width, b.height).unwrap();
+    f.filter(&b.frame()).unwrap().image
+}
+
+const ROWS: (Variant, u32) = (Variant::Rows, 64);
+
+/// Largest relative difference allowed between a device kernel and the Rust reference.
+/// Measured on PoCL (CPU): at most 2.8e-7 (every_variant_matches_the_rust_reference, kw 21,
+/// holes, difference direction term; 0 on the synthetic images). The bound is 3.5x that, a few
+/// float32 ulps, leaving room for OpenCL's exp (3 ulp allowed) on other devices.
+const MAX_REL_TO_REFERENCE: f32 = 1e-6;
 
 fn max_rel_diff(a: &RgbImage, b: &RgbImage) -> f32 {
     a.pixels
@@ -44,7 +64,7 @@ fn assert_finite(img: &RgbImage, what: &str) {
 }
 
 /// Rendered buffers of a small textured Cornell box with a mirror (so texture2 varies).
-fn rendered(w: u32, h: u32, spp: u32, seed: u32) -> PixelBuffers {
+fn rendered(w: u32, h: u32, spp: u32, seed: u32) -> Buffers {
     let extra = r#"
 [[material]]
 name = "mirror"
@@ -63,16 +83,14 @@ material = "red"
 "#;
     let scene = scene_from_toml(&cornell("max_depth = 3", extra));
     let mut o = options(&scene, w, h, seed);
-    o.outputs.features = true;
-    o.outputs.variance = true;
-    let mut r = noisefree::render::Renderer::new(gpu(), &scene, &o).unwrap();
-    r.render_samples(spp).unwrap();
-    r.read_buffers().unwrap()
+    o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
+    Buffers::of_frame(&render_frame(&scene, &o, spp))
 }
 
 #[test]
 fn every_variant_matches_the_rust_reference() {
     let b = rendered(70, 45, 8, 1); // widths that are no multiple of the work-groups
+    let mut worst = 0f32;
     for holes in [false, true] {
         for kw in [1, 7, 9, 21] {
             for direction in [DirectionTerm::Thesis, DirectionTerm::Difference] {
@@ -82,38 +100,31 @@ fn every_variant_matches_the_rust_reference() {
                     direction,
                     ..Default::default()
                 };
-                let want = reference(&b, &s).unwrap();
+                let want = reference(&b.frame(), &s).unwrap();
                 assert_finite(&want, "reference");
                 for v in VARIANTS {
                     let got = device(&b, &s, v);
                     let d = max_rel_diff(&got, &want);
+                    worst = worst.max(d);
                     assert!(
-                        d <= 1e-4,
+                        d <= MAX_REL_TO_REFERENCE,
                         "{} kw {kw} holes {holes} {direction:?}: max relative difference {d:e}",
-                        v.label()
+                        label(v)
                     );
                 }
             }
         }
     }
+    eprintln!("largest relative difference from the reference: {worst:e}");
 }
 
-/// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector, variances zero.
-fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> PixelBuffers {
+/// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector, variances zero, scene size 100.
+fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> Buffers {
     let filter_vectors: Vec<_> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| f(x, y))
         .collect();
-    let n = filter_vectors.len();
-    PixelBuffers {
-        width: w,
-        height: h,
-        spp: 8,
-        filter_vectors,
-        variances: Some(vec![GBuffer::default(); n]),
-        directions: Some(vec![[0.0; 3]; n]),
-        scene_size: 100.0,
-    }
+    Buffers::new(w, h, filter_vectors, 100.0)
 }
 
 fn fv(direct: f32, indirect: f32, depth: f32, albedo: f32) -> FilterVector {
@@ -130,6 +141,7 @@ fn fv(direct: f32, indirect: f32, depth: f32, albedo: f32) -> FilterVector {
 #[test]
 fn constant_image_stays_constant() {
     let b = synthetic(33, 17, |_, _| fv(0.3, 0.2, 5.0, 0.7));
+    let mut worst = 0f32;
     for v in VARIANTS {
         for holes in [false, true] {
             let out = device(
@@ -142,11 +154,15 @@ fn constant_image_stays_constant() {
             );
             for p in &out.pixels {
                 for c in p {
-                    assert!((c - 0.5).abs() < 1e-5, "{}: {c}", v.label());
+                    worst = worst.max((c - 0.5).abs());
+                    // Measured: at most 1.13e-6 from 0.5 (rounding of the 441-term weighted
+                    // sums); bound 1.8x that.
+                    assert!((c - 0.5).abs() < 2e-6, "{}: {c}", label(v));
                 }
             }
         }
     }
+    eprintln!("largest distance from 0.5: {worst:e}");
 }
 
 #[test]
@@ -198,11 +214,8 @@ fn hard_edges_in_depth_normal_and_texture_are_kept() {
     ];
     for (what, f) in cases {
         let b = synthetic(32, 16, f);
-        let out = device(
-            &b,
-            &DdfSettings::default(),
-            Variant::Rows { work_group: 64 },
-        );
+        let out = device(&b, &DdfSettings::default(), ROWS);
+        let mut worst = 0f32;
         for y in 0..16 {
             for x in 0..32u32 {
                 let want = if x < 16 {
@@ -211,85 +224,133 @@ fn hard_edges_in_depth_normal_and_texture_are_kept() {
                     0.8 + 0.04 + 0.1
                 };
                 let got = out.pixels[(y * 32 + x) as usize][0];
+                worst = worst.max((got - want).abs());
+                // Measured: at most 5.9e-4 from the side's mean in all three cases (the noise
+                // pattern does not average to exactly 0.04 over every window); bound 1.7x
+                // that. Bleeding across the edge would move pixels by up to 0.3.
                 assert!(
-                    (got - want).abs() < 0.05,
+                    (got - want).abs() < 1e-3,
                     "{what} edge bled at ({x},{y}): {got} vs {want}"
                 );
             }
         }
+        eprintln!("{what} edge: largest distance from the side's mean {worst:e}");
     }
 }
 
-/// The bundled Cornell diffuse scene at a small size: the filtered 8-spp image is closer to a
-/// 1024-spp reference than the unfiltered one.
-fn cornell_diffuse(w: u32, h: u32, spp: u32, seed: u32) -> PixelBuffers {
-    let scene = noisefree::scene::load_scene(&repo_path("scenes/cornell_diffuse.toml")).unwrap();
+/// A bundled scene's buffers (features and variances) at a small size.
+fn bundled(name: &str, w: u32, h: u32, spp: u32, seed: u32) -> Buffers {
+    let scene = noisefree::scene::load_scene(&repo_path(&format!("scenes/{name}.toml"))).unwrap();
     let mut o = options(&scene, w, h, seed);
-    o.outputs.features = true;
-    o.outputs.variance = true;
-    let mut r = noisefree::render::Renderer::new(gpu(), &scene, &o).unwrap();
-    r.render_samples(spp).unwrap();
-    r.read_buffers().unwrap()
+    o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
+    Buffers::of_frame(&render_frame(&scene, &o, spp))
 }
 
+/// The filtered 8-spp image of a bundled scene is much closer to a 1024-spp reference than the
+/// unfiltered one. The scene is Cornell plane, and the seeds 11 (noisy) and 100 (reference):
+/// the variance-scale defaults were chosen on Cornell diffuse (with and without depth of
+/// field), Cornell glossy and Outside at seed 7, so this checks them on a scene and with
+/// random numbers they were not fitted to (kw and the sigmas are Table 7.2's). The settings
+/// are specialised to the scene as `noisefree render --filter ddf` does (texture2 on for its
+/// mirror and glass, no sky branch without an environment light).
 #[test]
-fn filtering_lowers_the_error_on_cornell_diffuse() {
+fn filtering_lowers_the_error_on_a_scene_not_used_for_tuning() {
     // kw = 21 (Table 7.2) was chosen for 512 x 512; at 64 x 64 it covers a third of the image
-    // and blurs the bricks. 128 x 128 keeps the test quick and the textures resolvable.
+    // and blurs the textures. 128 x 128 keeps the test quick and the textures resolvable.
     let (w, h) = (128, 128);
-    let truth = cornell_diffuse(w, h, 1024, 100).beauty();
-    let noisy = cornell_diffuse(w, h, 8, 7);
+    let truth = bundled("cornell_plane", w, h, 1024, 100).beauty();
+    let noisy = bundled("cornell_plane", w, h, 8, 11);
     // The thesis's metric, MSE in CIELUV (§5.2.2): linear-RGB MSE is dominated by the
     // anti-aliased edge of the bright light panel, which no filter is meant to change.
     let unfiltered = mse_luv(&noisy.beauty(), &truth).unwrap();
-    for holes in [false, true] {
-        let filtered = device(
-            &noisy,
-            &DdfSettings {
-                holes,
-                ..Default::default()
-            },
-            Variant::Rows { work_group: 64 },
+    // Measured filtered / unfiltered MSE, seed 11: 0.399 without holes, 0.466 with; over
+    // seeds 11-15: 0.394-0.417 (mean 0.408, sd 0.010) and 0.466-0.489 (mean 0.477, sd
+    // 0.009). Bounds: the seed-11 value plus about five standard deviations of the spread
+    // across seeds (1.13x and 1.14x the seed-11 value). On Cornell diffuse (a tuning scene)
+    // the ratio is 0.29-0.30 (seeds 7, 11, 12, 13).
+    for (holes, bound) in [(false, 0.45), (true, 0.53)] {
+        let mut s = DdfSettings {
+            holes,
+            ..Default::default()
+        };
+        <noisefree::filters::ddf::Ddf as noisefree::filters::FilterKind>::specialise(
+            &mut s,
+            &noisy.scene,
         );
+        assert_eq!(
+            (s.texture2, s.sky),
+            (Auto::Set(true), Auto::Set(false)),
+            "Cornell plane has a mirror and glass, and no environment light"
+        );
+        let filtered = device(&noisy, &s, ROWS);
         let e = mse_luv(&filtered, &truth).unwrap();
-        eprintln!("holes {holes}: filtered MSE {e:.5}, unfiltered {unfiltered:.5}");
+        eprintln!(
+            "holes {holes}: filtered MSE {e:.5}, unfiltered {unfiltered:.5}, ratio {:.4}",
+            e / unfiltered
+        );
         assert!(
-            e < 0.8 * unfiltered,
-            "holes {holes}: filtered MSE {e} vs unfiltered {unfiltered}"
+            e < bound * unfiltered,
+            "holes {holes}: filtered MSE {e} vs unfiltered {unfiltered} (ratio {:.4} >= {bound})",
+            e / unfiltered
         );
     }
 }
 
 #[test]
 fn sky_pixels_pass_through_bit_exactly() {
+    // A sky whose colour changes from pixel to pixel: sky pixels share their (sentinel) depth
+    // and features, so without the special case they are averaged with each other.
     let b = synthetic(20, 10, |x, y| {
         if (x + y) % 3 == 0 {
-            fv(0.123_456_7, 0.765_432_1, SKY_DEPTH, 0.0)
+            fv(
+                0.1 + 0.037 * x as f32,
+                0.7 - 0.051 * y as f32,
+                SKY_DEPTH,
+                0.0,
+            )
         } else {
             fv(0.5, 0.25, 4.0, 0.5)
         }
     });
     let beauty = b.beauty();
+    let sky = |i: usize| b.filter_vectors[i].depth >= SKY_DEPTH;
     for v in VARIANTS {
         let out = device(&b, &DdfSettings::default(), v);
-        for (i, f) in b.filter_vectors.iter().enumerate() {
-            if f.depth >= SKY_DEPTH {
-                assert_eq!(
-                    out.pixels[i].map(f32::to_bits),
-                    beauty.pixels[i].map(f32::to_bits),
-                    "{}",
-                    v.label()
-                );
-            }
+        for i in (0..beauty.pixels.len()).filter(|&i| sky(i)) {
+            assert_eq!(
+                out.pixels[i].map(f32::to_bits),
+                beauty.pixels[i].map(f32::to_bits),
+                "{}",
+                label(v)
+            );
         }
     }
-    // Without the special case the sky is filtered like anything else (and differs).
+    // Without the special case the sky is filtered like anything else: as the reference
+    // filters it, and visibly changed.
     let s = DdfSettings {
-        sky: false,
+        sky: Auto::Set(false),
         ..Default::default()
     };
-    let out = device(&b, &s, Variant::Vector);
-    assert!(out.pixels.iter().zip(&beauty.pixels).any(|(a, b)| a != b));
+    let want = reference(&b.frame(), &s).unwrap();
+    let mut moved = 0f32;
+    for i in (0..beauty.pixels.len()).filter(|&i| sky(i)) {
+        for c in 0..3 {
+            moved = moved.max((want.pixels[i][c] - beauty.pixels[i][c]).abs());
+        }
+    }
+    // Measured: the largest change of a sky pixel is 0.345; bound at 0.25 (0.7x).
+    assert!(
+        moved > 0.25,
+        "without the special case the sky should be filtered: largest change {moved}"
+    );
+    for v in VARIANTS {
+        let d = max_rel_diff(&device(&b, &s, v), &want);
+        assert!(
+            d <= MAX_REL_TO_REFERENCE,
+            "sky off, {}: {d:e} from the reference",
+            label(v)
+        );
+    }
 }
 
 /// As printed, eq. 6.14's factor exp(-sigma2_f,3) is the same for every neighbour and cancels
@@ -304,20 +365,23 @@ fn printed_direction_factor_cancels() {
             ..Default::default()
         };
         s.sigma_f[3] = sigma;
-        device(&b, &s, Variant::Vector)
+        device(&b, &s, (Variant::Vector, 64))
     };
     let a = with(DirectionTerm::Thesis, 0.1);
     let c = with(DirectionTerm::Thesis, 10.0);
+    // Measured: 1.04e-6 (rounding: the cancelling factor scales every weight); bound 1.9x.
     assert!(
-        max_rel_diff(&a, &c) < 1e-5,
-        "sigma_f direction changed the thesis filter: {}",
+        max_rel_diff(&a, &c) < 2e-6,
+        "sigma_f direction changed the thesis filter: {:e}",
         max_rel_diff(&a, &c)
     );
     let d = with(DirectionTerm::Difference, 0.1);
     let e = with(DirectionTerm::Difference, 10.0);
+    // Measured: some pixel changes by 98 % (relative); bound at about half that.
     assert!(
-        max_rel_diff(&d, &e) > 1e-2,
-        "the difference variant should depend on sigma_f direction"
+        max_rel_diff(&d, &e) > 0.5,
+        "the difference variant should depend on sigma_f direction: {}",
+        max_rel_diff(&d, &e)
     );
 }
 
@@ -339,10 +403,11 @@ fn holes_with_an_odd_half_still_include_the_centre() {
     for v in VARIANTS {
         let out = device(&b, &s, v);
         assert_finite(&out, "holes");
+        // Measured: 0 (bit-identical: the centre's weight is exp(0) = 1, the others 0).
         assert!(
-            max_rel_diff(&out, &want) < 1e-5,
+            max_rel_diff(&out, &want) <= MAX_REL_TO_REFERENCE,
             "{}: the centre was not kept",
-            v.label()
+            label(v)
         );
     }
 }
@@ -358,36 +423,60 @@ fn tiny_images_wide_kernels_and_underflow() {
                 kw,
                 ..Default::default()
             };
-            let want = reference(&b, &s).unwrap();
+            let want = reference(&b.frame(), &s).unwrap();
             for v in VARIANTS {
                 let out = device(&b, &s, v);
                 assert_finite(&out, "tiny");
+                // Measured: 0 (bit-identical).
                 assert!(
-                    max_rel_diff(&out, &want) <= 1e-4,
+                    max_rel_diff(&out, &want) <= MAX_REL_TO_REFERENCE,
                     "{w}x{h} kw {kw} {}",
-                    v.label()
+                    label(v)
                 );
             }
             if kw == 1 {
+                // Measured: 0. The only weight w gives w x / w: at most two roundings.
                 assert!(
-                    max_rel_diff(&want, &b.beauty()) < 1e-6,
+                    max_rel_diff(&want, &b.beauty()) <= 2.5e-7,
                     "kw 1 must return the input"
                 );
             }
         }
     }
-    // Every weight underflows, the centre's too (the printed direction factor with a tiny
-    // sigma_f): the pixel keeps its own colour instead of 0/0.
+    // Every indirect weight underflows, the centre's too (the printed direction factor with a
+    // tiny sigma_f): the pixel keeps its own indirect colour instead of 0/0. Direct light is
+    // filtered normally: sigma_f direction weights only indirect light, so the direct half is
+    // the default filter's output on the same buffers without indirect light.
     let b = synthetic(8, 8, |x, y| fv(0.1 * x as f32, 0.05 * y as f32, 3.0, 0.5));
     let mut s = DdfSettings::default();
     s.sigma_f[3] = 1e-6;
+    let want = reference(&b.frame(), &s).unwrap();
+    assert_finite(&want, "underflow reference");
+    let mut dark = b.clone();
+    for f in &mut dark.filter_vectors {
+        f.indirect = [0.0; 3];
+    }
+    let direct = reference(&dark.frame(), &DdfSettings::default()).unwrap();
+    for (i, f) in b.filter_vectors.iter().enumerate() {
+        let expected: [f32; 3] = std::array::from_fn(|c| direct.pixels[i][c] + f.indirect[c]);
+        assert_eq!(
+            want.pixels[i].map(f32::to_bits),
+            expected.map(f32::to_bits),
+            "underflow, pixel {i}: the reference gave {:?}, filtered direct + own indirect is \
+             {expected:?}",
+            want.pixels[i]
+        );
+    }
     for v in VARIANTS {
         let out = device(&b, &s, v);
         assert_finite(&out, "underflow");
-        // Direct light is filtered normally; indirect falls back to the pixel's own.
-        for (o, f) in out.pixels.iter().zip(&b.filter_vectors) {
-            assert!(o[1] >= f.indirect[1] - 1e-6);
-        }
+        let d = max_rel_diff(&out, &want);
+        // Measured: 0 (bit-identical).
+        assert!(
+            d <= MAX_REL_TO_REFERENCE,
+            "underflow, {}: {d:e} from the reference",
+            label(v)
+        );
     }
 }
 
@@ -397,7 +486,7 @@ fn tiny_images_wide_kernels_and_underflow() {
 fn depth_weights_do_not_depend_on_the_scene_units() {
     let b = rendered(40, 30, 8, 5);
     let mut scaled = b.clone();
-    scaled.scene_size *= 1000.0;
+    scaled.scene.scene_size *= 1000.0;
     for f in &mut scaled.filter_vectors {
         if f.depth < SKY_DEPTH {
             f.depth *= 1000.0;
@@ -407,12 +496,19 @@ fn depth_weights_do_not_depend_on_the_scene_units() {
         g.depth *= 1.0e6;
     }
     let s = DdfSettings::default();
-    let (a, c) = (reference(&b, &s).unwrap(), reference(&scaled, &s).unwrap());
+    let (a, c) = (
+        reference(&b.frame(), &s).unwrap(),
+        reference(&scaled.frame(), &s).unwrap(),
+    );
+    // Measured: 1.1e-6 (the scaled depths round differently); bound 1.8x.
     assert!(
-        max_rel_diff(&a, &c) < 1e-3,
-        "units changed the filter: {}",
+        max_rel_diff(&a, &c) < 2e-6,
+        "units changed the filter: {:e}",
         max_rel_diff(&a, &c)
     );
-    let d = device(&scaled, &s, Variant::Rows { work_group: 64 });
-    assert!(max_rel_diff(&d, &a) < 1e-3);
+    let d = device(&scaled, &s, ROWS);
+    // Measured: 2.4e-7 from the reference on the same (scaled) buffers, 1.1e-6 from the
+    // unscaled ones.
+    assert!(max_rel_diff(&d, &c) <= MAX_REL_TO_REFERENCE);
+    assert!(max_rel_diff(&d, &a) < 2e-6 + MAX_REL_TO_REFERENCE);
 }

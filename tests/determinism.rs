@@ -6,6 +6,7 @@ mod common;
 
 use common::*;
 use noisefree::layout::Float4;
+use noisefree::layout::outputs::{Output, OutputSet};
 use noisefree::render::SceneArrays;
 use noisefree::render::cpu::rng::{rng_sample_key, rng_uniform};
 use noisefree::render::cpu::sampling::camera_ray;
@@ -30,7 +31,7 @@ material = "glass"
 fn same_seed_same_bytes_any_work_group_size_and_batching() {
     let scene = test_scene();
     let mut base = options(&scene, 37, 23, 9); // sizes that are no multiple of any group
-    base.outputs.features = true;
+    base.outputs = OutputSet::of(&[Output::Features]);
     let reference = film_bytes(&render_film(&scene, &base, 12, 12));
     for (local, batch) in [
         (None, 1),

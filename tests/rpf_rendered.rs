@@ -1,34 +1,31 @@
 //! Random Parameter Filtering on real renders (the sample vectors the megakernel writes): on
 //! the bundled Cornell diffuse scene it lowers the error against a high-spp reference, and a
-//! scene scaled by 1000 (same image) filters to the same error within 10% (the thesis's scale
-//! experiment, Table 5.4).
+//! scene scaled by 1000 (same image) filters to the same error within 1% (the thesis's scale
+//! experiment, Table 5.4, allows 10%).
 
 mod common;
 
 use common::*;
 use noisefree::filters::rpf::{self, RpfSettings, SampleSet};
 use noisefree::imaging::RgbImage;
+use noisefree::layout::outputs::{Output, OutputSet};
 use noisefree::metrics::mse_luv;
-use noisefree::render::Renderer;
 use noisefree::scene::Scene;
 
 fn rendered_samples(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> (SampleSet, RgbImage) {
     let mut o = options(scene, w, h, seed);
-    o.outputs.sample_vectors = Some(spp);
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap();
-    r.render_samples(spp).unwrap();
-    let (n, samples) = r.read_sample_vectors().unwrap();
+    o.outputs = OutputSet::of(&[Output::Samples]);
+    o.sample_capacity = spp;
+    let frame = render_frame(scene, &o, spp);
     (
-        SampleSet::new(w, h, n, samples).unwrap(),
-        r.read_buffers().unwrap().beauty(),
+        SampleSet::from_frame(&frame, Default::default()).unwrap(),
+        frame.beauty().unwrap(),
     )
 }
 
 fn reference(scene: &Scene, w: u32, h: u32) -> RgbImage {
     let o = options(scene, w, h, 1000);
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap();
-    r.render_samples(1024).unwrap();
-    r.read_buffers().unwrap().beauty()
+    render_frame(scene, &o, 1024).beauty().unwrap()
 }
 
 #[test]
@@ -44,8 +41,11 @@ fn rpf_lowers_the_error_on_cornell_diffuse_and_ignores_the_scene_scale() {
         mse_luv(&filtered, &truth).unwrap(),
     );
     eprintln!("Cornell diffuse 64x64, 8 spp: MSE-LUV {before:.2} unfiltered, {after:.2} RPF");
+    // RPF's parameters are the thesis's (§5.1), not tuned on this scene. Measured (PoCL,
+    // seed 7): 33.82 -> 24.53, a ratio of 0.725 (the pre-redesign binary measured the same).
+    // The bound keeps about two thirds of that 27.5 % reduction: 0.82.
     assert!(
-        after < 0.9 * before,
+        after < 0.82 * before,
         "RPF did not lower the error: {after} vs {before}"
     );
 
@@ -54,8 +54,12 @@ fn rpf_lowers_the_error_on_cornell_diffuse_and_ignores_the_scene_scale() {
     let (set_big, _) = rendered_samples(&scene.scaled(1000.0), w, h, 8, 7);
     let filtered_big = rpf::filter(&set_big, &settings).unwrap();
     let after_big = mse_luv(&filtered_big, &truth).unwrap();
+    eprintln!("scaled x1000: MSE-LUV {after_big:.3} RPF (unscaled {after:.3})");
+    // Measured: 24.519 vs 24.526, 0.03 % apart. The thesis's Table 5.4 allows 10 %; the bound
+    // is 1 %, which leaves room for the renderer itself (its scale-1000 image is up to ~0.8 %
+    // darker, tests/atrous.rs) but not for a normalisation that misses the scale.
     assert!(
-        (after_big - after).abs() < 0.1 * after,
+        (after_big - after).abs() < 0.01 * after,
         "scale changed RPF's error: {after_big} vs {after}"
     );
 }

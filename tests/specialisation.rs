@@ -6,6 +6,7 @@ mod common;
 
 use common::*;
 use noisefree::gpu::{BuildSource, Gpu};
+use noisefree::layout::outputs::{Output, OutputSet};
 use noisefree::render::{DEBUG_COUNTERS, Renderer};
 
 fn bundled_scenes() -> Vec<std::path::PathBuf> {
@@ -25,8 +26,7 @@ fn specialised_kernels_render_the_generic_kernels_bytes() {
     for path in bundled_scenes() {
         let scene = noisefree::scene::load_scene(&path).unwrap();
         let mut o = options(&scene, 24, 16, 3);
-        o.outputs.features = true;
-        o.outputs.variance = true;
+        o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
         let specialised = film_bytes(&render_film(&scene, &o, 3, 3));
         o.all_features = true;
         let generic = film_bytes(&render_film(&scene, &o, 3, 3));
@@ -99,7 +99,7 @@ fn absent_effects_never_run() {
     );
     // And the feature set says why.
     let scene = scene_from_toml(&pinhole_no_glass);
-    let set = noisefree::render::FeatureSet::for_scene(&scene, Default::default());
+    let set = noisefree::render::FeatureSet::for_scene(&scene, OutputSet::colour());
     for off in [
         "HAS_GLASS",
         "HAS_DOF",
@@ -107,6 +107,7 @@ fn absent_effects_never_run() {
         "HAS_SPHERES",
         "OUTPUT_FEATURES",
         "OUTPUT_VARIANCE",
+        "OUTPUT_POSITION",
         "OUTPUT_SAMPLES",
     ] {
         assert!(!set.is_on(off), "{off} should be off");
@@ -146,8 +147,8 @@ fn kernel_binaries_are_cached_on_disk_and_invalidated_by_changes() {
     a.render_samples(2).unwrap();
     b.render_samples(2).unwrap();
     assert_eq!(
-        film_bytes(&a.read_film().unwrap()),
-        film_bytes(&b.read_film().unwrap())
+        film_bytes(a.frame().filter_vectors().unwrap()),
+        film_bytes(b.frame().filter_vectors().unwrap())
     );
 
     // Another option or another source text is another program.

@@ -4,6 +4,7 @@
 mod common;
 
 use common::*;
+use noisefree::layout::outputs::{Output, OutputSet};
 use noisefree::render::SceneArrays;
 use noisefree::render::cpu::pathtrace::{ReferenceOptions, render as reference_render};
 
@@ -44,7 +45,7 @@ fn white_furnace_diffuse_sphere_is_one() {
             "type = \"diffuse\"\ncolor = [{albedo}, {albedo}, {albedo}]"
         )));
         let mut opts = options(&scene, 32, 32, 3);
-        opts.outputs.features = true; // depth tells sphere pixels from sky pixels
+        opts.outputs = OutputSet::of(&[Output::Features]); // depth tells sphere pixels from sky pixels
         let film = render_film(&scene, &opts, 64, 64);
         let img = beauty(&film);
         // Only pixels whose every sample hit the sphere (the sky is exactly 1 anyway).
@@ -241,7 +242,7 @@ material = "metal"
 "#;
     let scene = scene_from_toml(&cornell("max_depth = 2", extra));
     let mut opts = options(&scene, 24, 24, 77);
-    opts.outputs.features = true;
+    opts.outputs = OutputSet::of(&[Output::Features]);
     let spp = 16;
     let film = render_film(&scene, &opts, spp, spp);
     let arrays = SceneArrays::build(&scene, &opts.frame).unwrap();

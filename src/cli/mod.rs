@@ -58,38 +58,21 @@ pub fn main() -> i32 {
 /// Runs the command line with the filters of `registry`; returns the process exit code.
 pub fn main_with(registry: &Registry) -> i32 {
     let matches = command(registry).get_matches();
-    let mut cli = match Cli::from_arg_matches(&matches) {
+    let cli = match parse(registry, &matches) {
         Ok(c) => c,
         Err(e) => e.exit(),
     };
-    if let Some((_, sub)) = matches.subcommand() {
-        let settings = registry.flag_tables(sub);
-        match &mut cli.command {
-            Command::Render(a) => a.settings = settings,
-            Command::Filter(a) => a.settings = settings,
-            _ => {}
+    if matches!(cli.command, Command::Bench(_)) {
+        // "Cold" kernel builds must not come from the driver's own caches. Set before the
+        // first OpenCL call, while the process has one thread.
+        for (var, value) in [("POCL_KERNEL_CACHE", "0"), ("CUDA_CACHE_DISABLE", "1")] {
+            if std::env::var_os(var).is_none() {
+                // SAFETY: no other thread exists yet that could read the environment.
+                unsafe { std::env::set_var(var, value) };
+            }
         }
     }
-    let result = match cli.command {
-        Command::Devices => devices(),
-        Command::Render(args) => render(&args, registry).map(|_| ()),
-        Command::Filter(args) => filter_cmd::run(&args, registry),
-        Command::Compare(args) => tools::compare(&args),
-        Command::Reference(args) => tools::reference(&args),
-        Command::Bench(args) => {
-            // "Cold" kernel builds must not come from the driver's own caches. Set before the
-            // first OpenCL call, while the process has one thread.
-            for (var, value) in [("POCL_KERNEL_CACHE", "0"), ("CUDA_CACHE_DISABLE", "1")] {
-                if std::env::var_os(var).is_none() {
-                    // SAFETY: no other thread exists yet that could read the environment.
-                    unsafe { std::env::set_var(var, value) };
-                }
-            }
-            crate::bench::run(&args)
-        }
-        Command::Cache(args) => tools::cache(&args),
-    };
-    match result {
+    match execute(cli, registry) {
         Ok(()) => 0,
         Err(e) if e.is::<render_cmd::Interrupted>() => {
             eprintln!("{e}");
@@ -99,6 +82,42 @@ pub fn main_with(registry: &Registry) -> i32 {
             eprintln!("error: {e:#}");
             1
         }
+    }
+}
+
+/// Parses `args` (the program name first) and runs the command with the filters of
+/// `registry`: the command line as a library call (tests, plug-ins).
+pub fn run_args<I, T>(registry: &Registry, args: I) -> Result<()>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let matches = command(registry).try_get_matches_from(args)?;
+    execute(parse(registry, &matches)?, registry)
+}
+
+fn parse(registry: &Registry, matches: &clap::ArgMatches) -> Result<Cli, clap::Error> {
+    let mut cli = Cli::from_arg_matches(matches)?;
+    if let Some((_, sub)) = matches.subcommand() {
+        let settings = registry.flag_tables(sub);
+        match &mut cli.command {
+            Command::Render(a) => a.settings = settings,
+            Command::Filter(a) => a.settings = settings,
+            _ => {}
+        }
+    }
+    Ok(cli)
+}
+
+fn execute(cli: Cli, registry: &Registry) -> Result<()> {
+    match cli.command {
+        Command::Devices => devices(),
+        Command::Render(args) => render(&args, registry).map(|_| ()),
+        Command::Filter(args) => filter_cmd::run(&args, registry),
+        Command::Compare(args) => tools::compare(&args),
+        Command::Reference(args) => tools::reference(&args),
+        Command::Bench(args) => crate::bench::run(&args),
+        Command::Cache(args) => tools::cache(&args),
     }
 }
 

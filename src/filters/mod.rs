@@ -107,9 +107,9 @@ impl<K: FilterKind> Filter for K {
     }
 
     fn configure(&self, requested: toml::Table, scene: &SceneInfo) -> Result<Configured> {
-        let what = format!("[filter.{}]", K::NAME);
-        let mut typed: K::Settings = settings::from_table(&requested, &what)?;
-        K::check(&typed).map_err(|e| e.context(what.clone()))?;
+        // The registry says which layer a bad setting came from (scene file, command line).
+        let mut typed: K::Settings = settings::from_table(&requested)?;
+        K::check(&typed)?;
         let notes = K::specialise(&mut typed, scene);
         Ok(Configured::new::<K>(requested, typed, notes))
     }

@@ -36,6 +36,15 @@ pub struct Configured {
     prepare: Box<Prepare>,
 }
 
+impl std::fmt::Debug for Configured {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Configured")
+            .field("name", &self.name)
+            .field("effective", &self.effective)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Configured {
     pub(super) fn new<K: FilterKind>(
         requested: toml::Table,
@@ -288,7 +297,7 @@ impl Registry {
                     .get(name)
                     .map(|l| format!(":{l}"))
                     .unwrap_or_default();
-                return Err(e.context(format!("{}{at}", req.scene_origin)));
+                return Err(e.context(format!("{}{at}: [filter.{name}]", req.scene_origin)));
             }
         }
         if let Some(t) = req.flags.get(name) {
@@ -300,9 +309,15 @@ impl Registry {
                 .collect();
             return filter
                 .configure(requested, scene)
-                .with_context(|| format!("on the command line ({})", flags.join(" ")));
+                .with_context(|| flags.join(" "));
         }
-        filter.configure(requested, scene)
+        let result = filter.configure(requested, scene);
+        if req.recorded.contains_key(name) {
+            result
+                .with_context(|| format!("the settings of the {name} filter recorded in the file"))
+        } else {
+            result
+        }
     }
 
     /// Every filter configured from `req` (so that an AOV file records settings for each).
@@ -393,5 +408,76 @@ mod tests {
         req.scene.insert("dff".into(), table("kw", 9));
         let e = r.check_request(&req).unwrap_err().to_string();
         assert!(e.contains("[filter.dff]") && e.contains("ddf"), "{e}");
+    }
+
+    /// scenes/README.md documents every filter's settings in a table; its defaults must be the
+    /// ones the settings structs declare (the one place defaults are written).
+    #[test]
+    fn scene_file_reference_states_the_declared_defaults() {
+        let doc = include_str!("../../scenes/README.md");
+        let r = Registry::builtin();
+        let section = &doc[doc.find("### `[filter]`").expect("the [filter] section")..];
+        let mut table = None;
+        let mut checked = 0;
+        let same = |a: &toml::Value, b: &toml::Value| -> bool {
+            match (a, b) {
+                (toml::Value::Array(x), toml::Value::Array(y)) => {
+                    x.len() == y.len()
+                        && x.iter().zip(y).all(|(p, q)| {
+                            display_value(p) == display_value(q)
+                                || p.as_float().or(p.as_integer().map(|i| i as f64))
+                                    == q.as_float().or(q.as_integer().map(|i| i as f64))
+                        })
+                }
+                _ => a
+                    .as_float()
+                    .or(a.as_integer().map(|i| i as f64))
+                    .zip(b.as_float().or(b.as_integer().map(|i| i as f64)))
+                    .map_or(a == b, |(p, q)| p == q),
+            }
+        };
+        for line in section.lines().take_while(|l| !l.starts_with("## ")) {
+            let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+            if cells.len() < 5
+                || cells[2].is_empty()
+                || cells[2] == "setting"
+                || cells[2].starts_with("---")
+            {
+                continue;
+            }
+            if let Some(t) = cells[1]
+                .strip_prefix("`[filter.")
+                .and_then(|t| t.strip_suffix("]`"))
+            {
+                table = Some(t.to_string());
+            }
+            let filter = r.get(table.as_deref().expect("a table first")).unwrap();
+            let defaults = filter.defaults();
+            let keys: Vec<&str> = cells[2]
+                .split(',')
+                .map(|k| k.trim().trim_matches('`'))
+                .collect();
+            let lit = cells[3].trim_matches('`');
+            let values: Vec<String> =
+                if keys.len() > 1 && !lit.starts_with('[') && lit.contains(',') {
+                    lit.split(',').map(|v| v.trim().to_string()).collect()
+                } else {
+                    vec![lit.to_string(); keys.len()]
+                };
+            for (k, v) in keys.iter().zip(values) {
+                let Ok(t) = toml::from_str::<toml::Table>(&format!("v = {v}")) else {
+                    continue; // a pointer to the code ("see src/...")
+                };
+                let want = &defaults[*k];
+                assert!(
+                    same(&t["v"], want),
+                    "scenes/README.md: [filter.{}] {k} = {v}, the code says {}",
+                    filter.name(),
+                    display_value(want)
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked >= 15, "only {checked} defaults checked");
     }
 }

@@ -161,11 +161,11 @@ pub fn to_table<S: Serialize>(s: &S) -> toml::Table {
     toml::Table::try_from(s).expect("filter settings serialise to a TOML table")
 }
 
-/// Typed settings from a table; `what` names the table in the error (e.g. "[filter.ddf]").
-pub fn from_table<S: DeserializeOwned>(t: &toml::Table, what: &str) -> Result<S> {
+/// Typed settings from a table; the error names the bad key and what it expects.
+pub fn from_table<S: DeserializeOwned>(t: &toml::Table) -> Result<S> {
     t.clone()
         .try_into()
-        .map_err(|e: toml::de::Error| anyhow!("{what}: {}", e.message().trim()))
+        .map_err(|e: toml::de::Error| anyhow!("{}", e.message().trim()))
 }
 
 /// `base` with every key of `over` replacing its own.
@@ -256,20 +256,18 @@ mod tests {
     fn defaults_tables_and_layers() {
         let d = Demo::default();
         let t = to_table(&d);
-        assert_eq!(from_table::<Demo>(&t, "demo").unwrap(), d);
+        assert_eq!(from_table::<Demo>(&t).unwrap(), d);
         // A partial table keeps the other defaults; an unknown key is an error naming it.
         let mut partial = toml::Table::new();
         partial.insert("count".into(), toml::Value::Integer(7));
-        let got: Demo = from_table(&partial, "[filter.demo]").unwrap();
+        let got: Demo = from_table(&partial).unwrap();
         assert_eq!((got.count, got.sigma), (7, 0.1));
         partial.insert("cuont".into(), toml::Value::Integer(7));
-        let e = from_table::<Demo>(&partial, "[filter.demo]")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("[filter.demo]") && e.contains("cuont"), "{e}");
+        let e = from_table::<Demo>(&partial).unwrap_err().to_string();
+        assert!(e.contains("cuont") && e.contains("`count`"), "{e}");
         // Floats round-trip exactly through TOML text.
         let text = toml::to_string(&t).unwrap();
-        let back: Demo = from_table(&toml::from_str(&text).unwrap(), "x").unwrap();
+        let back: Demo = from_table(&toml::from_str(&text).unwrap()).unwrap();
         assert_eq!(back, d);
     }
 
@@ -291,11 +289,11 @@ mod tests {
         over.insert("switch".into(), v("switch", "true"));
         let mut base = t.clone();
         overlay(&mut base, &over);
-        let d: Demo = from_table(&base, "x").unwrap();
+        let d: Demo = from_table(&base).unwrap();
         assert_eq!((d.list, d.switch), ([1.0, 2.5], Auto::Set(true)));
         let mut bad = t.clone();
         bad.insert("switch".into(), toml::Value::String("maybe".into()));
-        let e = from_table::<Demo>(&bad, "x").unwrap_err().to_string();
+        let e = from_table::<Demo>(&bad).unwrap_err().to_string();
         assert!(e.contains("auto"), "{e}");
     }
 

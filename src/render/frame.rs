@@ -171,7 +171,7 @@ impl HostBuffer {
     fn check<T>(&self) {
         let size = std::mem::size_of::<T>();
         assert!(
-            size > 0 && self.bytes % size == 0 && std::mem::align_of::<T>() <= 64,
+            size > 0 && self.bytes.is_multiple_of(size) && std::mem::align_of::<T>() <= 64,
             "a host buffer of {} bytes viewed as {} ({size} bytes)",
             self.bytes,
             std::any::type_name::<T>()

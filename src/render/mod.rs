@@ -13,10 +13,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context as _, Result};
-use ocl::{Buffer, Event, Kernel};
+use ocl::{Buffer, Kernel};
 
 pub use crate::arrays::{FrameSettings, SceneArrays};
-use crate::gpu::{Gpu, event_duration, round_up};
+use crate::gpu::{Gpu, enqueue, event_duration, round_up};
 use crate::layout::outputs::{BUFFERS, BufferId, Output, OutputSet};
 use crate::layout::{
     BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
@@ -292,15 +292,8 @@ impl Renderer {
         }
         self.kernel.set_arg("sample_base", self.samples_done)?;
         self.kernel.set_arg("sample_count", count)?;
-        let mut event = Event::empty();
         // SAFETY: every buffer argument is alive (owned by self) and sized for the global range.
-        unsafe {
-            self.kernel
-                .cmd()
-                .enew(&mut event)
-                .enq()
-                .context("launching the render kernel")?;
-        }
+        let event = unsafe { enqueue(&self.kernel, "the render kernel")? };
         let kernel_time = event_duration(&event)?;
         let mut counts = vec![0u32; self.ray_counts.len()];
         self.ray_counts.read(&mut counts).enq()?;

@@ -103,7 +103,6 @@ pub fn load_obj_bytes(
         // Points and two-vertex lines would become degenerate triangles.
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let mtl_error: std::cell::RefCell<Option<SceneError>> = Default::default();
     let mtl_folder: std::cell::RefCell<Option<PathBuf>> = Default::default();

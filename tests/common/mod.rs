@@ -438,3 +438,11 @@ pub fn render_frame(scene: &Scene, options: &RenderOptions, spp: u32) -> noisefr
     r.render_samples(spp).unwrap();
     r.frame()
 }
+
+/// A fresh, empty temporary folder for one test (named after it and the process).
+pub fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("noisefree-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}

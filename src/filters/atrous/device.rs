@@ -5,12 +5,11 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
-use ocl::{Buffer, Event, Kernel};
+use ocl::{Buffer, Kernel};
 
 use super::{ALBEDO_EPSILON, AtrousSettings};
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, event_duration};
-use crate::imaging::RgbImage;
+use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AtrousParams, Float4};
 use crate::render::Frame;
@@ -140,35 +139,21 @@ impl AtrousKernel {
         self.init.set_arg("fv", fv)?;
         self.finish.set_arg("fv", fv)?;
         let mut events = Vec::with_capacity(self.passes.len() + 2);
-        // SAFETY: every buffer outlives its launch (we wait for all of them below) and holds
-        // width x height pixels; the in-order queue runs the passes one after the other.
-        unsafe {
-            for k in std::iter::once(&self.init)
-                .chain(&self.passes)
-                .chain(std::iter::once(&self.finish))
-            {
-                let mut event = Event::empty();
-                k.cmd()
-                    .enew(&mut event)
-                    .enq()
-                    .context("launching an a-trous filter pass")?;
-                events.push(event);
-            }
+        for k in std::iter::once(&self.init)
+            .chain(&self.passes)
+            .chain(std::iter::once(&self.finish))
+        {
+            // SAFETY: every buffer outlives its launch (we wait for all of them below) and
+            // holds width x height pixels; the in-order queue runs the passes one by one.
+            events.push(unsafe { enqueue(k, "an a-trous filter pass")? });
         }
         let mut kernel_time = std::time::Duration::ZERO;
         for e in &events {
             kernel_time += event_duration(e)?;
         }
         let result = &self.colour[self.passes.len() % 2];
-        let mut out = vec![Float4::default(); result.len()];
-        result.read(&mut out).enq()?;
-        out.truncate(self.width as usize * self.height as usize);
         Ok(FilterRun {
-            image: RgbImage {
-                width: self.width,
-                height: self.height,
-                pixels: out.iter().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
-            },
+            image: read_rgb(result, self.width, self.height)?,
             wall_time: start.elapsed(),
             kernel_time: Some(kernel_time),
         })

@@ -5,12 +5,11 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
-use ocl::{Buffer, Event, Kernel};
+use ocl::{Buffer, Kernel};
 
 use super::{DdfSettings, DirectionTerm, Variant};
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, event_duration, round_up};
-use crate::imaging::RgbImage;
+use crate::gpu::{Gpu, enqueue, event_duration, read_rgb, round_up};
 use crate::layout::outputs::BufferId;
 use crate::layout::{DdfParams, Float4};
 use crate::render::Frame;
@@ -154,24 +153,11 @@ impl DdfKernel {
             .set_arg("gb", frame.device(&self.gpu, BufferId::WelfordSums)?)?;
         self.kernel
             .set_arg("state", frame.device(&self.gpu, BufferId::WelfordState)?)?;
-        let mut event = Event::empty();
         // SAFETY: all buffers outlive the launch (we wait for it) and hold width x height pixels.
-        unsafe {
-            self.kernel
-                .cmd()
-                .enew(&mut event)
-                .enq()
-                .context("launching the data-driven filter")?;
-        }
+        let event = unsafe { enqueue(&self.kernel, "the data-driven filter")? };
         let kernel_time = event_duration(&event)?;
-        let mut out = vec![Float4::default(); self.out.len()];
-        self.out.read(&mut out).enq()?;
         Ok(FilterRun {
-            image: RgbImage {
-                width: self.width,
-                height: self.height,
-                pixels: out.iter().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
-            },
+            image: read_rgb(&self.out, self.width, self.height)?,
             wall_time: start.elapsed(),
             kernel_time: Some(kernel_time),
         })

@@ -98,7 +98,7 @@ crate::filter_settings! {
 
 impl DdfSettings {
     pub fn validate(&self) -> Result<()> {
-        if self.kw == 0 || self.kw % 2 == 0 {
+        if self.kw == 0 || self.kw.is_multiple_of(2) {
             bail!(
                 "the kernel width kw must be a positive odd number (Table 6.2), got {}",
                 self.kw

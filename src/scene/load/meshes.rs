@@ -156,7 +156,7 @@ fn append_part(
         // |face|^2 must be finite too: with coordinates near 1e19 the cross product is finite
         // but its squared length overflows, and the normal would normalise to zero.
         let area2 = face.length_squared();
-        if !p.iter().all(|v| v.is_finite()) || !(area2 > 0.0 && area2.is_finite()) {
+        if !(p.iter().all(|v| v.is_finite()) && area2 > 0.0 && area2.is_finite()) {
             skipped += 1;
             continue;
         }
