@@ -103,14 +103,16 @@ fn generated_triangles_are_finite_and_not_degenerate() {
 
 #[test]
 fn mesh_complexity() {
+    // scenes/README.md promises about 360,000 and 51,000 triangles (measured: 359,636 and
+    // 51,408); the bounds allow 10 % either way.
     let conference = triangles(&generate_mesh("conference_room", 0).unwrap());
     assert!(
-        conference >= 300_000,
+        (324_000..=396_000).contains(&conference),
         "conference_room has {conference} triangles"
     );
     let airplane = triangles(&generate_mesh("airplane", 0).unwrap());
     assert!(
-        (20_000..=60_000).contains(&airplane),
+        (46_000..=57_000).contains(&airplane),
         "airplane has {airplane} triangles"
     );
     assert_eq!(triangles(&generate_mesh("box", 0).unwrap()), 12);
@@ -218,7 +220,7 @@ fn committed_textures_match_the_generator() {
         let expected: Vec<u8> = t.pixels.iter().flatten().copied().collect();
         assert!(
             bytes == expected,
-            "scenes/textures/{} differs from src/assets/textures.rs; regenerate with \
+            "scenes/textures/{} differs from src/scene/assets/textures.rs; regenerate with \
              `cargo run --release --bin make_assets -- scenes/textures`",
             t.file
         );
@@ -242,7 +244,7 @@ fn committed_textures_match_the_generator() {
     let expected: Vec<[f32; 3]> = sky.pixels.iter().map(|p| p.map(f32::from)).collect();
     assert!(
         decoded == &expected,
-        "scenes/textures/sky.exr differs from src/assets/textures.rs; regenerate with \
+        "scenes/textures/sky.exr differs from src/scene/assets/textures.rs; regenerate with \
          `cargo run --release --bin make_assets -- scenes/textures`"
     );
 }

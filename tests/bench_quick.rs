@@ -41,6 +41,23 @@ fn quick_benchmark_completes_with_well_formed_results() {
             "{study}.md missing"
         );
     }
+    // The quality study runs every filter of the registry, and the unfiltered image.
+    let quality = std::fs::read_to_string(out.join("quality.csv")).unwrap();
+    let methods: Vec<&str> = quality
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').nth(1))
+        .collect();
+    for f in noisefree::filters::builtin()
+        .iter()
+        .map(|f| f.name())
+        .chain(["unfiltered"])
+    {
+        assert!(
+            methods.contains(&f),
+            "no {f} row in quality.csv: {methods:?}"
+        );
+    }
     for png in [
         "filter-speed-64x48.png",
         "quality-cornell_diffuse-small.png",
@@ -66,7 +83,11 @@ fn quick_benchmark_completes_with_well_formed_results() {
         ])
         .output()
         .unwrap();
-    assert!(again.status.success());
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
     assert_eq!(
         std::fs::read_to_string(out.join("quality.csv")).unwrap(),
         before
@@ -124,8 +145,10 @@ fn quick_benchmark_runs_outside_the_repository() {
         .arg(&missing)
         .output()
         .unwrap();
-    assert!(!bad.status.success());
     let stderr = String::from_utf8_lossy(&bad.stderr);
+    // The exit status of an error (src/cli/mod.rs), not a signal or a usage error.
+    assert_eq!(bad.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("--scenes"), "{stderr}");
+    assert!(stderr.contains("no-such-scenes"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }

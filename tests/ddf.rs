@@ -93,11 +93,17 @@ fn every_variant_matches_the_rust_reference() {
     let mut worst = 0f32;
     for holes in [false, true] {
         for kw in [1, 7, 9, 21] {
-            for direction in [DirectionTerm::Thesis, DirectionTerm::Difference] {
+            for (direction, texture2) in [
+                (DirectionTerm::Thesis, Auto::Auto),
+                (DirectionTerm::Difference, Auto::Auto),
+                // What specialisation gives a scene without mirrors, glass or metal.
+                (DirectionTerm::Thesis, Auto::Set(false)),
+            ] {
                 let s = DdfSettings {
                     kw,
                     holes,
                     direction,
+                    texture2,
                     ..Default::default()
                 };
                 let want = reference(&b.frame(), &s).unwrap();
@@ -108,7 +114,8 @@ fn every_variant_matches_the_rust_reference() {
                     worst = worst.max(d);
                     assert!(
                         d <= MAX_REL_TO_REFERENCE,
-                        "{} kw {kw} holes {holes} {direction:?}: max relative difference {d:e}",
+                        "{} kw {kw} holes {holes} {direction:?} texture2 {texture2:?}: max relative \
+                         difference {d:e}",
                         label(v)
                     );
                 }

@@ -1,9 +1,12 @@
 //! Hard cases, bad input at the command line (tests/cli_errors.rs has the scene-file errors,
 //! a missing or directory scene, a --out in a missing folder and bad device numbers): sizes
 //! whose buffers cannot be allocated, zero samples or pixels, directories and missing folders
-//! as outputs, bad inputs to `filter` and `compare`. Every case must exit with a non-zero
-//! status, must not panic or abort, must leave no output behind, and its message must name
-//! the flag or the file at fault.
+//! as outputs, bad inputs to `filter` and `compare`, filter settings out of range and the flags
+//! that the filter registry renamed. Every case must exit with the status the CLI gives for
+//! errors (1; 2 for arguments the parser refuses), must not panic or abort, must leave no
+//! output behind, and its message must name the flag or the file at fault.
+
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -13,11 +16,9 @@ fn noisefree() -> Command {
     Command::new(env!("CARGO_BIN_EXE_noisefree"))
 }
 
+/// A fresh folder for one test.
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("noisefree-hard-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::tempdir(&format!("hard-cli-{name}"))
 }
 
 const SCENE: &str = r#"[render]
@@ -56,16 +57,30 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// Runs noisefree and checks the failure: a non-zero exit status (not a signal), no panic, no
-/// failed allocation, and every `needles` entry in stderr. Returns stderr.
+/// The exit status of an error (src/cli/mod.rs).
+const ERROR: i32 = 1;
+/// The exit status of an argument the parser refuses (clap's usage errors).
+const USAGE: i32 = 2;
+
+/// Runs noisefree and checks the failure: exit status 1 (not another code, not a signal), no
+/// panic, no failed allocation, and every `needles` entry in stderr. Returns stderr.
 fn fails(args: &[&str], needles: &[&str]) -> String {
+    fails_with(ERROR, args, needles)
+}
+
+/// [`fails`] for arguments the parser refuses: exit status 2.
+fn usage_fails(args: &[&str], needles: &[&str]) -> String {
+    fails_with(USAGE, args, needles)
+}
+
+fn fails_with(expected: i32, args: &[&str], needles: &[&str]) -> String {
     let start = Instant::now();
     let out = noisefree().args(args).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    let code = out.status.code();
-    assert!(
-        code.is_some_and(|c| c != 0),
-        "expected an error exit for {args:?}, got {:?}\nstderr: {err}",
+    assert_eq!(
+        out.status.code(),
+        Some(expected),
+        "expected exit status {expected} for {args:?}, got {:?}\nstderr: {err}",
         out.status
     );
     assert!(!err.contains("panicked"), "a panic for {args:?}: {err}");
@@ -178,7 +193,7 @@ fn zero_samples_name_the_flag_and_bad_numbers_are_refused() {
         let mut args = base.to_vec();
         let arg = format!("{flag}={value}");
         args.push(&arg);
-        fails(&args, &[flag]);
+        usage_fails(&args, &[flag]);
     }
 }
 
@@ -303,11 +318,13 @@ fn filter_refuses_missing_directory_and_non_exr_inputs() {
         &["filter", s(&huge_path), "--out", s(&out)],
         &["huge.exr", "would take"],
     );
-    // RPF on a file that is not a samples file.
-    fails(
-        &["filter", s(&text), "--method", "rpf", "--out", s(&out)],
-        &["notes.exr"],
-    );
+    // RPF on a file that is not a samples file (`--method` is an alias of `--filter`).
+    for flag in ["--filter", "--method"] {
+        fails(
+            &["filter", s(&text), flag, "rpf", "--out", s(&out)],
+            &["notes.exr"],
+        );
+    }
     // A directory as the output of a good input.
     fails(&["filter", s(&rgb), "--out", s(&dir)], &["is a directory"]);
     assert!(!out.exists());
@@ -372,5 +389,65 @@ fn compare_mismatch_names_both_files() {
     fails(
         &["compare", s(&small), s(&large)],
         &["small.exr", "large.exr"],
+    );
+}
+
+#[test]
+fn filter_settings_out_of_range_and_unknown_filters_name_the_flag() {
+    let dir = temp_dir("settings");
+    let sc = scene(&dir);
+    let png = dir.join("x.png");
+    let base = ["render", s(&sc), "--out", s(&png), "--no-exr", "-q"];
+    for (extra, needles) in [
+        (
+            &["--filter", "nope"][..],
+            &["--filter", "\"nope\"", "ddf, rpf, atrous"][..],
+        ),
+        (&["--filter", "ddf", "--kw", "4"][..], &["--kw", "odd"][..]),
+        (
+            &["--filter", "atrous", "--atrous-iterations", "99"][..],
+            &["--atrous-iterations", "at most 15"][..],
+        ),
+        (
+            &["--filter", "atrous", "--atrous-sigma-color", "-1"][..],
+            &["--atrous-sigma-color", "positive"][..],
+        ),
+        (
+            &["--filter", "rpf", "--rpf-sigma2-8", "-1"][..],
+            &["--rpf-sigma2-8", "positive"][..],
+        ),
+        (&["--texture2=maybe"][..], &["--texture2", "auto"][..]),
+        // A setting of a filter that is not chosen is still checked.
+        (&["--kw", "4"][..], &["--kw"][..]),
+    ] {
+        let mut args = base.to_vec();
+        args.extend_from_slice(extra);
+        fails(&args, needles);
+        nothing_written(&dir, &["scene.toml"]);
+    }
+}
+
+#[test]
+fn renamed_filter_flags_are_refused_naming_the_new_one() {
+    // The flags before the filter registry: the parser refuses them and points at the flag
+    // that replaced each.
+    let dir = temp_dir("renamed");
+    let sc = scene(&dir);
+    let png = dir.join("x.png");
+    let base = ["render", s(&sc), "--out", s(&png), "--no-exr", "-q"];
+    for (old, new) in [
+        (&["--atrous-beauty"][..], "--atrous-demodulate"),
+        (&["--rpf-sigma8", "0.002"][..], "--rpf-sigma2-8"),
+        (&["--no-texture2"][..], "--texture2"),
+    ] {
+        let mut args = base.to_vec();
+        args.extend_from_slice(old);
+        usage_fails(&args, &[old[0], new]);
+        nothing_written(&dir, &["scene.toml"]);
+    }
+    // `filter --outdoor` is gone too (σ²_8 is --rpf-sigma2-8 0.002).
+    usage_fails(
+        &["filter", s(&sc), "--outdoor", "--out", s(&png)],
+        &["--outdoor"],
     );
 }

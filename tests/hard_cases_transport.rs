@@ -7,10 +7,11 @@ mod common;
 
 use common::*;
 use glam::{Vec2, Vec3};
-use noisefree::layout::{FilterVector, Float4, MATERIAL_GLASS, Material};
+use noisefree::layout::outputs::{BufferId, Output, OutputSet};
+use noisefree::layout::{FilterVector, Float4, MATERIAL_GLASS, Material, WelfordSums};
+use noisefree::render::SceneArrays;
 use noisefree::render::cpu::pathtrace::{Surface, scatter};
 use noisefree::render::cpu::rng::rng_sample_key;
-use noisefree::render::{Outputs, Renderer, SceneArrays};
 use noisefree::scene::Scene;
 
 fn all_finite(film: &[FilterVector]) -> bool {
@@ -26,27 +27,34 @@ fn all_finite(film: &[FilterVector]) -> bool {
     })
 }
 
-/// Renders with every statistic on and checks every buffer is finite; returns the film.
+/// Renders with every output on and checks every buffer is finite; returns the film.
 fn render_checked(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> Vec<FilterVector> {
     let mut o = options(scene, w, h, seed);
-    o.outputs = Outputs {
-        features: true,
-        variance: true,
-        sample_vectors: Some(spp),
-    };
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap();
-    r.render_samples(spp).unwrap();
-    let b = r.read_buffers().unwrap();
-    assert!(all_finite(&b.filter_vectors), "non-finite FilterVector");
-    for g in b.variances.as_ref().unwrap() {
+    o.outputs = OutputSet::of(&[Output::Variance, Output::Position, Output::Samples]);
+    o.sample_capacity = spp;
+    let frame = render_frame(scene, &o, spp);
+    assert_eq!(frame.outputs(), o.outputs.closed());
+    let film = frame.filter_vectors().unwrap();
+    assert!(all_finite(film), "non-finite FilterVector");
+    // Every lane of every buffer (depth shifts, Welford state, positions too).
+    for b in frame.outputs().buffers() {
+        let floats = frame.host(b.id).unwrap().floats();
+        if let Some(i) = floats.iter().position(|v| !v.is_finite()) {
+            panic!("{}: float {i} is {}", b.name, floats[i]);
+        }
+    }
+    let sums: &[WelfordSums] = frame.host_slice(BufferId::WelfordSums).unwrap();
+    for g in sums {
         let v = noisefree::stats::feature_variance_sums(g);
         assert!(
             v.iter().all(|x| x.is_finite() && *x >= 0.0),
             "variance {g:?}"
         );
     }
-    let (_, samples) = r.read_sample_vectors().unwrap();
-    for s in &samples {
+    let samples: &[noisefree::layout::SampleVector] =
+        frame.host_slice(BufferId::SampleVectors).unwrap();
+    assert_eq!(samples.len(), (w * h * spp) as usize);
+    for s in samples {
         let all = s
             .position
             .iter()
@@ -62,7 +70,7 @@ fn render_checked(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> Vec<Fil
             "non-finite sample vector {s:?}"
         );
     }
-    b.filter_vectors
+    film.to_vec()
 }
 
 /// A black, closed box around the camera under a bright environment: a ray that slips between
@@ -118,6 +126,8 @@ scale = 2
 
 /// Scaling geometry, camera and lights together (emission unchanged) leaves the image
 /// unchanged up to rounding: secondary-ray offsets and shadow-ray ends are scale-invariant.
+/// Rounding does send an occasional path another way, so a few pixels differ by more: the
+/// image means agree to 2e-4 and 95 % of the pixels to 1e-3, not every pixel.
 #[test]
 fn cornell_scenes_render_the_same_at_any_scale() {
     let glass = "[[material]]\nname = \"glass\"\ntype = \"glass\"\n\n[[sphere]]\ncenter = [0.3, 0.35, 0.1]\nradius = 0.35\nmaterial = \"glass\"\n\n[[sphere]]\ncenter = [-0.4, 0.3, -0.3]\nradius = 0.3\nmaterial = \"white\"\n";
@@ -129,22 +139,28 @@ fn cornell_scenes_render_the_same_at_any_scale() {
         for factor in [1e-3f32, 1e3] {
             let img = beauty(&render_checked(&scene.scaled(factor), 32, 32, 64, 9));
             let m = mean_rgb(&img);
+            // Measured (PoCL): the channel means differ by at most 4.2e-5 relative (scale
+            // 1e-3; 1.6e-6 at 1e3). Bound 2e-4, about 5 x.
             for c in 0..3 {
                 assert!(
-                    (m[c] - m0[c]).abs() < 0.02 * m0[c],
+                    (m[c] - m0[c]).abs() < 2e-4 * m0[c],
                     "scale {factor}: channel {c} mean {} vs {}",
                     m[c],
                     m0[c]
                 );
             }
-            // Same random numbers: most pixels follow the same paths.
+            // Same random numbers: most pixels follow the same paths. Measured: the median
+            // pixel differs by 2.8e-5 relative, and 21 of 1024 pixels (2.1 %) by more than
+            // 1e-3 (up to 13 %: paths that rounding sent another way), at scale 1e-3; at
+            // most 1 pixel at 1e3. Bound: 95 % of the pixels within 1e-3 (2.4 x the measured
+            // share of outliers).
             let same = img
                 .iter()
                 .zip(&reference)
                 .filter(|(a, b)| (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-3 * b[c].abs().max(1e-2)))
                 .count();
             assert!(
-                same as f64 > 0.9 * img.len() as f64,
+                same as f64 >= 0.95 * img.len() as f64,
                 "scale {factor}: only {same} of {} pixels agree",
                 img.len()
             );
@@ -215,8 +231,10 @@ fn glass_total_internal_reflection_and_grazing_incidence() {
                 "past the critical angle ({theta} rad) nothing may refract"
             );
         } else {
+            // Measured 1644 of 2000 (Fresnel reflects ~18 % this close to the critical
+            // angle); bound 1400.
             assert!(
-                refracted > 1000,
+                refracted > 1400,
                 "below the critical angle most samples refract ({refracted})"
             );
         }
@@ -262,7 +280,7 @@ fn glass_with_equal_indices_is_invisible() {
 
 /// The white furnace with a camera inside a glass sphere, glass of extreme index, metal of
 /// exponent 1 and 1e5, and Russian roulette from depth 0 and 64: finite, and never brighter
-/// than the environment on average.
+/// than the environment on average (nor much darker than it where nothing is absorbed).
 #[test]
 fn furnace_extremes_stay_finite_and_energy_conserving() {
     let furnace = |material: &str, max_depth: u32, camera: &str| {
@@ -272,12 +290,17 @@ fn furnace_extremes_stay_finite_and_energy_conserving() {
     };
     let outside = "origin = [0, 0, 4]\ntarget = [0, 0, 0]";
     let inside = "origin = [0.1, 0.2, 0.3]\ntarget = [0, 0, -1]";
+    // Measured means (PoCL): 0.9326 (metal, exponent 1: the lobe below the horizon is lost),
+    // 1.0 (exponent 1e5), 0.9990, 1.0000 and 1.0000 (glass), 0.9987 (diffuse with roulette
+    // from depth 0). The lower bounds allow 1.5 x the loss of the exponent-1 metal and 0.01
+    // elsewhere (about 8 x the largest deficit measured, 0.0013, which is roulette noise);
+    // the upper bound, 1.01, the same above 1.
     let cases = [
         (
             "type = \"metal\"\ncolor = [1, 1, 1]\nexponent = 1",
             4,
             outside,
-            0.5,
+            0.9,
         ),
         (
             "type = \"metal\"\ncolor = [1, 1, 1]\nexponent = 100000",
@@ -285,9 +308,9 @@ fn furnace_extremes_stay_finite_and_energy_conserving() {
             outside,
             0.99,
         ),
-        ("type = \"glass\"\nior_inside = 1.5", 0, outside, 0.97),
+        ("type = \"glass\"\nior_inside = 1.5", 0, outside, 0.99),
         ("type = \"glass\"\nior_inside = 1.5", 64, outside, 0.99),
-        ("type = \"glass\"\nior_inside = 3.0", 4, inside, 0.97),
+        ("type = \"glass\"\nior_inside = 3.0", 4, inside, 0.99),
         ("type = \"diffuse\"\ncolor = [1, 1, 1]", 0, outside, 0.99),
     ];
     for (material, depth, camera, at_least) in cases {
@@ -296,7 +319,7 @@ fn furnace_extremes_stay_finite_and_energy_conserving() {
         let m = mean_rgb(&img);
         for c in 0..3 {
             assert!(
-                m[c] <= 1.02 && m[c] >= at_least,
+                m[c] <= 1.01 && m[c] >= at_least,
                 "{material} (max_depth {depth}): mean {}",
                 m[c]
             );
@@ -321,8 +344,12 @@ fn tiny_bright_lights_and_the_clamp() {
     let a = beauty(&render_checked(&reference, 24, 24, 64, 3));
     let b = beauty(&render_checked(&tiny, 24, 24, 64, 3));
     // Same power: the image means agree within noise (the small light's image is noisier).
+    // Measured: 0.4055 vs 0.4058 in green, 0.08 % apart (0.06 % in red and blue). Bound 1 %
+    // in every channel, for the tiny light's fireflies (up to 6 here) on another device.
     let (ma, mb) = (mean_rgb(&a), mean_rgb(&b));
-    assert!((ma[1] - mb[1]).abs() < 0.15 * ma[1], "{ma:?} vs {mb:?}");
+    for c in 0..3 {
+        assert!((ma[c] - mb[c]).abs() < 0.01 * ma[c], "{ma:?} vs {mb:?}");
+    }
     // With the clamp, no pixel mean can exceed it.
     let clamped =
         scene_from_toml(&tiny_text.replace("max_depth = 3", "max_depth = 3\nclamp = 2.0"));

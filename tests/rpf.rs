@@ -5,10 +5,10 @@
 
 use std::io::Cursor;
 
+use noisefree::filters::Auto;
 use noisefree::filters::rpf::mi::{entropy, mutual_information};
 use noisefree::filters::rpf::samples::{self, HEADER_BYTES, MAGIC, to_floats};
 use noisefree::filters::rpf::weights::{Dependencies, weights};
-use noisefree::filters::Auto;
 use noisefree::filters::rpf::{self, RangeColors, RpfSettings, SampleSet, analyze_pixel, filter};
 use noisefree::imaging::RgbImage;
 use noisefree::layout::SampleVector;
@@ -143,19 +143,21 @@ fn mutual_information_of_independent_uniform_variables_is_close_to_zero() {
     let x = uniforms(20_000, 1);
     let y = uniforms(20_000, 2);
     let mi = mutual_information(&x, &y, 5);
-    // Histogram bias ≈ (B − 1)² / (2 n ln 2) ≈ 0.0006 bits.
-    assert!(mi < 0.005, "μ = {mi} bits");
+    // Histogram bias ≈ (B − 1)² / (2 n ln 2) ≈ 0.0006 bits; measured 0.00055. Bound 0.002.
+    assert!(mi < 0.002, "μ = {mi} bits");
     assert!(mi >= 0.0);
-    // Against a dependent pair, for scale.
+    // Against a dependent pair, for scale (measured 1.77 bits of the 2.32 possible).
     let z: Vec<f32> = x.iter().zip(&y).map(|(a, b)| a + 0.1 * b).collect();
-    assert!(mutual_information(&x, &z, 5) > 1.0);
+    assert!(mutual_information(&x, &z, 5) > 1.5);
 }
 
 #[test]
 fn mutual_information_of_a_variable_with_itself_is_its_entropy() {
     let x = uniforms(20_000, 3);
     let h = entropy(&x, 5);
-    assert!((h - 5f64.log2()).abs() < 0.01, "H = {h}");
+    // Measured 0.0002 below log2 5 (the bias is about (B − 1) / (2 n ln 2) = 0.00014);
+    // bound 0.002.
+    assert!((h - 5f64.log2()).abs() < 0.002, "H = {h}");
     assert!((mutual_information(&x, &x, 5) - h).abs() < 1e-12);
     // A skewed variable too, and other bucket counts.
     let skewed: Vec<f32> = x.iter().map(|v| v * v * v).collect();
@@ -269,8 +271,13 @@ fn noise_from_the_random_parameters_lowers_alpha() {
     let (set, _) = textured_plane(24, 24, 8, 7, 0.01, 1.0);
     let s = RpfSettings::default();
     let interior = analyze_pixel(&set, &s, 0, 6, 12).unwrap();
-    assert!(interior.weights.w_r_c > 0.5, "{:?}", interior.weights);
-    assert!(interior.weights.alpha.iter().all(|&a| a < 0.5));
+    // Measured: W^r_c 0.9948, α 0.0052 in every channel; bounds 0.95 and 0.05.
+    assert!(interior.weights.w_r_c > 0.95, "{:?}", interior.weights);
+    assert!(
+        interior.weights.alpha.iter().all(|&a| a < 0.05),
+        "{:?}",
+        interior.weights
+    );
     // Next to the texture edge, Alg. 6 rejects the other side (a jump of 0.6 > the 0.1 floor
     // of a constant feature): far fewer neighbours than the same pixel without the edge.
     let mut plain = set.clone();
@@ -281,7 +288,8 @@ fn noise_from_the_random_parameters_lowers_alpha() {
     for x in [11, 12] {
         let edge = analyze_pixel(&set, &s, 0, x, 12).unwrap().neighbours;
         let no_edge = analyze_pixel(&plain, &s, 0, x, 12).unwrap().neighbours;
-        assert!(edge < no_edge * 3 / 4, "pixel {x}: {edge} vs {no_edge}");
+        // Measured: 1595 of 2977 (0.54) at x = 11, 1541 of 2911 (0.53) at x = 12; bound 2/3.
+        assert!(edge < no_edge * 2 / 3, "pixel {x}: {edge} vs {no_edge}");
     }
 }
 
@@ -448,7 +456,8 @@ fn rpf_lowers_the_error_on_a_noisy_image_with_a_clean_edge() {
         "MSE noisy {before:.5}, RPF {after:.5}; iterations {:?}",
         out.iterations
     );
-    assert!(after < 0.25 * before, "MSE {before} -> {after}");
+    // Measured: 0.07316 -> 0.00256 (0.035); bound 0.05 (1.4 x).
+    assert!(after < 0.05 * before, "MSE {before} -> {after}");
     // The edge stays: the two columns beside it keep their own albedo.
     let column_error = |img: &RgbImage, x: u32| {
         (0..24)
@@ -463,7 +472,9 @@ fn rpf_lowers_the_error_on_a_noisy_image_with_a_clean_edge() {
     };
     for x in [11, 12] {
         let (b, a) = (column_error(&noisy, x), column_error(filtered, x));
-        assert!(a < 0.5 * b, "column {x}: {b} -> {a}");
+        // Measured: 0.0211 -> 0.00047 (0.022) at x = 11, 0.0904 -> 0.0046 (0.051) at
+        // x = 12; bound 0.1.
+        assert!(a < 0.1 * b, "column {x}: {b} -> {a}");
     }
     // A blur that ignores the features would smear it: the edge columns' mean stays apart.
     let mean_col = |x: u32| {
@@ -472,8 +483,14 @@ fn rpf_lowers_the_error_on_a_noisy_image_with_a_clean_edge() {
             .sum::<f32>()
             / 24.0
     };
+    // Measured: 0.2170 (+0.017) and 0.8711 (+0.071). Both sides come out brighter than
+    // the input: the unfiltered right half averages 0.821 and columns 12-14 filter to 0.871
+    // all alike, so most of the 0.071 is a bias of the filter (RPF's weighted means do not
+    // keep the mean of their input; on the rendered Cornell box it is +2 to +5 %, see
+    // tests/rpf_rendered.rs), not edge bleeding, which would pull column 12 down towards the
+    // left half. Bounds 0.03 and 0.1 (1.5 x, 1.4 x); the columns must also stay 0.6 apart.
     assert!(
-        (mean_col(11) - ALBEDO_LEFT[0]).abs() < 0.05,
+        (mean_col(11) - ALBEDO_LEFT[0]).abs() < 0.03,
         "{}",
         mean_col(11)
     );
@@ -482,6 +499,7 @@ fn rpf_lowers_the_error_on_a_noisy_image_with_a_clean_edge() {
         "{}",
         mean_col(12)
     );
+    assert!(mean_col(12) - mean_col(11) > 0.6 - 0.1);
 }
 
 #[test]
@@ -495,6 +513,10 @@ fn scaling_the_scene_changes_the_error_by_less_than_ten_percent() {
     let a = mse(&filter(&set, &s).unwrap(), &clean);
     let b = mse(&filter(&scaled, &s).unwrap(), &clean);
     eprintln!("MSE unscaled {a:.6}, scaled x1000 {b:.6}");
+    // Measured: 0.001684 vs 0.001759, 4.5 % apart; the bound is the thesis's 10 % (Table
+    // 5.4). Where the 4.5 % comes from is not established (rounding at the thresholds of
+    // Alg. 6's acceptance test is a candidate); tests/rpf_rendered.rs measures 0.03 % on a
+    // rendered scene.
     assert!((a - b).abs() < 0.1 * a, "MSE {a} vs {b}");
 }
 
@@ -535,8 +557,14 @@ fn outdoor_sigma_filters_less() {
     // MSE 0.0819 unfiltered, 0.0491 indoor (0.60 of it), 0.0584 outdoor (0.71); bounds 0.8
     // and 0.9 of the unfiltered error (about 1.3 x the measured ratios), and outdoor above
     // indoor.
-    assert!(e_in < 0.8 * e_noisy, "indoor {e_in} vs unfiltered {e_noisy}");
-    assert!(e_out < 0.9 * e_noisy, "outdoor {e_out} vs unfiltered {e_noisy}");
+    assert!(
+        e_in < 0.8 * e_noisy,
+        "indoor {e_in} vs unfiltered {e_noisy}"
+    );
+    assert!(
+        e_out < 0.9 * e_noisy,
+        "outdoor {e_out} vs unfiltered {e_noisy}"
+    );
     assert!(e_in < e_out, "indoor {e_in} vs outdoor {e_out}");
 }
 
@@ -685,16 +713,14 @@ fn sample_files_round_trip() {
     assert_eq!(&bytes[..8], &MAGIC);
     assert_eq!(u32_at(&bytes, 8), samples::VERSION);
     assert_eq!(samples::VERSION, 2);
-    assert_eq!(
-        [12, 16, 20, 24].map(|at| u32_at(&bytes, at)),
-        [5, 3, 2, 26]
-    );
+    assert_eq!([12, 16, 20, 24].map(|at| u32_at(&bytes, at)), [5, 3, 2, 26]);
     // The record is UTF-8 TOML.
     let record = std::str::from_utf8(&bytes[32..start]).unwrap();
     assert!(record.parse::<toml::Table>().is_ok(), "{record}");
     // Little-endian floats in field order.
     let first = to_floats(&set.samples[0]);
-    let f = |k: usize| f32::from_le_bytes(bytes[start + 4 * k..start + 4 + 4 * k].try_into().unwrap());
+    let f =
+        |k: usize| f32::from_le_bytes(bytes[start + 4 * k..start + 4 + 4 * k].try_into().unwrap());
     assert_eq!((0..26).map(f).collect::<Vec<_>>(), first.to_vec());
     assert_eq!(read_bytes(&bytes).unwrap(), set);
 
@@ -786,7 +812,11 @@ fn bad_sample_files_give_clear_errors() {
     // A record longer than the file, or not TOML.
     let mut long = good.clone();
     long[28..32].copy_from_slice(&(good.len() as u32).to_le_bytes());
-    assert!(err(&long).contains("render record claims"), "{}", err(&long));
+    assert!(
+        err(&long).contains("render record claims"),
+        "{}",
+        err(&long)
+    );
     let mut garbled = good.clone();
     garbled[32..start].fill(b'=');
     assert!(err(&garbled).contains("render record"), "{}", err(&garbled));

@@ -41,6 +41,20 @@ fn rpf_lowers_the_error_on_cornell_diffuse_and_ignores_the_scene_scale() {
         mse_luv(&filtered, &truth).unwrap(),
     );
     eprintln!("Cornell diffuse 64x64, 8 spp: MSE-LUV {before:.2} unfiltered, {after:.2} RPF");
+    // RPF's weighted means do not keep the image's mean: measured, the filtered image is
+    // brighter than the reference by 2.0 % (red), 3.7 % (green), 4.6 % (blue), while the
+    // unfiltered one is within 0.3 %. Not a property the thesis claims; this bound (7 %,
+    // 1.5 x the largest) only keeps it from growing unnoticed.
+    let (mt, mf) = (mean_rgb(&truth.pixels), mean_rgb(&filtered.pixels));
+    eprintln!("mean colour: reference {mt:.4?}, RPF {mf:.4?}");
+    for c in 0..3 {
+        assert!(
+            (mf[c] / mt[c] - 1.0).abs() < 0.07,
+            "channel {c}: RPF's mean {} vs the reference's {}",
+            mf[c],
+            mt[c]
+        );
+    }
     // RPF's parameters are the thesis's (§5.1), not tuned on this scene. Measured (PoCL,
     // seed 7): 33.82 -> 24.53, a ratio of 0.725 (the pre-redesign binary measured the same).
     // The bound keeps about two thirds of that 27.5 % reduction: 0.82.

@@ -1,5 +1,5 @@
 //! Light transport is right: white furnace, NEE is unbiased, the error falls as 1/spp, and the
-//! kernel agrees with its Rust reference (src/reference/pathtrace.rs).
+//! kernel agrees with its Rust reference (src/render/cpu/pathtrace.rs).
 
 mod common;
 
@@ -60,14 +60,23 @@ fn white_furnace_diffuse_sphere_is_one() {
             "the sphere covers {} pixels",
             sphere.len()
         );
-        let m = mean_rgb(&sphere);
-        for c in 0..3 {
-            assert!(
-                (m[c] - expected).abs() < 0.01 * expected,
-                "albedo {albedo}, channel {c}: mean {}",
-                m[c]
-            );
-        }
+        // Every sample is exactly the albedo here: the cosine-sampled bounce carries weight
+        // albedo, and from a convex sphere every continuation escapes to radiance 1 (the
+        // environment is no next-event light). Measured: every sphere pixel equal to the
+        // albedo; bound 1e-6 per pixel (a few float32 roundings).
+        let worst = sphere
+            .iter()
+            .flatten()
+            .map(|v| (*v as f64 - expected).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "albedo {albedo}: mean {:?}, largest deviation {worst:e}",
+            mean_rgb(&sphere)
+        );
+        assert!(
+            worst <= 1e-6,
+            "albedo {albedo}: a sphere pixel is {worst:e} from {expected}"
+        );
     }
 }
 
@@ -79,11 +88,20 @@ fn white_furnace_glass_sphere_neither_gains_nor_darkens() {
     let film = render_film(&scene, &options(&scene, 32, 32, 5), 256, 256);
     let img = beauty(&film);
     let m = mean_rgb(&img);
-    for c in 0..3 {
-        assert!((m[c] - 1.0).abs() < 0.02, "channel {c}: mean {}", m[c]);
-    }
     let darkest = img.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min);
-    assert!(darkest > 0.5, "a pixel went dark: {darkest}");
+    let brightest = img.iter().map(|p| p[1]).fold(0f32, f32::max);
+    eprintln!("mean {m:?}, pixels from {darkest} to {brightest}");
+    // Russian roulette makes single samples 0 or 1/0.95, so the mean is noisy. Measured with
+    // seed 5: mean 1 + 3.9e-5; over seeds 0-7 the mean is 1 - 6.7e-4 to 1 + 2.3e-4 (sd
+    // 2.8e-4). Bound: 1.5e-3, the seed-5 value plus five standard deviations.
+    for c in 0..3 {
+        assert!((m[c] - 1.0).abs() < 1.5e-3, "channel {c}: mean {}", m[c]);
+    }
+    // Measured with seed 5: pixels from 0.958 to 1.037; over seeds 0-7 the darkest pixel is
+    // 0.938-0.965 and the brightest 1.031-1.044 (sd about 0.008 and 0.005). Bounds about six
+    // standard deviations outside the seed-5 values.
+    assert!(darkest > 0.9, "a pixel went dark: {darkest}");
+    assert!(brightest < 1.07, "a pixel gained energy: {brightest}");
 }
 
 /// Mean and standard error of `k` independent renders' block averages (8x8 blocks, luminance).
@@ -145,18 +163,29 @@ material = "white"
     for (i, ((ma, sa), (mb, sb))) in a.iter().zip(&b).enumerate() {
         let z = (ma - mb).abs() / (sa * sa + sb * sb).sqrt().max(1e-9);
         worst = worst.max(z);
+        // Measured: largest z 2.19 over the 16 blocks; with other seeds (1000 k + the same
+        // ranges, k = 1-7) 2.13-3.29. Bound 4: a bias of four standard errors in one block.
         assert!(
-            z < 5.0,
+            z < 4.0,
             "block {i}: NEE {ma:.4} ± {sa:.4} vs path tracing {mb:.4} ± {sb:.4} (z = {z:.1})"
         );
     }
     // And NEE is the better estimator here: its standard errors are smaller on average.
     let (se_a, se_b): (f64, f64) = (a.iter().map(|x| x.1).sum(), b.iter().map(|x| x.1).sum());
-    assert!(se_a < se_b, "NEE should reduce noise: {se_a} vs {se_b}");
-    eprintln!("largest block z-score {worst:.2}");
+    eprintln!(
+        "largest block z-score {worst:.2}, standard errors NEE / path tracing {:.3}",
+        se_a / se_b
+    );
+    // Measured: NEE's standard errors are 0.279 of path tracing's; 0.255-0.365 with the other
+    // seeds (mean 0.287, sd 0.035). Bound 0.45: 1.6x the measured value, about five standard
+    // deviations above it.
+    assert!(
+        se_a < 0.45 * se_b,
+        "NEE should reduce noise: {se_a} vs {se_b}"
+    );
 }
 
-/// MSE against a high-spp render falls as 1/spp (log-log slope -1 within [-1.2, -0.8]):
+/// MSE against a high-spp render falls as 1/spp (log-log slope -1 within [-1.14, -0.82]):
 /// the estimator is consistent and its variance is finite.
 #[test]
 fn error_falls_as_one_over_spp() {
@@ -199,8 +228,12 @@ material = "white"
         .map(|(x, y)| (x - mx) * (y - my))
         .sum::<f64>()
         / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
+    eprintln!("log-log slope {slope:.3}");
+    // Measured: -0.905. The slope is noisy: with the seeds offset by 1000 k (k = 1-7) it is
+    // -0.94 to -1.05 (all eight: mean -0.979, sd 0.046; the noise of the 4096-spp reference
+    // flattens it slightly). Bounds: the mean of the eight +- 3.5 standard deviations.
     assert!(
-        (-1.2..=-0.8).contains(&slope),
+        (-1.14..=-0.82).contains(&slope),
         "log-log slope of MSE vs spp is {slope:.3}"
     );
 }
@@ -253,19 +286,37 @@ material = "metal"
     };
     let mut shifts = vec![[0.0f32; 2]; means.len()];
     reference_render(&arrays, ref_opts, &mut means, &mut shifts, 0, spp);
+    // Measured: every lane of every pixel within 5.5e-6 (relative, or absolute below 1);
+    // tolerance 1e-5 (1.8x).
     let mut close = 0;
+    let mut worst = 0f32;
+    // What the pixels that do not agree may move the image means by.
+    let mut apart = [0f64; 3];
     for (f, r) in film.iter().zip(&means) {
         let d: [f32; 16] = bytemuck_lanes(f);
-        let ok = d
+        let diff = d
             .iter()
             .zip(r)
-            .all(|(a, b)| (a - b).abs() <= 1e-3 * a.abs().max(b.abs()).max(1.0));
-        close += ok as usize;
+            .map(|(a, b)| (a - b).abs() / a.abs().max(b.abs()).max(1.0))
+            .fold(0f32, f32::max);
+        if diff <= 1e-5 {
+            close += 1;
+            worst = worst.max(diff);
+        } else {
+            for c in 0..3 {
+                apart[c] +=
+                    ((d[c] + d[3 + c]) - (r[c] + r[3 + c])).abs() as f64 / film.len() as f64;
+            }
+        }
     }
+    eprintln!(
+        "{close} of {} pixels agree, to {worst:e} at most",
+        film.len()
+    );
     // A path can branch differently when the two sides round a comparison differently; that
-    // must stay rare.
+    // must stay rare. Measured: no pixel; bound: at most 3 of 576.
     assert!(
-        close as f64 >= 0.98 * film.len() as f64,
+        close + 3 >= film.len(),
         "only {close} of {} pixels agree",
         film.len()
     );
@@ -276,9 +327,11 @@ material = "metal"
             .collect();
         mean_rgb(&img)
     });
+    // Measured: 1.8e-8 relative (rounding errors of both signs average out); bound 1e-7
+    // (5.5x), plus whatever the pixels that branched apart contribute.
     for c in 0..3 {
         assert!(
-            (a[c] - b[c]).abs() <= 0.01 * a[c].max(1e-3),
+            (a[c] - b[c]).abs() <= 1e-7 * a[c].max(1e-3) + apart[c],
             "image means differ: {a:?} vs {b:?}"
         );
     }

@@ -3,7 +3,7 @@
 // Every random number is a hash of (seed, pixel, sample, bounce, dimension), so the same seed
 // gives the same bytes on any device, any work-group size and any launch batching, and a
 // feature that is compiled out does not shift the numbers the others draw. The hash is
-// Wellons' "lowbias32" integer finaliser; src/reference/rng.rs is the same code in Rust.
+// Wellons' "lowbias32" integer finaliser; src/render/cpu/rng.rs is the same code in Rust.
 #ifndef NOISEFREE_RNG_CL
 #define NOISEFREE_RNG_CL
 

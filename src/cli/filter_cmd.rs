@@ -66,6 +66,9 @@ pub fn run(args: &FilterCommandArgs, registry: &Registry) -> Result<()> {
     if args.out.is_none() && args.exr.is_none() {
         bail!("nothing to write: give --out FILE.png and/or --exr FILE.exr");
     }
+    if let Some(name) = args.filter.as_deref().filter(|n| *n != "none") {
+        registry.get(name).context("--filter")?;
+    }
     let input = args.input.display().to_string();
     let (frame, record) = read_frame(&args.input)?;
     if record.scene.is_none() {

@@ -217,7 +217,12 @@ fn chosen_filter<'a>(
             let origin = if args.filter.is_some() {
                 "--filter".to_string()
             } else {
-                format!("{}: [filter] method", args.scene.display())
+                let line = scene
+                    .filter
+                    .method_line
+                    .map(|l| format!(":{l}"))
+                    .unwrap_or_default();
+                format!("{}{line}: [filter] method", args.scene.display())
             };
             bail!(
                 "{origin}: no filter named {name:?}; noisefree has: none, {}",

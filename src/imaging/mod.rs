@@ -28,8 +28,8 @@ pub struct RgbImage {
 
 impl RgbImage {
     /// direct + indirect: the beauty image (eq. 6.21 without filtering).
-    pub fn beauty(width: u32, height: u32, film: &[FilterVector]) -> RgbImage {
-        let pixels = film
+    pub fn beauty(width: u32, height: u32, filter_vectors: &[FilterVector]) -> RgbImage {
+        let pixels = filter_vectors
             .iter()
             .map(|f| std::array::from_fn(|c| f.direct[c] + f.indirect[c]))
             .collect();

@@ -222,6 +222,16 @@ pub struct Frame {
     gpu: Option<Arc<Gpu>>,
 }
 
+impl std::fmt::Debug for Frame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Frame")
+            .field("info", &self.info)
+            .field("outputs", &self.outputs.names())
+            .field("variances", &self.variances)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Frame {
     /// A frame over device buffers (the live renderer's). `buffers` holds every buffer of
     /// `outputs`, each sized for `info`.

@@ -186,7 +186,7 @@ pub struct MeshSection {
     /// An OBJ file (with its MTL materials).
     #[serde(default)]
     pub file: Option<Spanned<String>>,
-    /// A built-in procedural mesh instead of a file (see src/assets/).
+    /// A built-in procedural mesh instead of a file (see src/scene/assets/).
     #[serde(default)]
     pub generator: Option<Spanned<String>>,
     /// Seed of a procedural mesh.

@@ -1,5 +1,5 @@
 //! Triangle meshes: Wavefront OBJ files with their MTL materials (via `tobj`), or procedural
-//! meshes from src/assets, in one in-memory form.
+//! meshes from src/scene/assets, in one in-memory form.
 
 use std::path::{Path, PathBuf};
 

@@ -221,6 +221,8 @@ pub struct Environment {
 pub struct FilterConfig {
     /// `method = "<name>"`: the filter `render` runs when the command line names none.
     pub method: Option<String>,
+    /// 1-based line of `method`, for messages.
+    pub method_line: Option<usize>,
     /// `[filter.<name>]` tables.
     pub settings: std::collections::BTreeMap<String, toml::Table>,
     /// 1-based line of each `[filter.<name>]` table (or of `[filter]` when written inline).

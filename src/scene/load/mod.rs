@@ -275,7 +275,10 @@ impl Resolver<'_> {
         let header = self.src.position(span.start).0;
         for (key, value) in table.into_inner() {
             match (key.as_str(), value) {
-                ("method", toml::Value::String(m)) => config.method = Some(m),
+                ("method", toml::Value::String(m)) => {
+                    config.method = Some(m);
+                    config.method_line = self.key_line("filter", "method");
+                }
                 ("method", other) => {
                     return Err(self.src.error(
                         span.clone(),
@@ -304,6 +307,24 @@ impl Resolver<'_> {
             }
         }
         Ok(config)
+    }
+
+    /// The 1-based line of `key = ...` in the table `[table]` (written as a header and a key
+    /// line, the usual form).
+    fn key_line(&self, table: &str, key: &str) -> Option<usize> {
+        let start = self.table_line(table)?;
+        self.src
+            .text
+            .lines()
+            .enumerate()
+            .skip(start)
+            .take_while(|(_, l)| !l.trim_start().starts_with('['))
+            .find(|(_, l)| {
+                l.trim_start()
+                    .strip_prefix(key)
+                    .is_some_and(|r| r.trim_start().starts_with('='))
+            })
+            .map(|(i, _)| i + 1)
     }
 
     /// The 1-based line of the table header `[name]` in the scene file.
