@@ -2,16 +2,15 @@
 //! well-formed, the conference room is as complex as the thesis's, every bundled scene loads,
 //! and the committed textures are exactly what the code generates.
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use std::path::Path;
+
+use common::{bundled_scenes, repo_path};
 use glam::Vec3;
 use noisefree::scene::assets::{MESH_GENERATORS, generate_mesh, textures};
 use noisefree::scene::load_scene;
 use noisefree::scene::mesh::MeshPart;
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn triangles(parts: &[MeshPart]) -> usize {
     parts.iter().map(MeshPart::triangle_count).sum()
@@ -146,16 +145,6 @@ fn conference_room_has_lights_and_one_diffuse_colour() {
     );
 }
 
-fn bundled_scenes() -> Vec<PathBuf> {
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(repo().join("scenes"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    scenes.sort();
-    scenes
-}
-
 #[test]
 fn bundled_scenes_load() {
     let scenes = bundled_scenes();
@@ -213,7 +202,7 @@ fn decode_png(path: &Path) -> (u32, u32, Vec<u8>) {
 
 #[test]
 fn committed_textures_match_the_generator() {
-    let dir = repo().join("scenes/textures");
+    let dir = repo_path("scenes/textures");
     for t in textures::ldr_textures() {
         let (w, h, bytes) = decode_png(&dir.join(t.file));
         assert_eq!((w, h), (t.width, t.height), "{}", t.file);

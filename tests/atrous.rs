@@ -40,24 +40,6 @@ fn all_sigmas(sigma: f32, demodulate: bool) -> AtrousSettings {
     }
 }
 
-fn max_rel_diff(a: &RgbImage, b: &RgbImage) -> f32 {
-    assert_eq!((a.width, a.height), (b.width, b.height));
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(x, y)| {
-            (0..3).map(move |c| (x[c] - y[c]).abs() / x[c].abs().max(y[c].abs()).max(1e-3))
-        })
-        .fold(0.0, f32::max)
-}
-
-fn assert_finite(img: &RgbImage, what: &str) {
-    assert!(
-        img.pixels.iter().flatten().all(|v| v.is_finite()),
-        "{what}: non-finite output"
-    );
-}
-
 /// The defaults, or with `demodulate = false` the settings tuned for the beauty.
 fn settings(demodulate: bool) -> AtrousSettings {
     if demodulate {
@@ -80,27 +62,6 @@ fn render(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> (Buffers, Camer
     (Buffers::of_frame(&frame), r.arrays.camera())
 }
 
-/// A small Cornell box with a mirror and a sphere (mirror reflections, curved normals).
-fn cornell_with_spheres() -> Scene {
-    let extra = r#"
-[[material]]
-name = "mirror"
-type = "specular"
-color = [0.9, 0.9, 0.9]
-
-[[sphere]]
-center = [-0.4, 0.35, -0.3]
-radius = 0.35
-material = "mirror"
-
-[[sphere]]
-center = [0.4, 0.3, 0.3]
-radius = 0.3
-material = "red"
-"#;
-    scene_from_toml(&cornell("max_depth = 3", extra))
-}
-
 /// An arbitrary, oblique camera for synthetic buffers.
 fn test_camera() -> CameraBasis {
     let forward = Vec3::new(0.3, -0.2, -1.0).normalize();
@@ -116,16 +77,13 @@ fn test_camera() -> CameraBasis {
     }
 }
 
-/// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector.
+/// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector; no variance output (the
+/// filter reads none), unlike [`Buffers::from_fn`].
 fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> Buffers {
-    let filter_vectors: Vec<_> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| f(x, y))
-        .collect();
     Buffers {
         variances: None,
         directions: None,
-        ..Buffers::new(w, h, filter_vectors, 100.0)
+        ..Buffers::from_fn(w, h, 100.0, f)
     }
 }
 
@@ -190,7 +148,7 @@ fn check_against_reference(b: &Buffers, cam: &CameraBasis, s: &AtrousSettings, w
 fn kernel_matches_the_rust_reference_on_rendered_buffers() {
     // 70 x 45: no multiple of any work-group size.
     let (b, cam) = render(&cornell_with_spheres(), 70, 45, 8, 1);
-    let (d, dcam) = render(&bundled("cornell_diffuse"), 61, 37, 4, 2);
+    let (d, dcam) = render(&bundled_scene("cornell_diffuse"), 61, 37, 4, 2);
     for demodulate in [true, false] {
         for iterations in [0, 1, 5, 7] {
             let s = AtrousSettings {
@@ -601,10 +559,6 @@ fn settings_are_validated() {
 
 const SIZE: u32 = 128;
 
-fn bundled(name: &str) -> Scene {
-    noisefree::scene::load_scene(&repo_path(&format!("scenes/{name}.toml"))).unwrap()
-}
-
 /// Samples per pixel of a bundled scene's reference: 1024, but 512 for cornell_plane, whose
 /// airplane mesh makes it twice as slow on PoCL (its reference noise then adds about 1 / 64
 /// of the 8-spp noise to every MSE against it, about 1 %: the bounds below hold it).
@@ -620,8 +574,8 @@ fn truth(name: &str, scale: f32) -> Arc<RgbImage> {
     truths
         .entry(format!("{name} x{scale}"))
         .or_insert_with(|| {
-            let scene = bundled(name).scaled(scale);
-            Arc::new(render(&scene, SIZE, SIZE, truth_spp(name), 100).0.beauty())
+            let scene = bundled_scene(name).scaled(scale);
+            Arc::new(reference_image(&scene, SIZE, SIZE, truth_spp(name), 100))
         })
         .clone()
 }
@@ -634,7 +588,7 @@ fn filtered_error(
     seed: u32,
     s: &AtrousSettings,
 ) -> (f64, f64, std::time::Duration) {
-    let scene = bundled(name).scaled(scale);
+    let scene = bundled_scene(name).scaled(scale);
     let (noisy, cam) = render(&scene, SIZE, SIZE, 8, seed);
     let mut f = AtrousKernel::new(gpu(), s, &cam, SIZE, SIZE).unwrap();
     let out = f.filter(&noisy.frame()).unwrap();
@@ -758,7 +712,7 @@ fn scaling_the_scene_keeps_the_filtered_error() {
 #[test]
 #[ignore]
 fn sweep() {
-    let scene = bundled("cornell_diffuse");
+    let scene = bundled_scene("cornell_diffuse");
     let (noisy, cam) = render(&scene, SIZE, SIZE, 8, 7);
     let frame = noisy.frame();
     let truth = truth("cornell_diffuse", 1.0);
@@ -812,7 +766,7 @@ fn sweep() {
 #[test]
 #[ignore]
 fn timing() {
-    let (b, cam) = render(&bundled("cornell_diffuse"), 512, 512, 1, 1);
+    let (b, cam) = render(&bundled_scene("cornell_diffuse"), 512, 512, 1, 1);
     let frame = b.frame();
     let gpu = gpu();
     for demodulate in [true, false] {

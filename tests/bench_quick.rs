@@ -1,13 +1,14 @@
 //! `noisefree bench --quick` runs every study end to end, so the benchmarks cannot rot. Only
 //! completion and well-formed results are checked: timings are never asserted.
 
-use std::process::Command;
+mod common;
+
+use common::{noisefree, tempdir};
 
 #[test]
 fn quick_benchmark_completes_with_well_formed_results() {
-    let out = std::env::temp_dir().join(format!("noisefree-bench-quick-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let run = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+    let out = tempdir("bench-quick");
+    let run = noisefree()
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args(["bench", "--quick", "-q", "--out", out.to_str().unwrap()])
         .output()
@@ -70,7 +71,7 @@ fn quick_benchmark_completes_with_well_formed_results() {
     }
     // A second run resumes: every cell is already measured, nothing is added.
     let before = std::fs::read_to_string(out.join("quality.csv")).unwrap();
-    let again = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+    let again = noisefree()
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
             "bench",
@@ -101,11 +102,9 @@ fn quick_benchmark_completes_with_well_formed_results() {
 /// two cheapest studies, a few seconds together.
 #[test]
 fn quick_benchmark_runs_outside_the_repository() {
-    let dir = std::env::temp_dir().join(format!("noisefree-bench-anywhere-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempdir("bench-anywhere");
     assert!(!dir.join("scenes").exists());
-    let run = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+    let run = noisefree()
         .current_dir(&dir)
         .args([
             "bench",
@@ -132,7 +131,7 @@ fn quick_benchmark_runs_outside_the_repository() {
     assert!(statistics.contains("cornell_diffuse"), "{statistics}");
     // A scenes folder that is not there is named in the error, before anything is measured.
     let missing = dir.join("no-such-scenes");
-    let bad = Command::new(env!("CARGO_BIN_EXE_noisefree"))
+    let bad = noisefree()
         .current_dir(&dir)
         .args([
             "bench",

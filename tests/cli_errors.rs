@@ -4,25 +4,17 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-fn noisefree() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_noisefree"))
-}
+use common::{ERROR, fails, fails_with, noisefree, tempdir, write_scene};
 
-/// The exit status of an error (src/cli/mod.rs); anything else, a signal included, is a bug.
-const ERROR: Option<i32> = Some(1);
-
-/// A fresh folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    common::tempdir(&format!("cli-{name}"))
-}
+/// The scene the cases below change: line and column numbers refer to it.
+const GOOD: &str = common::MINIMAL_SCENE;
 
 /// Renders `text` as a scene file and returns (exit code, None for a signal; stderr).
 fn render_text(dir: &Path, text: &str) -> (Option<i32>, String) {
-    let path = dir.join("scene.toml");
-    std::fs::write(&path, text).unwrap();
+    let path = write_scene(dir, text);
     let out = noisefree()
         .args([
             "render",
@@ -40,29 +32,9 @@ fn render_text(dir: &Path, text: &str) -> (Option<i32>, String) {
     )
 }
 
-const GOOD: &str = r#"[render]
-width = 8
-height = 8
-spp = 1
-
-[camera]
-origin = [0, 0, 5]
-target = [0, 0, 0]
-
-[[material]]
-name = "white"
-type = "diffuse"
-color = [0.8, 0.8, 0.8]
-
-[[sphere]]
-center = [0, 0, 0]
-radius = 1
-material = "white"
-"#;
-
 #[test]
 fn each_bad_scene_names_file_position_and_problem() {
-    let dir = temp_dir("errors");
+    let dir = tempdir("cli-errors");
     // (what to change, text that must appear in the message, line:col it must point at)
     let cases: Vec<(String, &str, Option<&str>)> = vec![
         (
@@ -157,7 +129,11 @@ fn each_bad_scene_names_file_position_and_problem() {
     ];
     for (text, needle, position) in cases {
         let (code, stderr) = render_text(&dir, &text);
-        assert_eq!(code, ERROR, "expected an error for:\n{text}\n{stderr}");
+        assert_eq!(
+            code,
+            Some(ERROR),
+            "expected an error for:\n{text}\n{stderr}"
+        );
         assert!(
             !stderr.contains("panicked"),
             "a panic instead of an error: {stderr}"
@@ -175,28 +151,21 @@ fn each_bad_scene_names_file_position_and_problem() {
 
 #[test]
 fn missing_and_directory_scene_paths() {
-    let dir = temp_dir("paths");
-    let out = noisefree()
-        .args(["render", dir.join("absent.toml").to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), ERROR);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("absent.toml: cannot open scene file"));
-    let out = noisefree()
-        .args(["render", dir.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), ERROR);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("is a directory"));
+    let dir = tempdir("cli-paths");
+    fails(
+        &["render", dir.join("absent.toml").to_str().unwrap()],
+        &["absent.toml: cannot open scene file"],
+    );
+    fails(&["render", dir.to_str().unwrap()], &["is a directory"]);
 }
 
 #[test]
 fn failed_render_leaves_existing_output_untouched() {
-    let dir = temp_dir("keep");
+    let dir = tempdir("cli-keep");
     let png = dir.join("x.png");
     std::fs::write(&png, b"precious").unwrap();
     let (code, _) = render_text(&dir, &GOOD.replace("radius = 1", "radius = 0"));
-    assert_eq!(code, ERROR);
+    assert_eq!(code, Some(ERROR));
     assert_eq!(std::fs::read(&png).unwrap(), b"precious");
     // A good render replaces it with a real PNG, and leaves no temporary files behind.
     let (code, stderr) = render_text(&dir, GOOD);
@@ -212,36 +181,29 @@ fn failed_render_leaves_existing_output_untouched() {
 
 #[test]
 fn output_in_a_missing_folder_is_refused_before_rendering() {
-    let dir = temp_dir("nofolder");
-    let scene = dir.join("scene.toml");
-    std::fs::write(&scene, GOOD).unwrap();
-    let out = noisefree()
-        .args([
+    let dir = tempdir("cli-nofolder");
+    let scene = write_scene(&dir, GOOD);
+    fails(
+        &[
             "render",
             scene.to_str().unwrap(),
             "--out",
             dir.join("no/such/x.png").to_str().unwrap(),
             "--no-exr",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), ERROR);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("does not exist"));
+        ],
+        &["does not exist"],
+    );
 }
 
 #[test]
 fn no_opencl_platform_says_how_to_install_pocl() {
-    let dir = temp_dir("noicd");
+    let dir = tempdir("cli-noicd");
     // The ICD loader reads vendor files from OCL_ICD_VENDORS; an empty folder means no platform.
-    let out = noisefree()
-        .arg("devices")
-        .env("OCL_ICD_VENDORS", &dir)
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), ERROR);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("pocl-opencl-icd"), "{err}");
-    assert!(!err.contains("panicked"), "{err}");
+    fails_with(
+        ERROR,
+        noisefree().arg("devices").env("OCL_ICD_VENDORS", &dir),
+        &["pocl-opencl-icd"],
+    );
 }
 
 #[test]
@@ -253,36 +215,32 @@ fn devices_lists_the_device_and_bad_device_numbers_are_explained() {
         text.contains("[0]") && text.contains("compute units") && text.contains("local memory"),
         "{text}"
     );
-    let dir = temp_dir("baddev");
-    let scene = dir.join("scene.toml");
-    std::fs::write(&scene, GOOD).unwrap();
-    let out = noisefree()
-        .args([
+    let dir = tempdir("cli-baddev");
+    let scene = write_scene(&dir, GOOD);
+    fails(
+        &[
             "render",
             scene.to_str().unwrap(),
             "--out",
             dir.join("x.png").to_str().unwrap(),
             "--device",
             "99",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), ERROR);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("device 99 does not exist"));
+        ],
+        &["device 99 does not exist"],
+    );
 }
 
 /// Ctrl-C during a render: without --save-partial nothing is written (existing files stay);
 /// with it, the samples rendered so far are written.
 #[test]
 fn ctrl_c_keeps_outputs_or_saves_partial() {
-    let dir = temp_dir("ctrlc");
-    let scene = dir.join("scene.toml");
-    std::fs::write(
-        &scene,
-        GOOD.replace("width = 8", "width = 64")
+    let dir = tempdir("cli-ctrlc");
+    let scene = write_scene(
+        &dir,
+        &GOOD
+            .replace("width = 8", "width = 64")
             .replace("height = 8", "height = 64"),
-    )
-    .unwrap();
+    );
     let png = dir.join("x.png");
     for save_partial in [false, true] {
         std::fs::write(&png, b"precious").unwrap();

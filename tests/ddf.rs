@@ -11,6 +11,7 @@ use noisefree::imaging::RgbImage;
 use noisefree::layout::outputs::{Output, OutputSet};
 use noisefree::layout::{FilterVector, SKY_DEPTH};
 use noisefree::metrics::mse_luv;
+use noisefree::scene::Scene;
 
 /// Every kernel variant: (variant, work-group of the rows variant).
 const VARIANTS: [(Variant, u32); 4] = [
@@ -46,45 +47,16 @@ const ROWS: (Variant, u32) = (Variant::Rows, 64);
 /// float32 ulps, leaving room for OpenCL's exp (3 ulp allowed) on other devices.
 const MAX_REL_TO_REFERENCE: f32 = 1e-6;
 
-fn max_rel_diff(a: &RgbImage, b: &RgbImage) -> f32 {
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(x, y)| {
-            (0..3).map(move |c| (x[c] - y[c]).abs() / x[c].abs().max(y[c].abs()).max(1e-3))
-        })
-        .fold(0.0, f32::max)
-}
-
-fn assert_finite(img: &RgbImage, what: &str) {
-    assert!(
-        img.pixels.iter().flatten().all(|v| v.is_finite()),
-        "{what}: non-finite output"
-    );
-}
-
-/// Rendered buffers of a small textured Cornell box with a mirror (so texture2 varies).
-fn rendered(w: u32, h: u32, spp: u32, seed: u32) -> Buffers {
-    let extra = r#"
-[[material]]
-name = "mirror"
-type = "specular"
-color = [0.9, 0.9, 0.9]
-
-[[sphere]]
-center = [-0.4, 0.35, -0.3]
-radius = 0.35
-material = "mirror"
-
-[[sphere]]
-center = [0.4, 0.3, 0.3]
-radius = 0.3
-material = "red"
-"#;
-    let scene = scene_from_toml(&cornell("max_depth = 3", extra));
-    let mut o = options(&scene, w, h, seed);
+/// Buffers (features and variances) of `scene` at `w` x `h`, `spp` samples, `seed`.
+fn render(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> Buffers {
+    let mut o = options(scene, w, h, seed);
     o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
-    Buffers::of_frame(&render_frame(&scene, &o, spp))
+    Buffers::of_frame(&render_frame(scene, &o, spp))
+}
+
+/// Rendered buffers of a small Cornell box with a mirror (so texture2 varies).
+fn rendered(w: u32, h: u32, spp: u32, seed: u32) -> Buffers {
+    render(&cornell_with_spheres(), w, h, spp, seed)
 }
 
 #[test]
@@ -125,15 +97,6 @@ fn every_variant_matches_the_rust_reference() {
     eprintln!("largest relative difference from the reference: {worst:e}");
 }
 
-/// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector, variances zero, scene size 100.
-fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> Buffers {
-    let filter_vectors: Vec<_> = (0..h)
-        .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| f(x, y))
-        .collect();
-    Buffers::new(w, h, filter_vectors, 100.0)
-}
-
 fn fv(direct: f32, indirect: f32, depth: f32, albedo: f32) -> FilterVector {
     FilterVector {
         direct: [direct; 3],
@@ -147,7 +110,7 @@ fn fv(direct: f32, indirect: f32, depth: f32, albedo: f32) -> FilterVector {
 
 #[test]
 fn constant_image_stays_constant() {
-    let b = synthetic(33, 17, |_, _| fv(0.3, 0.2, 5.0, 0.7));
+    let b = Buffers::from_fn(33, 17, 100.0, |_, _| fv(0.3, 0.2, 5.0, 0.7));
     let mut worst = 0f32;
     for v in VARIANTS {
         for holes in [false, true] {
@@ -220,7 +183,7 @@ fn hard_edges_in_depth_normal_and_texture_are_kept() {
         ),
     ];
     for (what, f) in cases {
-        let b = synthetic(32, 16, f);
+        let b = Buffers::from_fn(32, 16, 100.0, f);
         let out = device(&b, &DdfSettings::default(), ROWS);
         let mut worst = 0f32;
         for y in 0..16 {
@@ -245,14 +208,6 @@ fn hard_edges_in_depth_normal_and_texture_are_kept() {
     }
 }
 
-/// A bundled scene's buffers (features and variances) at a small size.
-fn bundled(name: &str, w: u32, h: u32, spp: u32, seed: u32) -> Buffers {
-    let scene = noisefree::scene::load_scene(&repo_path(&format!("scenes/{name}.toml"))).unwrap();
-    let mut o = options(&scene, w, h, seed);
-    o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
-    Buffers::of_frame(&render_frame(&scene, &o, spp))
-}
-
 /// The filtered 8-spp image of a bundled scene is much closer to a 1024-spp reference than the
 /// unfiltered one. The scene is Cornell plane, and the seeds 11 (noisy) and 100 (reference):
 /// the variance-scale defaults were chosen on Cornell diffuse (with and without depth of
@@ -265,8 +220,9 @@ fn filtering_lowers_the_error_on_a_scene_not_used_for_tuning() {
     // kw = 21 (Table 7.2) was chosen for 512 x 512; at 64 x 64 it covers a third of the image
     // and blurs the textures. 128 x 128 keeps the test quick and the textures resolvable.
     let (w, h) = (128, 128);
-    let truth = bundled("cornell_plane", w, h, 1024, 100).beauty();
-    let noisy = bundled("cornell_plane", w, h, 8, 11);
+    let scene = bundled_scene("cornell_plane");
+    let truth = reference_image(&scene, w, h, 1024, 100);
+    let noisy = render(&scene, w, h, 8, 11);
     // The thesis's metric, MSE in CIELUV (§5.2.2): linear-RGB MSE is dominated by the
     // anti-aliased edge of the bright light panel, which no filter is meant to change.
     let unfiltered = mse_luv(&noisy.beauty(), &truth).unwrap();
@@ -307,7 +263,7 @@ fn filtering_lowers_the_error_on_a_scene_not_used_for_tuning() {
 fn sky_pixels_pass_through_bit_exactly() {
     // A sky whose colour changes from pixel to pixel: sky pixels share their (sentinel) depth
     // and features, so without the special case they are averaged with each other.
-    let b = synthetic(20, 10, |x, y| {
+    let b = Buffers::from_fn(20, 10, 100.0, |x, y| {
         if (x + y) % 3 == 0 {
             fv(
                 0.1 + 0.037 * x as f32,
@@ -397,7 +353,7 @@ fn holes_with_an_odd_half_still_include_the_centre() {
     // kw = 7: half = 3, the holes grid is -3, -1, 1, 3: the centre is off the grid. Every
     // pixel differs wildly in colour from its neighbours, so only the centre's own weight
     // (1) is significant: the output is the pixel's own colour, never 0/0.
-    let b = synthetic(9, 9, |x, y| {
+    let b = Buffers::from_fn(9, 9, 100.0, |x, y| {
         fv(((x * 31 + y * 17) % 7) as f32 * 10.0, 0.0, 1.0, 0.5)
     });
     let s = DdfSettings {
@@ -422,7 +378,7 @@ fn holes_with_an_odd_half_still_include_the_centre() {
 #[test]
 fn tiny_images_wide_kernels_and_underflow() {
     for (w, h) in [(1, 1), (1, 7), (7, 1), (3, 2)] {
-        let b = synthetic(w, h, |x, y| {
+        let b = Buffers::from_fn(w, h, 100.0, |x, y| {
             fv(0.1 * (x + y) as f32, 0.3, 2.0 + x as f32, 0.5)
         });
         for kw in [1, 3, 51] {
@@ -454,7 +410,9 @@ fn tiny_images_wide_kernels_and_underflow() {
     // tiny sigma_f): the pixel keeps its own indirect colour instead of 0/0. Direct light is
     // filtered normally: sigma_f direction weights only indirect light, so the direct half is
     // the default filter's output on the same buffers without indirect light.
-    let b = synthetic(8, 8, |x, y| fv(0.1 * x as f32, 0.05 * y as f32, 3.0, 0.5));
+    let b = Buffers::from_fn(8, 8, 100.0, |x, y| {
+        fv(0.1 * x as f32, 0.05 * y as f32, 3.0, 0.5)
+    });
     let mut s = DdfSettings::default();
     s.sigma_f[3] = 1e-6;
     let want = reference(&b.frame(), &s).unwrap();

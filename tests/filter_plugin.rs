@@ -105,7 +105,7 @@ fn a_filter_declared_in_a_test_runs_online_and_offline_with_its_own_output() {
     let registry = Registry::builtin().with(&BoxFilter);
     let dir = tempdir("filter-plugin");
     let p = |n: &str| dir.join(n).to_string_lossy().to_string();
-    let scene = repo_path("scenes/cornell_glossy.toml")
+    let scene = bundled_scene_path("cornell_glossy")
         .to_string_lossy()
         .to_string();
     let size = ["--width", "32", "--height", "24", "--spp", "4", "-q"];

@@ -9,37 +9,11 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::time::{Duration, Instant};
 
-fn noisefree() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_noisefree"))
-}
+use common::{MINIMAL_SCENE, fails, noisefree, tempdir, usage_fails, write_scene};
 
-/// A fresh folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    common::tempdir(&format!("hard-cli-{name}"))
-}
-
-const SCENE: &str = r#"[render]
-width = 8
-height = 8
-spp = 1
-
-[camera]
-origin = [0, 0, 5]
-target = [0, 0, 0]
-
-[[material]]
-name = "white"
-type = "diffuse"
-color = [0.8, 0.8, 0.8]
-
-[[sphere]]
-center = [0, 0, 0]
-radius = 1
-material = "white"
-
+/// A small sphere light for the minimal scene.
+const LIGHT: &str = r#"
 [[light]]
 type = "sphere"
 center = [0, 3, 3]
@@ -47,60 +21,13 @@ radius = 0.5
 emission = [10, 10, 10]
 "#;
 
+/// The minimal scene with [`LIGHT`], written to `dir`/scene.toml.
 fn scene(dir: &Path) -> PathBuf {
-    let p = dir.join("scene.toml");
-    std::fs::write(&p, SCENE).unwrap();
-    p
+    write_scene(dir, &format!("{MINIMAL_SCENE}{LIGHT}"))
 }
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-/// The exit status of an error (src/cli/mod.rs).
-const ERROR: i32 = 1;
-/// The exit status of an argument the parser refuses (clap's usage errors).
-const USAGE: i32 = 2;
-
-/// Runs noisefree and checks the failure: exit status 1 (not another code, not a signal), no
-/// panic, no failed allocation, and every `needles` entry in stderr. Returns stderr.
-fn fails(args: &[&str], needles: &[&str]) -> String {
-    fails_with(ERROR, args, needles)
-}
-
-/// [`fails`] for arguments the parser refuses: exit status 2.
-fn usage_fails(args: &[&str], needles: &[&str]) -> String {
-    fails_with(USAGE, args, needles)
-}
-
-fn fails_with(expected: i32, args: &[&str], needles: &[&str]) -> String {
-    let start = Instant::now();
-    let out = noisefree().args(args).output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(
-        out.status.code(),
-        Some(expected),
-        "expected exit status {expected} for {args:?}, got {:?}\nstderr: {err}",
-        out.status
-    );
-    assert!(!err.contains("panicked"), "a panic for {args:?}: {err}");
-    assert!(
-        !err.contains("memory allocation"),
-        "an allocation failure for {args:?}: {err}"
-    );
-    for n in needles {
-        assert!(
-            err.contains(n),
-            "expected {n:?} in the message for {args:?}: {err}"
-        );
-    }
-    // Errors come before the work: none of these cases may take long.
-    assert!(
-        start.elapsed() < Duration::from_secs(120),
-        "{args:?} took {:?} to fail",
-        start.elapsed()
-    );
-    err
 }
 
 /// No file in `dir` other than those named in `keep`.
@@ -116,7 +43,7 @@ fn nothing_written(dir: &Path, keep: &[&str]) {
 
 #[test]
 fn a_resolution_beyond_device_memory_is_refused_before_allocating() {
-    let dir = temp_dir("huge");
+    let dir = tempdir("hard-cli-huge");
     let sc = scene(&dir);
     let png = dir.join("x.png");
     // 200000 x 200000 pixels: 4e10, far past any device's memory (and any host's).
@@ -172,7 +99,7 @@ fn a_resolution_beyond_device_memory_is_refused_before_allocating() {
 
 #[test]
 fn zero_samples_name_the_flag_and_bad_numbers_are_refused() {
-    let dir = temp_dir("zero");
+    let dir = tempdir("hard-cli-zero");
     let sc = scene(&dir);
     let png = dir.join("x.png");
     let base = ["render", s(&sc), "--out", s(&png), "--no-exr", "-q"];
@@ -199,7 +126,7 @@ fn zero_samples_name_the_flag_and_bad_numbers_are_refused() {
 
 #[test]
 fn zero_width_or_height_names_the_flag() {
-    let dir = temp_dir("zero-wh");
+    let dir = tempdir("hard-cli-zero-wh");
     let sc = scene(&dir);
     let png = dir.join("x.png");
     for flag in ["--width", "--height"] {
@@ -219,7 +146,7 @@ fn zero_width_or_height_names_the_flag() {
 
 #[test]
 fn a_directory_as_an_output_is_refused_before_rendering() {
-    let dir = temp_dir("dirout");
+    let dir = tempdir("hard-cli-dirout");
     let sc = scene(&dir);
     let sub = dir.join("sub");
     std::fs::create_dir_all(&sub).unwrap();
@@ -242,7 +169,7 @@ fn a_directory_as_an_output_is_refused_before_rendering() {
 
 #[test]
 fn outputs_in_a_missing_folder_are_refused_before_rendering() {
-    let dir = temp_dir("nofolder");
+    let dir = tempdir("hard-cli-nofolder");
     let sc = scene(&dir);
     let missing = dir.join("no/such");
     let png = dir.join("x.png");
@@ -278,7 +205,7 @@ fn outputs_in_a_missing_folder_are_refused_before_rendering() {
 
 #[test]
 fn filter_refuses_missing_directory_and_non_exr_inputs() {
-    let dir = temp_dir("filter");
+    let dir = tempdir("hard-cli-filter");
     let out = dir.join("f.png");
     let missing = dir.join("absent.exr");
     fails(&["filter", s(&missing), "--out", s(&out)], &["absent.exr"]);
@@ -341,7 +268,7 @@ fn write_rgb(path: &Path, w: u32, h: u32) {
 
 #[test]
 fn compare_refuses_mismatched_sizes_and_bad_files() {
-    let dir = temp_dir("compare");
+    let dir = tempdir("hard-cli-compare");
     let small = dir.join("small.exr");
     let large = dir.join("large.exr");
     write_rgb(&small, 4, 4);
@@ -381,7 +308,7 @@ fn compare_refuses_mismatched_sizes_and_bad_files() {
 
 #[test]
 fn compare_mismatch_names_both_files() {
-    let dir = temp_dir("compare-names");
+    let dir = tempdir("hard-cli-compare-names");
     let small = dir.join("small.exr");
     let large = dir.join("large.exr");
     write_rgb(&small, 4, 4);
@@ -394,7 +321,7 @@ fn compare_mismatch_names_both_files() {
 
 #[test]
 fn filter_settings_out_of_range_and_unknown_filters_name_the_flag() {
-    let dir = temp_dir("settings");
+    let dir = tempdir("hard-cli-settings");
     let sc = scene(&dir);
     let png = dir.join("x.png");
     let base = ["render", s(&sc), "--out", s(&png), "--no-exr", "-q"];
@@ -431,7 +358,7 @@ fn filter_settings_out_of_range_and_unknown_filters_name_the_flag() {
 fn renamed_filter_flags_are_refused_naming_the_new_one() {
     // The flags before the filter registry: the parser refuses them and points at the flag
     // that replaced each.
-    let dir = temp_dir("renamed");
+    let dir = tempdir("hard-cli-renamed");
     let sc = scene(&dir);
     let png = dir.join("x.png");
     let base = ["render", s(&sc), "--out", s(&png), "--no-exr", "-q"];

@@ -72,22 +72,16 @@ fn config(cases: u32) -> ProptestConfig {
     }
 }
 
-fn manifest() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 fn fixture(name: &str) -> PathBuf {
-    manifest().join("tests/scenes/bad_input").join(name)
+    common::repo_path("tests/scenes/bad_input").join(name)
 }
 
 /// The folder every case writes into: links to scenes/textures and scenes/models, so that the
 /// bundled scenes' relative paths resolve, and copies of the fixture mesh.
 static WORK: LazyLock<PathBuf> = LazyLock::new(|| {
-    let d = std::env::temp_dir().join(format!("noisefree-hard-input-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+    let d = common::tempdir("hard-input");
     for sub in ["textures", "models"] {
-        std::os::unix::fs::symlink(manifest().join("scenes").join(sub), d.join(sub)).unwrap();
+        std::os::unix::fs::symlink(common::repo_path("scenes").join(sub), d.join(sub)).unwrap();
     }
     std::fs::write(
         d.join("tri.obj"),
@@ -95,7 +89,7 @@ static WORK: LazyLock<PathBuf> = LazyLock::new(|| {
     )
     .unwrap();
     // map_Kd by absolute path, so that copies of the MTL in other folders find it too.
-    let scenes = format!("{}/", manifest().join("scenes").display());
+    let scenes = format!("{}/", common::repo_path("scenes").display());
     let mtl = read_text(&fixture("tri.mtl")).replace("../../../scenes/", &scenes);
     std::fs::write(d.join("tri.mtl"), mtl).unwrap();
     d
@@ -690,13 +684,7 @@ const SMALL_SCENES: &[(&str, &str)] = &[
 /// milliseconds (the large generators are exercised by their own tests).
 static SCENES: LazyLock<Vec<(String, String)>> = LazyLock::new(|| {
     let mut v: Vec<(String, String)> = Vec::new();
-    let mut files: Vec<PathBuf> = std::fs::read_dir(manifest().join("scenes"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    files.sort();
+    let files = common::bundled_scenes();
     assert!(!files.is_empty(), "no bundled scenes found");
     for f in files {
         let text = read_text(&f)
@@ -1411,7 +1399,7 @@ fn obj_base() -> impl Strategy<Value = usize> {
 
 static OBJ_BASES: LazyLock<Vec<String>> = LazyLock::new(|| {
     vec![
-        read_text(&manifest().join("scenes/models/cornell_box.obj"))
+        read_text(&common::repo_path("scenes/models/cornell_box.obj"))
             .replace("mtllib cornell_box.mtl", "mtllib tri.mtl"),
         read_text(&fixture("tri.obj")),
         read_text(&fixture("degenerate.obj")),
@@ -1623,20 +1611,6 @@ fn small_rgb(w: u32, h: u32) -> noisefree::imaging::RgbImage {
 fn small_aovs(w: u32, h: u32) -> common::Buffers {
     use noisefree::layout::{FilterVector, WelfordSums};
     let n = (w * h) as usize;
-    let fv = (0..n)
-        .map(|i| {
-            let v = i as f32 * 0.01;
-            FilterVector {
-                direct: [v, 0.5, 1.0 - v],
-                indirect: [0.1, v, 0.2],
-                depth: 1.0 + v,
-                normal: [0.0, 1.0, 0.0],
-                albedo: [0.5, v, 0.25],
-                albedo2: [v; 3],
-                ..Default::default()
-            }
-        })
-        .collect();
     let gb = (0..n)
         .map(|i| WelfordSums {
             depth: i as f32 * 1e-3,
@@ -1647,7 +1621,18 @@ fn small_aovs(w: u32, h: u32) -> common::Buffers {
         spp: 4,
         variances: Some(gb),
         directions: Some(vec![[0.0, 0.0, 1.0]; n]),
-        ..common::Buffers::new(w, h, fv, 100.0)
+        ..common::Buffers::from_fn(w, h, 100.0, |x, y| {
+            let v = (y * w + x) as f32 * 0.01;
+            FilterVector {
+                direct: [v, 0.5, 1.0 - v],
+                indirect: [0.1, v, 0.2],
+                depth: 1.0 + v,
+                normal: [0.0, 1.0, 0.0],
+                albedo: [0.5, v, 0.25],
+                albedo2: [v; 3],
+                ..Default::default()
+            }
+        })
     }
 }
 
@@ -1682,7 +1667,7 @@ static IMAGES: LazyLock<Vec<(&'static str, Vec<u8>)>> = LazyLock::new(|| {
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 80)
         .encode(&rgb8, 16, 9, image::ExtendedColorType::Rgb8)
         .unwrap();
-    let textures = manifest().join("scenes/textures");
+    let textures = common::repo_path("scenes/textures");
     vec![
         ("exr", std::fs::read(&rgb).unwrap()),
         ("exr", std::fs::read(&aov).unwrap()),

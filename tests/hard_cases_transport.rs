@@ -14,19 +14,6 @@ use noisefree::render::cpu::pathtrace::{Surface, scatter};
 use noisefree::render::cpu::rng::rng_sample_key;
 use noisefree::scene::Scene;
 
-fn all_finite(film: &[FilterVector]) -> bool {
-    film.iter().all(|f| {
-        f.direct
-            .iter()
-            .chain(&f.indirect)
-            .chain([&f.depth])
-            .chain(&f.normal)
-            .chain(&f.albedo)
-            .chain(&f.albedo2)
-            .all(|v| v.is_finite())
-    })
-}
-
 /// Renders with every output on and checks every buffer is finite; returns the film.
 fn render_checked(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> Vec<FilterVector> {
     let mut o = options(scene, w, h, seed);
@@ -35,7 +22,10 @@ fn render_checked(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> Vec<Fil
     let frame = render_frame(scene, &o, spp);
     assert_eq!(frame.outputs(), o.outputs.closed());
     let film = frame.filter_vectors().unwrap();
-    assert!(all_finite(film), "non-finite FilterVector");
+    assert!(
+        film.iter().flat_map(lanes).all(f32::is_finite),
+        "non-finite FilterVector"
+    );
     // Every lane of every buffer (depth shifts, Welford state, positions too).
     for b in frame.outputs().buffers() {
         let floats = frame.host(b.id).unwrap().floats();
@@ -132,7 +122,7 @@ scale = 2
 fn cornell_scenes_render_the_same_at_any_scale() {
     let glass = "[[material]]\nname = \"glass\"\ntype = \"glass\"\n\n[[sphere]]\ncenter = [0.3, 0.35, 0.1]\nradius = 0.35\nmaterial = \"glass\"\n\n[[sphere]]\ncenter = [-0.4, 0.3, -0.3]\nradius = 0.3\nmaterial = \"white\"\n";
     let base = scene_from_toml(&cornell("max_depth = 3", glass));
-    let bundled = noisefree::scene::load_scene(&repo_path("scenes/cornell_diffuse.toml")).unwrap();
+    let bundled = bundled_scene("cornell_diffuse");
     for scene in [base, bundled] {
         let reference = beauty(&render_checked(&scene, 32, 32, 64, 9));
         let m0 = mean_rgb(&reference);
@@ -386,14 +376,7 @@ fn autofocus_into_the_void_falls_back() {
 /// vectors gathered.
 #[test]
 fn every_bundled_scene_renders_finite_buffers() {
-    let mut paths: Vec<_> = std::fs::read_dir(repo_path("scenes"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    paths.sort();
-    for p in paths {
+    for p in bundled_scenes() {
         let scene = noisefree::scene::load_scene(&p).unwrap();
         render_checked(&scene, 32, 24, 4, 2);
     }

@@ -18,24 +18,18 @@ fn bytes(img: &RgbImage) -> Vec<u32> {
     img.pixels.iter().flatten().map(|v| v.to_bits()).collect()
 }
 
-fn bundled_scenes() -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir(repo_path("scenes"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    v.sort();
-    assert_eq!(v.len(), 10, "the five thesis scenes and their DOF variants");
-    v
-}
-
 #[test]
 fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() {
     let registry = Registry::builtin();
     let dir = tempdir("online-offline");
     let (w, h, spp) = (24, 20, 4);
-    for path in bundled_scenes() {
+    let scenes = bundled_scenes();
+    assert_eq!(
+        scenes.len(),
+        10,
+        "the five thesis scenes and their DOF variants"
+    );
+    for path in scenes {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
         let scene = noisefree::scene::load_scene(&path).unwrap();
         let mut o = RenderOptions::for_scene(&scene);
@@ -139,8 +133,7 @@ fn outputs_do_not_depend_on_the_other_outputs() {
     // Outside (sky: depth mixes SKY_DEPTH with surface depths, the hardest case for the
     // depth mean's rounding).
     for name in ["cornell_glossy", "outside"] {
-        let scene =
-            noisefree::scene::load_scene(&repo_path(&format!("scenes/{name}.toml"))).unwrap();
+        let scene = bundled_scene(name);
         let render = |outputs: &[Output]| {
             let mut o = options(&scene, 32, 24, 3);
             o.outputs = OutputSet::of(outputs);
@@ -204,7 +197,7 @@ fn command_line_renders_and_filters_agree() {
     let dir = tempdir("online-offline-cli");
     let registry = Registry::builtin();
     let p = |name: &str| dir.join(name).to_string_lossy().to_string();
-    let scene = repo_path("scenes/cornell_glossy.toml")
+    let scene = bundled_scene_path("cornell_glossy")
         .to_string_lossy()
         .to_string();
     let size = strings(&["--width", "32", "--height", "24", "--spp", "4", "-q"]);

@@ -3,8 +3,11 @@
 //! degenerate neighbourhoods), denoising with a clean edge, the scale experiment of Table 5.4,
 //! and the `samples.bin` file format. No device needed.
 
+mod common;
+
 use std::io::Cursor;
 
+use common::{assert_finite, tempdir};
 use noisefree::filters::Auto;
 use noisefree::filters::rpf::mi::{entropy, mutual_information};
 use noisefree::filters::rpf::samples::{self, HEADER_BYTES, MAGIC, to_floats};
@@ -117,15 +120,6 @@ fn fast(boxes: &[u32]) -> RpfSettings {
     RpfSettings {
         box_sizes: boxes.to_vec(),
         ..Default::default()
-    }
-}
-
-fn assert_finite(img: &RgbImage, what: &str) {
-    for (i, p) in img.pixels.iter().enumerate() {
-        assert!(
-            p.iter().all(|v| v.is_finite()),
-            "{what}: pixel {i} is {p:?}"
-        );
     }
 }
 
@@ -752,8 +746,7 @@ fn sample_files_round_trip() {
         set
     );
 
-    let dir = std::env::temp_dir().join(format!("noisefree-rpf-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempdir("rpf");
     let path = dir.join("samples.bin");
     set.write(&path).unwrap();
     assert!(samples::is_sample_file(&path));
@@ -843,8 +836,7 @@ fn bad_sample_files_give_clear_errors() {
     let mut nan = set.clone();
     nan.samples[0].world2[0] = f32::NAN;
     assert!(nan.write_to(&mut Vec::new()).is_ok()); // the raw writer does not check
-    let dir = std::env::temp_dir().join(format!("noisefree-rpf-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempdir("rpf-bad");
     assert!(nan.write(&dir.join("nan.bin")).is_err());
     assert!(!dir.join("nan.bin").exists());
     std::fs::remove_dir_all(&dir).unwrap();

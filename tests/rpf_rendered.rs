@@ -23,16 +23,11 @@ fn rendered_samples(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> (Samp
     )
 }
 
-fn reference(scene: &Scene, w: u32, h: u32) -> RgbImage {
-    let o = options(scene, w, h, 1000);
-    render_frame(scene, &o, 1024).beauty().unwrap()
-}
-
 #[test]
 fn rpf_lowers_the_error_on_cornell_diffuse_and_ignores_the_scene_scale() {
-    let scene = noisefree::scene::load_scene(&repo_path("scenes/cornell_diffuse.toml")).unwrap();
+    let scene = bundled_scene("cornell_diffuse");
     let (w, h) = (64, 64);
-    let truth = reference(&scene, w, h);
+    let truth = reference_image(&scene, w, h, 1024, 1000);
     let settings = RpfSettings::default();
     let (set, noisy) = rendered_samples(&scene, w, h, 8, 7);
     let filtered = rpf::filter(&set, &settings).unwrap();

@@ -9,21 +9,11 @@ use noisefree::gpu::{BuildSource, Gpu};
 use noisefree::layout::outputs::{Output, OutputSet};
 use noisefree::render::{DEBUG_COUNTERS, Renderer};
 
-fn bundled_scenes() -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir(repo_path("scenes"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    v.sort();
-    assert!(v.len() >= 10, "the five scenes and their DOF variants");
-    v
-}
-
 #[test]
 fn specialised_kernels_render_the_generic_kernels_bytes() {
-    for path in bundled_scenes() {
+    let scenes = bundled_scenes();
+    assert!(scenes.len() >= 10, "the five scenes and their DOF variants");
+    for path in scenes {
         let scene = noisefree::scene::load_scene(&path).unwrap();
         let mut o = options(&scene, 24, 16, 3);
         o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);

@@ -14,29 +14,12 @@ use noisefree::render::cpu::sampling::camera_ray;
 use noisefree::render::{Renderer, SceneArrays};
 use noisefree::stats::{RenderRecord, feature_variance_sums, variances_from_sums};
 
-fn two_pass(x: &[f32]) -> (f64, f64) {
-    let n = x.len() as f64;
-    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n;
-    let var = x.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, var)
-}
-
-fn normal_stream(rng: &mut TestRng, n: usize, mean: f32, sd: f32) -> Vec<f32> {
-    (0..n)
-        .map(|_| {
-            // Box-Muller.
-            let (u1, u2) = (rng.uniform().max(1e-7), rng.uniform());
-            mean + sd * (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
-        })
-        .collect()
-}
-
 #[test]
 fn welford_in_float32_matches_float64_two_pass() {
     let mut rng = TestRng(17);
     let n = 100_000;
-    let depth_like = normal_stream(&mut rng, n, 1.0e4, 0.1);
-    let colour_like = normal_stream(&mut rng, n, 0.5, 0.3);
+    let depth_like = rng.normals(n, 1.0e4, 0.1);
+    let colour_like = rng.normals(n, 0.5, 0.3);
     let constant = vec![0.73f32; n];
     let streams = vec![depth_like.clone(), colour_like.clone(), constant];
     // Progressive: launches of 1000 samples, as the renderer carries state across launches.
@@ -103,7 +86,7 @@ fn welford_in_float32_matches_float64_two_pass() {
 #[test]
 fn welford_single_launch_and_one_sample_per_launch_agree() {
     let mut rng = TestRng(5);
-    let streams = vec![normal_stream(&mut rng, 300, 3.0, 0.5)];
+    let streams = vec![rng.normals(300, 3.0, 0.5)];
     let (_, a) = device_welford(&streams, 300);
     let (_, b) = device_welford(&streams, 1);
     assert_eq!(

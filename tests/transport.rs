@@ -293,7 +293,7 @@ material = "metal"
     // What the pixels that do not agree may move the image means by.
     let mut apart = [0f64; 3];
     for (f, r) in film.iter().zip(&means) {
-        let d: [f32; 16] = bytemuck_lanes(f);
+        let d = lanes(f);
         let diff = d
             .iter()
             .zip(r)
@@ -335,15 +335,4 @@ material = "metal"
             "image means differ: {a:?} vs {b:?}"
         );
     }
-}
-
-fn bytemuck_lanes(f: &noisefree::layout::FilterVector) -> [f32; 16] {
-    let mut out = [0f32; 16];
-    out[..3].copy_from_slice(&f.direct);
-    out[3..6].copy_from_slice(&f.indirect);
-    out[6] = f.depth;
-    out[7..10].copy_from_slice(&f.normal);
-    out[10..13].copy_from_slice(&f.albedo);
-    out[13..16].copy_from_slice(&f.albedo2);
-    out
 }

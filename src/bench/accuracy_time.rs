@@ -194,6 +194,7 @@ fn accuracy_time_report(ctx: &Context, t: &ResultTable) -> Result<()> {
          - **equal-quality sample reduction**: the unfiltered spp that reaches the filter's error,\n  divided by 8 (log-log interpolation; past the end of the unfiltered curve it is extended\n  with slope -1, MSE ~ 1/spp, and marked);\n\
          - **equal-time error ratio**: the unfiltered error at the same wall-clock time, divided\n  by the filter's error (above 1: the filter is the better use of the time).\n\n",
     );
+    md.push_str(&super::study::methods_markdown());
     md.push_str(&headline);
     md.push('\n');
     for name in &scenes {

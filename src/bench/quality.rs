@@ -4,7 +4,9 @@
 use anyhow::Result;
 
 use super::plot::{contact_sheet, half_size};
-use super::study::{STUDY_SEED, StudyScene, metric_cells, reference_image, sizes};
+use super::study::{
+    STUDY_SEED, StudyScene, methods_markdown, metric_cells, reference_image, sizes,
+};
 use super::table::{distinct, num};
 use super::{Context, bar};
 use crate::filters::FilterKind;
@@ -107,6 +109,7 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
          Every method on every scene, against the cached reference; MSE in CIELUV is the thesis's\n\
          metric. `filter_s` is the filter's wall-clock time on this machine.\n\n",
     );
+    md.push_str(&methods_markdown());
     // Every scene the CSV holds: runs over a few scenes at a time add up to one report.
     for name in distinct(&t.records(), "scene") {
         md.push_str(&format!(

@@ -96,6 +96,24 @@ impl StudyScene {
     }
 }
 
+/// The compared filters and their default settings, for the reports (`auto` settings are
+/// decided per scene; `noisefree render SCENE --filter NAME --explain` shows the decisions).
+pub fn methods_markdown() -> String {
+    let mut md = String::from("Settings of the compared filters (their defaults):\n\n");
+    for f in Registry::builtin().filters() {
+        let text = crate::filters::settings::describe(&f.defaults(), f.fields());
+        let inline: Vec<&str> = text.lines().collect();
+        md.push_str(&format!(
+            "- **{}** ({}): `{}`\n",
+            f.name(),
+            f.summary(),
+            inline.join("`, `")
+        ));
+    }
+    md.push('\n');
+    md
+}
+
 /// Filters that read every stored sample (RPF) cost time and memory in proportion to the
 /// samples; their curves stop at 8 spp, the spp of the headline.
 pub fn reads_every_sample(c: &Configured) -> bool {

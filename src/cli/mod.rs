@@ -62,17 +62,34 @@ pub fn main_with(registry: &Registry) -> i32 {
         Ok(c) => c,
         Err(e) => e.exit(),
     };
+    let mut own_pocl_dir = None;
     if matches!(cli.command, Command::Bench(_)) {
-        // "Cold" kernel builds must not come from the driver's own caches. Set before the
-        // first OpenCL call, while the process has one thread.
-        for (var, value) in [("POCL_KERNEL_CACHE", "0"), ("CUDA_CACHE_DISABLE", "1")] {
+        // "Cold" kernel builds must not come from the driver's own caches. PoCL still writes
+        // its uncached builds under its cache folder, and two processes building the same
+        // kernel there at once have been seen to fail ("Final linking of kernel render
+        // failed"), so each bench process gets a folder of its own. Set before the first
+        // OpenCL call, while the process has one thread.
+        let pocl_dir = std::env::temp_dir().join(format!("noisefree-pocl-{}", std::process::id()));
+        if std::env::var_os("POCL_CACHE_DIR").is_none() {
+            own_pocl_dir = Some(pocl_dir.clone());
+        }
+        let pocl_dir = pocl_dir.to_string_lossy().into_owned();
+        for (var, value) in [
+            ("POCL_KERNEL_CACHE", "0"),
+            ("POCL_CACHE_DIR", pocl_dir.as_str()),
+            ("CUDA_CACHE_DISABLE", "1"),
+        ] {
             if std::env::var_os(var).is_none() {
                 // SAFETY: no other thread exists yet that could read the environment.
                 unsafe { std::env::set_var(var, value) };
             }
         }
     }
-    match execute(cli, registry) {
+    let result = execute(cli, registry);
+    if let Some(dir) = own_pocl_dir {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    match result {
         Ok(()) => 0,
         Err(e) if e.is::<render_cmd::Interrupted>() => {
             eprintln!("{e}");

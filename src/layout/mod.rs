@@ -424,6 +424,21 @@ pub const MATERIAL_SPECULAR: u32 = 1;
 pub const MATERIAL_GLASS: u32 = 2;
 pub const MATERIAL_METAL: u32 = 3;
 pub const MATERIAL_EMITTER: u32 = 4;
+impl FilterVector {
+    /// The 16 floats in field order, as the kernels read F (one float16): direct, indirect,
+    /// depth, normal, albedo, albedo2.
+    pub fn lanes(&self) -> [f32; 16] {
+        let mut x = [0f32; 16];
+        x[..3].copy_from_slice(&self.direct);
+        x[3..6].copy_from_slice(&self.indirect);
+        x[6] = self.depth;
+        x[7..10].copy_from_slice(&self.normal);
+        x[10..13].copy_from_slice(&self.albedo);
+        x[13..16].copy_from_slice(&self.albedo2);
+        x
+    }
+}
+
 pub const LIGHT_SPHERE: u32 = 0;
 pub const LIGHT_TRIANGLE: u32 = 1;
 pub const LEAF_COUNT_SHIFT: u32 = 28;

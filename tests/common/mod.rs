@@ -2,7 +2,9 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
 
 use noisefree::gpu::Gpu;
 
@@ -18,23 +20,50 @@ pub fn generic_defines() -> Vec<(String, String)> {
     noisefree::render::features::generic_defines()
 }
 
+/// A path in the repository (`rel` relative to its root; "" for the root itself).
 pub fn repo_path(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
 use glam::Vec3;
+use noisefree::imaging::RgbImage;
 use noisefree::layout::{FilterVector, Float4};
 use noisefree::render::{RenderOptions, Renderer, SceneArrays};
-use noisefree::scene::{Scene, load_scene_str};
+use noisefree::scene::{Scene, load_scene, load_scene_str};
+
+/// Every bundled scene file (scenes/*.toml), sorted by name.
+pub fn bundled_scenes() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(repo_path("scenes"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// The path of the bundled scene scenes/`name`.toml.
+pub fn bundled_scene_path(name: &str) -> PathBuf {
+    repo_path(&format!("scenes/{name}.toml"))
+}
+
+/// The bundled scene scenes/`name`.toml, loaded.
+pub fn bundled_scene(name: &str) -> Scene {
+    load_scene(&bundled_scene_path(name)).unwrap_or_else(|e| panic!("{e}"))
+}
 
 /// A scene from TOML text, resolved as if it lived in scenes/ (for relative asset paths).
 pub fn scene_from_toml(text: &str) -> Scene {
     load_scene_str(&repo_path("scenes/test.toml"), text).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// A small closed Cornell box (walls from the `quad` generator, an emissive ceiling panel).
-/// `extra` is appended: more materials and objects, or camera/render overrides via a
-/// replacement of the [render] table contents through `render`.
+/// A Cornell box of `quad` walls with an emissive panel under the ceiling; not closed. The
+/// floor and ceiling are 2 x 2 (z from -1 to 1) and the back wall is at z = -1, but the side
+/// walls run from z = -1 to 3.5, where a white wall stands behind the camera (z = 3.4): above
+/// and below z from 1 to 3.5 the box is open. Every camera ray hits a wall (the 40° vertical
+/// field of view reaches the floor and ceiling before z = 1); bounced rays can leave through
+/// the openings, and bring no light back (there is no environment). `render` is the contents
+/// of the [render] table; `extra` is appended (more materials and objects).
 pub fn cornell(render: &str, extra: &str) -> String {
     format!(
         r#"
@@ -118,6 +147,28 @@ translate = [0, 1.99, 0]
     )
 }
 
+/// [`cornell`] at max_depth 3 with a mirror sphere and a red sphere (mirror reflections,
+/// curved normals, texture2 that varies).
+pub fn cornell_with_spheres() -> Scene {
+    let extra = r#"
+[[material]]
+name = "mirror"
+type = "specular"
+color = [0.9, 0.9, 0.9]
+
+[[sphere]]
+center = [-0.4, 0.35, -0.3]
+radius = 0.35
+material = "mirror"
+
+[[sphere]]
+center = [0.4, 0.3, 0.3]
+radius = 0.3
+material = "red"
+"#;
+    scene_from_toml(&cornell("max_depth = 3", extra))
+}
+
 /// Renders `spp` samples (in launches of `batch`) and returns the FilterVector means.
 pub fn render_film(
     scene: &Scene,
@@ -130,6 +181,13 @@ pub fn render_film(
         r.render_samples(batch.min(spp - r.samples_done())).unwrap();
     }
     r.frame().filter_vectors().unwrap().to_vec()
+}
+
+/// A reference image ("ground truth"): the beauty of `spp` samples of `scene` at `w` x `h`
+/// with `seed`, rendered in launches of at most 256 samples.
+pub fn reference_image(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> RgbImage {
+    let film = render_film(scene, &options(scene, w, h, seed), spp, 256);
+    RgbImage::beauty(w, h, &film)
 }
 
 pub fn options(scene: &Scene, width: u32, height: u32, seed: u32) -> RenderOptions {
@@ -165,25 +223,52 @@ pub fn mse(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
         / (3 * a.len()) as f64
 }
 
+/// A FilterVector's 16 lanes in field order: direct, indirect, depth, normal, albedo, albedo2.
+pub fn lanes(f: &FilterVector) -> [f32; 16] {
+    f.lanes()
+}
+
 /// The film as raw bytes, for bit-exact comparisons.
 pub fn film_bytes(film: &[FilterVector]) -> Vec<u8> {
     film.iter()
-        .flat_map(|f| {
-            let mut v = Vec::with_capacity(64);
-            for x in f
-                .direct
-                .iter()
-                .chain(&f.indirect)
-                .chain([&f.depth])
-                .chain(&f.normal)
-                .chain(&f.albedo)
-                .chain(&f.albedo2)
-            {
-                v.extend_from_slice(&x.to_le_bytes());
-            }
-            v
-        })
+        .flat_map(lanes)
+        .flat_map(f32::to_le_bytes)
         .collect()
+}
+
+/// The largest relative difference of two images' channels (relative to the larger of the
+/// two values, or to 1e-3 where both are smaller).
+pub fn max_rel_diff(a: &RgbImage, b: &RgbImage) -> f32 {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .flat_map(|(x, y)| {
+            (0..3).map(move |c| (x[c] - y[c]).abs() / x[c].abs().max(y[c].abs()).max(1e-3))
+        })
+        .fold(0.0, f32::max)
+}
+
+/// Fails, naming `what` and the first such pixel, if any channel of `img` is NaN or infinite.
+pub fn assert_finite(img: &RgbImage, what: &str) {
+    if let Some(i) = img
+        .pixels
+        .iter()
+        .position(|p| !p.iter().all(|v| v.is_finite()))
+    {
+        panic!(
+            "{what}: non-finite output, pixel {i} is {:?}",
+            img.pixels[i]
+        );
+    }
+}
+
+/// The mean and the sample variance (n - 1) of `x` in float64, in two passes.
+pub fn two_pass(x: &[f32]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let var = x.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var)
 }
 
 /// Runs kernels/test/probes.cl `probe_intersect` on `arrays`: per ray (origin, direction, t_max)
@@ -246,6 +331,16 @@ impl TestRng {
     }
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.uniform()
+    }
+    /// A normal variate of mean `mean` and standard deviation `sd` (Box-Muller, one of the
+    /// pair; two uniforms per value).
+    pub fn normal(&mut self, mean: f32, sd: f32) -> f32 {
+        let (u1, u2) = (self.uniform().max(1e-7), self.uniform());
+        mean + sd * (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+    }
+    /// `n` normal variates (see [`TestRng::normal`]).
+    pub fn normals(&mut self, n: usize, mean: f32, sd: f32) -> Vec<f32> {
+        (0..n).map(|_| self.normal(mean, sd)).collect()
     }
     pub fn unit_vector(&mut self) -> Vec3 {
         loop {
@@ -355,6 +450,20 @@ impl Buffers {
         }
     }
 
+    /// [`Buffers::new`] with `f(x, y)` giving each pixel's FilterVector (rows top to bottom).
+    pub fn from_fn(
+        width: u32,
+        height: u32,
+        scene_size: f32,
+        f: impl Fn(u32, u32) -> FilterVector,
+    ) -> Self {
+        let filter_vectors = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| f(x, y))
+            .collect();
+        Buffers::new(width, height, filter_vectors, scene_size)
+    }
+
     /// The frame these buffers describe (variances as variances, as from an AOV file).
     pub fn frame(&self) -> noisefree::render::Frame {
         use noisefree::layout::outputs::{BufferId, Output, OutputSet};
@@ -445,4 +554,92 @@ pub fn tempdir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
+}
+
+// ---- The command line ----
+
+/// The noisefree binary of this build, ready for arguments.
+pub fn noisefree() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_noisefree"))
+}
+
+/// The exit status of an error (src/cli/mod.rs); anything else, a signal included, is a bug.
+pub const ERROR: i32 = 1;
+/// The exit status of an argument the parser refuses (clap's usage errors).
+pub const USAGE: i32 = 2;
+
+/// Runs noisefree with `args` and checks the failure: exit status 1 (not another code, not a
+/// signal), no panic, no failed allocation, and every `needles` entry in stderr. Returns stderr.
+pub fn fails(args: &[&str], needles: &[&str]) -> String {
+    fails_with(ERROR, noisefree().args(args), needles)
+}
+
+/// [`fails`] for arguments the parser refuses: exit status 2.
+pub fn usage_fails(args: &[&str], needles: &[&str]) -> String {
+    fails_with(USAGE, noisefree().args(args), needles)
+}
+
+/// Runs `command` and checks that it fails with exit status `expected` as [`fails`] does (and
+/// within 120 s: errors come before the work). Returns stderr.
+pub fn fails_with(expected: i32, command: &mut Command, needles: &[&str]) -> String {
+    let args: Vec<String> = command
+        .get_args()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    let start = Instant::now();
+    let out = command.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(
+        out.status.code(),
+        Some(expected),
+        "expected exit status {expected} for {args:?}, got {:?}\nstderr: {err}",
+        out.status
+    );
+    assert!(!err.contains("panicked"), "a panic for {args:?}: {err}");
+    assert!(
+        !err.contains("memory allocation"),
+        "an allocation failure for {args:?}: {err}"
+    );
+    for n in needles {
+        assert!(
+            err.contains(n),
+            "expected {n:?} in the message for {args:?}: {err}"
+        );
+    }
+    // Errors come before the work: none of these cases may take long.
+    assert!(
+        start.elapsed() < Duration::from_secs(120),
+        "{args:?} took {:?} to fail",
+        start.elapsed()
+    );
+    err
+}
+
+/// A minimal scene file: 8 x 8 pixels, 1 spp, a white sphere and no light. tests/cli_errors.rs
+/// points at its lines and columns: edit it there too.
+pub const MINIMAL_SCENE: &str = r#"[render]
+width = 8
+height = 8
+spp = 1
+
+[camera]
+origin = [0, 0, 5]
+target = [0, 0, 0]
+
+[[material]]
+name = "white"
+type = "diffuse"
+color = [0.8, 0.8, 0.8]
+
+[[sphere]]
+center = [0, 0, 0]
+radius = 1
+material = "white"
+"#;
+
+/// Writes `text` to `dir`/scene.toml and returns that path.
+pub fn write_scene(dir: &Path, text: &str) -> PathBuf {
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, text).unwrap();
+    p
 }

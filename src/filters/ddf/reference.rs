@@ -30,16 +30,7 @@ pub fn reference(frame: &Frame, s: &DdfSettings) -> Result<RgbImage> {
         DirectionTerm::Difference => state[i].direction_mean,
         DirectionTerm::Thesis => [0.0; 3],
     };
-    let lanes = |f: &FilterVector| -> [f32; 16] {
-        let mut x = [0f32; 16];
-        x[..3].copy_from_slice(&f.direct);
-        x[3..6].copy_from_slice(&f.indirect);
-        x[6] = f.depth;
-        x[7..10].copy_from_slice(&f.normal);
-        x[10..13].copy_from_slice(&f.albedo);
-        x[13..16].copy_from_slice(&f.albedo2);
-        x
-    };
+    let lanes = FilterVector::lanes;
     let sq = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f32>();
     let pixels = (0..(w * h) as usize)
         .into_par_iter()
