@@ -211,6 +211,20 @@ impl Gpu {
         Gpu::open_with_cache(index, default_cache_dir())
     }
 
+    /// Opens every device of `indices` (`--devices 0,1`), each with its own context and queue;
+    /// empty: the one device [`Gpu::open`] chooses.
+    pub fn open_all(indices: &[usize]) -> Result<Vec<Arc<Gpu>>> {
+        if indices.is_empty() {
+            return Ok(vec![Gpu::open(None)?]);
+        }
+        for (k, i) in indices.iter().enumerate() {
+            if indices[..k].contains(i) {
+                bail!("device {i} is listed twice in --devices (see `noisefree devices`)");
+            }
+        }
+        indices.iter().map(|&i| Gpu::open(Some(i))).collect()
+    }
+
     /// Opens a device with the given kernel cache folder (None: no disk cache).
     pub fn open_with_cache(index: Option<usize>, cache_dir: Option<PathBuf>) -> Result<Arc<Gpu>> {
         let devices = all_devices()?;
@@ -470,22 +484,86 @@ pub unsafe fn enqueue(kernel: &ocl::Kernel, what: &str) -> Result<Event> {
     Ok(event)
 }
 
+/// The work-group size of a launch over a band of rows when the kernel has none of its own.
+/// Fixed, because a driver that chooses one from the global size (PoCL) compiles the kernel
+/// anew for each size it chooses, and bands change height whenever the split is re-balanced.
+pub const BAND_WORK_GROUP: [usize; 2] = [32, 1];
+
+/// Like [`enqueue`], over the rows `rows` of a `width × height` image (one band of a frame
+/// split across devices) instead of the kernel's default range: one work-item per pixel,
+/// rounded up to the kernel's work-group size (kernels skip work-items outside the image).
+/// A kernel without a work-group size of its own gets [`BAND_WORK_GROUP`] for a band short of
+/// the whole image.
+///
+/// # Safety
+/// As for [`enqueue`], for the given range.
+pub unsafe fn enqueue_rows(
+    kernel: &ocl::Kernel,
+    width: u32,
+    height: u32,
+    rows: std::ops::Range<u32>,
+    what: &str,
+) -> Result<Event> {
+    if rows.start == 0 && rows.end >= height {
+        // The whole image: exactly the kernel's own launch, so that one device renders and
+        // filters as it always has (PoCL compiles a launch with a global offset separately).
+        // SAFETY: the caller's contract.
+        return unsafe { enqueue(kernel, what) };
+    }
+    let (w, n) = (width as usize, rows.len());
+    let local = match kernel.default_local_work_size().to_lens() {
+        Ok(l) => [l[0], l[1]],
+        Err(_) => BAND_WORK_GROUP,
+    };
+    let mut event = Event::empty();
+    let cmd = kernel
+        .cmd()
+        .global_work_offset([0, rows.start as usize])
+        .enew(&mut event);
+    let cmd = cmd
+        .global_work_size([round_up(w, local[0]), round_up(n, local[1])])
+        .local_work_size(local);
+    // SAFETY: the caller's contract.
+    unsafe {
+        cmd.enq().with_context(|| format!("launching {what}"))?;
+    }
+    Ok(event)
+}
+
 /// The first `width × height` pixels of a device image of `float4`s (rgb, w unused).
 pub fn read_rgb(
     buffer: &ocl::Buffer<crate::layout::Float4>,
     width: u32,
     height: u32,
 ) -> Result<RgbImage> {
-    let mut out = vec![crate::layout::Float4::default(); buffer.len()];
-    buffer
-        .read(&mut out)
-        .enq()
-        .context("reading an image back")?;
-    out.truncate(width as usize * height as usize);
+    read_rgb_rows(buffer, width, height, 0..height)
+}
+
+/// Like [`read_rgb`], reading back only `rows` (a band a filter wrote); the other rows are
+/// black.
+pub fn read_rgb_rows(
+    buffer: &ocl::Buffer<crate::layout::Float4>,
+    width: u32,
+    height: u32,
+    rows: std::ops::Range<u32>,
+) -> Result<RgbImage> {
+    let w = width as usize;
+    let mut band = vec![crate::layout::Float4::default(); rows.len() * w];
+    if !band.is_empty() {
+        buffer
+            .read(&mut band)
+            .offset(rows.start as usize * w)
+            .enq()
+            .context("reading an image back")?;
+    }
+    let mut pixels = vec![[0.0f32; 3]; w * height as usize];
+    for (dst, p) in pixels[rows.start as usize * w..].iter_mut().zip(&band) {
+        *dst = [p.0[0], p.0[1], p.0[2]];
+    }
     Ok(RgbImage {
         width,
         height,
-        pixels: out.iter().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
+        pixels,
     })
 }
 

@@ -11,7 +11,7 @@ use anyhow::{Context as _, Result};
 
 use crate::gpu::{Gpu, fnv1a};
 use crate::imaging::{self, RgbImage};
-use crate::render::{RenderOptions, Renderer, SceneArrays};
+use crate::render::{RenderOptions, Renderer, SceneArrays, SplitRenderer};
 use crate::scene::{self, Scene};
 
 /// Default reference samples per pixel on this project's 2-core PoCL machine (the thesis used
@@ -99,7 +99,7 @@ pub fn get_or_render(
         }
     }
     std::fs::create_dir_all(cache).with_context(|| format!("creating {}", cache.display()))?;
-    let mut renderer = Renderer::new(gpu.clone(), &scene, &options)?;
+    let mut renderer = SplitRenderer::single(Renderer::new(gpu.clone(), &scene, &options)?);
     let start = std::time::Instant::now();
     let budget = crate::render::Budget {
         spp: req.spp,
@@ -107,7 +107,7 @@ pub fn get_or_render(
     };
     let bar = crate::render::progress_bar(req.spp, quiet);
     crate::render::render_progressively(&mut renderer, budget, &bar, &|| false, |_| Ok(()))?;
-    let img = renderer.frame().beauty()?;
+    let img = renderer.frame()?.beauty()?;
     let mut meta = BTreeMap::new();
     meta.insert("scene".to_string(), req.scene.display().to_string());
     meta.insert("scene_hash".to_string(), format!("{hash:016x}"));

@@ -9,12 +9,11 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
-use crate::filters::{Configured, FilterRequest, Registry};
-use crate::gpu::Gpu;
+use crate::filters::{Configured, DeviceFilter, FilterRequest, MultiDeviceArgs, Registry};
 use crate::imaging;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{
-    Budget, RenderOptions, Renderer, SceneArrays, SceneInfo, progress_bar, render_progressively,
+    Budget, RenderOptions, SceneArrays, SceneInfo, progress_bar, render_progressively,
 };
 use crate::scene;
 use crate::stats::RenderRecord;
@@ -61,6 +60,8 @@ pub struct RenderArgs {
     /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
     #[arg(long)]
     pub device: Option<usize>,
+    #[command(flatten)]
+    pub multi: MultiDeviceArgs,
     /// PNG exposure in stops (the image is multiplied by 2^EV before tone mapping).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -301,7 +302,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         imaging::check_output_path(p)?;
     }
 
-    let gpu = Gpu::open(args.device)?;
+    let gpus = args.multi.open(args.device)?;
     // The scene arrays first: the filters specialise to what they say (effects, camera, size).
     let arrays = SceneArrays::build(&scene, &options.frame)?;
     let info = SceneInfo::new(&scene, &arrays);
@@ -350,28 +351,30 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     }
 
     let compile_start = Instant::now();
-    let mut renderer = Renderer::with_arrays(gpu.clone(), &scene, arrays, &options)?;
+    let mut film = args.multi.film(&gpus, &scene, arrays, &options)?;
     let mut filter = match chosen {
         Some(c) => {
-            let mut f = c.prepare(renderer.frame().info(), &gpu)?;
+            let mut f = DeviceFilter::prepare(c, &mut film, args.multi.filter_placement)?;
             f.show_progress(!args.quiet);
             Some(f)
         }
         None => None,
     };
+    let renderer = film.primary();
     if !args.quiet {
         eprintln!(
             "device: {} | {} triangles, {} BVH nodes (built in {:.2} s), {} spheres, {} lights",
-            gpu.summary.name,
+            film.describe(),
             renderer.arrays.tri_geom.len(),
             renderer.arrays.nodes.len(),
             renderer.arrays.bvh_stats.build_time.as_secs_f64(),
             renderer.arrays.spheres.len(),
             renderer.arrays.lights.len(),
         );
+        let builds: Vec<_> = gpus.iter().flat_map(|g| g.builds()).collect();
         eprintln!(
             "compiling kernels: {} (ready in {:.2} s)",
-            describe_builds(&gpu.builds()),
+            describe_builds(&builds),
             compile_start.elapsed().as_secs_f64()
         );
     }
@@ -402,40 +405,40 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         spp,
         time_limit: args.time_limit,
     };
-    render_progressively(&mut renderer, budget, &bar, &interrupted, |r| {
+    render_progressively(&mut film, budget, &bar, &interrupted, |r| {
         if args.timings
             && let Some(f) = filter.as_mut()
             && f.interactive()
         {
-            let out = f.run(&r.frame())?;
+            let out = f.run(r)?;
             filter_times.push(out.time());
             last_filtered = Some(out.image);
         }
         Ok(())
     })?;
     if interrupted() {
-        if !args.save_partial || renderer.samples_done() == 0 {
+        if !args.save_partial || film.samples_done() == 0 {
             return Err(Interrupted.into());
         }
         eprintln!(
             "interrupted after {} spp: writing what was rendered (--save-partial)",
-            renderer.samples_done()
+            film.samples_done()
         );
         last_filtered = None; // filter the final state below
     }
-    let frame = renderer.frame();
-    let unfiltered = frame.beauty()?;
     let image = match filter.as_mut() {
         Some(f) => match last_filtered {
             Some(img) => img,
             None => {
-                let out = f.run(&frame)?;
+                let out = f.run(&film)?;
                 filter_times.push(out.time());
                 out.image
             }
         },
-        None => unfiltered.clone(),
+        None => film.frame()?.beauty()?,
     };
+    let frame = film.frame()?;
+    let unfiltered = frame.beauty()?;
     imaging::write_png(&png_path, &image, args.exposure)?;
     if let Some(p) = &exr_path {
         imaging::write_exr(p, &image)?;
@@ -444,7 +447,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         imaging::write_exr(p, &unfiltered)?;
     }
     let record = RenderRecord {
-        scene: Some(renderer.scene_info.clone()),
+        scene: Some(film.scene_info().clone()),
         filter: chosen.map(|c| c.name().to_string()),
         settings: configured
             .iter()
@@ -452,7 +455,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
             .collect(),
         extra: BTreeMap::from([
             ("scene".to_string(), args.scene.display().to_string()),
-            ("spp".to_string(), renderer.samples_done().to_string()),
+            ("spp".to_string(), film.samples_done().to_string()),
         ]),
     };
     if let Some(p) = &args.save_samples {
@@ -465,12 +468,12 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         crate::stats::aov::write_aov_pngs(dir, &frame, args.exposure)?;
     }
     let summary = RenderSummary {
-        width: renderer.width(),
-        height: renderer.height(),
-        spp: renderer.samples_done(),
+        width: film.width(),
+        height: film.height(),
+        spp: film.samples_done(),
         seconds: start.elapsed().as_secs_f64(),
-        kernel_seconds: renderer.kernel_time_total.as_secs_f64(),
-        rays: renderer.rays_total,
+        kernel_seconds: film.kernel_time_total.as_secs_f64(),
+        rays: film.rays_total,
         filter_times,
     };
     println!(
