@@ -62,7 +62,12 @@ impl DdfKernel {
             ("DDF_TEXTURE2".to_string(), flag(settings.uses_texture2())),
             (
                 "DDF_DIRECTION".to_string(),
-                flag(settings.direction == DirectionTerm::Difference),
+                match settings.direction {
+                    DirectionTerm::Thesis => "0",
+                    DirectionTerm::Difference => "1",
+                    DirectionTerm::Neighbour => "2",
+                }
+                .to_string(),
             ),
         ];
         let program = gpu.program("filters/ddf.cl", &defines, "")?;
