@@ -131,15 +131,7 @@ impl DdfKernel {
     /// Filters `frame` (which must be width x height); returns the image and the kernel time.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
         let start = Instant::now();
-        if frame.width() != self.width || frame.height() != self.height {
-            bail!(
-                "the filter was built for {}x{}, the frame is {}x{}",
-                self.width,
-                self.height,
-                frame.width(),
-                frame.height()
-            );
-        }
+        frame.check_size(self.width, self.height, "the data-driven filter")?;
         frame.require(
             <super::Ddf as crate::filters::FilterKind>::needs(&self.settings),
             "the data-driven filter",
