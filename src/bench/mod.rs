@@ -31,6 +31,7 @@ pub mod accuracy_time;
 pub mod curves;
 pub mod filter_speed;
 pub mod ground_truth;
+pub mod oidn;
 pub mod plot;
 pub mod quality;
 pub mod speed;
