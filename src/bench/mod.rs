@@ -29,12 +29,15 @@
 
 pub mod accuracy_time;
 pub mod curves;
+pub mod filter_speed;
 pub mod ground_truth;
+pub mod oidn;
 pub mod plot;
 pub mod quality;
 pub mod speed;
 pub mod study;
 pub mod sweep;
+pub mod sweep_report;
 pub mod table;
 
 use std::path::{Path, PathBuf};
@@ -77,6 +80,10 @@ pub struct BenchArgs {
     /// current folder, as for `noisefree reference`].
     #[arg(long, value_name = "DIR")]
     pub cache: Option<PathBuf>,
+    /// Samples per pixel of the ground-truth images (thesis §7: 2048) [default: 2048, 256
+    /// with --quick].
+    #[arg(long, value_name = "N")]
+    pub reference_spp: Option<u32>,
     /// Measure again even what the CSV files already hold.
     #[arg(long)]
     pub fresh: bool,
@@ -105,6 +112,8 @@ pub struct Context {
     pub scenes_dir: Option<PathBuf>,
     /// Where ground-truth images are cached.
     pub reference_cache: PathBuf,
+    /// `--reference-spp`, if given.
+    pub reference_spp: Option<u32>,
 }
 
 impl Context {
@@ -212,6 +221,9 @@ pub fn bundled_scenes(dir: &Path) -> Result<Vec<PathBuf>> {
 }
 
 pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.reference_spp == Some(0) {
+        bail!("--reference-spp must be at least 1");
+    }
     let mut studies = args.study.clone();
     if args.specialisation {
         studies.push(Study::RenderSpeed);
@@ -268,6 +280,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             .cache
             .clone()
             .unwrap_or_else(ground_truth::default_cache),
+        reference_spp: args.reference_spp,
     };
     ctx.say(&format!(
         "device: {} | bundled scenes: {} | results in {}",
@@ -281,7 +294,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         match s {
             Study::RenderSpeed => speed::render_speed(&ctx, args.fresh)?,
             Study::Statistics => speed::statistics_cost(&ctx, args.fresh)?,
-            Study::FilterSpeed => speed::filter_speed(&ctx, args.fresh)?,
+            Study::FilterSpeed => filter_speed::filter_speed(&ctx, args.fresh)?,
             Study::Quality => quality::quality(&ctx, args.fresh)?,
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,

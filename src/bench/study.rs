@@ -28,13 +28,15 @@ pub fn sizes(ctx: &Context) -> Sizes {
         Sizes {
             width: 64,
             height: 64,
-            reference_spp: 256,
+            reference_spp: ctx.reference_spp.unwrap_or(256),
         }
     } else {
         Sizes {
             width: 512,
             height: 512,
-            reference_spp: ground_truth::DEFAULT_REFERENCE_SPP,
+            reference_spp: ctx
+                .reference_spp
+                .unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
         }
     }
 }
@@ -85,6 +87,37 @@ impl StudyScene {
         Renderer::with_arrays(ctx.gpu.clone(), &self.scene, self.arrays.clone(), &o)
     }
 
+    /// The thesis's own variants of its filter, as extra cells of the quality study: with
+    /// holes (Fig. 6.12) and, where the scene has an environment light, without the sky
+    /// special case (Figs. 6.13, 7.19). (label, filter).
+    pub fn thesis_variants(&self) -> Result<Vec<(String, Configured)>> {
+        use crate::filters::FilterKind;
+        use crate::filters::ddf::{Ddf, DdfSettings};
+        let mut v = vec![(
+            format!("{}-holes", Ddf::NAME),
+            Configured::typed::<Ddf>(
+                DdfSettings {
+                    holes: true,
+                    ..Default::default()
+                },
+                &self.info,
+            )?,
+        )];
+        if self.info.has("HAS_ENV") {
+            v.push((
+                format!("{}-nosky", Ddf::NAME),
+                Configured::typed::<Ddf>(
+                    DdfSettings {
+                        sky: crate::filters::Auto::Set(false),
+                        ..Default::default()
+                    },
+                    &self.info,
+                )?,
+            ));
+        }
+        Ok(v)
+    }
+
     /// The filters compared: every registered filter with its defaults (Table 7.2 for the
     /// thesis's), specialised to this scene.
     pub fn methods(&self) -> Result<Vec<Configured>> {
@@ -112,12 +145,6 @@ pub fn methods_markdown() -> String {
     }
     md.push('\n');
     md
-}
-
-/// Filters that read every stored sample (RPF) cost time and memory in proportion to the
-/// samples; their curves stop at 8 spp, the spp of the headline.
-pub fn reads_every_sample(c: &Configured) -> bool {
-    c.needs().contains(Output::Samples)
 }
 
 fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
@@ -157,3 +184,112 @@ pub(super) fn metric_cells(img: &RgbImage, reference: &RgbImage) -> Result<Vec<S
 
 /// The seed of a study's noisy renders (the reference uses another).
 pub(super) const STUDY_SEED: u32 = 7;
+
+/// What a study compares: the unfiltered image, a registered filter (or one of the thesis's
+/// variants of its own), or OIDN beside them.
+#[derive(Clone)]
+pub enum Candidate<'a> {
+    Unfiltered,
+    Filter {
+        label: String,
+        configured: &'a Configured,
+    },
+    Oidn(&'a super::oidn::Oidn, super::oidn::Quality),
+}
+
+/// A candidate ready for frames of one size.
+pub enum Prepared<'a> {
+    Unfiltered,
+    Filter(Box<dyn crate::filters::PreparedFilter>),
+    Oidn(&'a super::oidn::Oidn, super::oidn::Quality),
+}
+
+impl<'a> Candidate<'a> {
+    /// The registered filters (and `extra`, e.g. the thesis's variants), then OIDN's qualities
+    /// when it is set up; the unfiltered image first.
+    pub fn all(
+        methods: &'a [Configured],
+        extra: &'a [(String, Configured)],
+        oidn: Option<&'a super::oidn::Oidn>,
+    ) -> Vec<Candidate<'a>> {
+        let mut v = vec![Candidate::Unfiltered];
+        v.extend(methods.iter().map(|c| Candidate::Filter {
+            label: c.name().to_string(),
+            configured: c,
+        }));
+        v.extend(extra.iter().map(|(label, c)| Candidate::Filter {
+            label: label.clone(),
+            configured: c,
+        }));
+        if let Some(o) = oidn {
+            v.extend(super::oidn::Quality::ALL.map(|q| Candidate::Oidn(o, q)));
+        }
+        v
+    }
+
+    pub fn label(&self) -> String {
+        match self {
+            Candidate::Unfiltered => "unfiltered".into(),
+            Candidate::Filter { label, .. } => label.clone(),
+            Candidate::Oidn(_, q) => q.label(),
+        }
+    }
+
+    /// The outputs the render must gather.
+    pub fn needs(&self) -> OutputSet {
+        match self {
+            Candidate::Unfiltered => OutputSet::colour(),
+            Candidate::Filter { configured, .. } => configured.needs(),
+            Candidate::Oidn(..) => OutputSet::of(&[Output::Colour, Output::Features]),
+        }
+    }
+
+    /// Filters that read every stored sample (RPF) cost time and memory in proportion to the
+    /// samples; their curves stop at 8 spp, the spp of the headline.
+    pub fn reads_every_sample(&self) -> bool {
+        self.needs().contains(Output::Samples)
+    }
+
+    pub fn prepare(&self, ctx: &Context, frame: &crate::render::FrameInfo) -> Result<Prepared<'a>> {
+        Ok(match self {
+            Candidate::Unfiltered => Prepared::Unfiltered,
+            Candidate::Filter { configured, .. } => {
+                let mut f = configured.prepare(frame, &ctx.gpu)?;
+                f.show_progress(!ctx.quiet);
+                Prepared::Filter(f)
+            }
+            Candidate::Oidn(o, q) => Prepared::Oidn(o, *q),
+        })
+    }
+}
+
+impl Prepared<'_> {
+    /// Runs a device filter once untimed: drivers such as PoCL finish compiling a kernel at its
+    /// first launch, which is not the filter's cost per frame. (Host filters and OIDN warm up
+    /// on their own or need not.)
+    pub fn warm_up(&mut self, frame: &crate::render::Frame) -> Result<()> {
+        if let Prepared::Filter(f) = self
+            && f.interactive()
+        {
+            f.run(frame)?;
+        }
+        Ok(())
+    }
+
+    /// The image and the time of the filter alone (wall-clock for our filters, OIDN's own
+    /// median time with prefiltering for OIDN; 0 unfiltered).
+    pub fn run(&mut self, frame: &crate::render::Frame) -> Result<(RgbImage, std::time::Duration)> {
+        Ok(match self {
+            Prepared::Unfiltered => (frame.beauty()?, std::time::Duration::ZERO),
+            Prepared::Filter(f) => {
+                let run = f.run(frame)?;
+                (run.image, run.wall_time)
+            }
+            Prepared::Oidn(o, q) => {
+                let run = o.denoise(frame, *q, 3)?;
+                let t = run.median_total();
+                (run.image, std::time::Duration::from_secs_f64(t))
+            }
+        })
+    }
+}

@@ -142,15 +142,7 @@ impl AtrousKernel {
     /// filtering the whole frame gives it. The image's other rows are black.
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
-        if frame.width() != self.width || frame.height() != self.height {
-            bail!(
-                "the filter was built for {}x{}, the frame is {}x{}",
-                self.width,
-                self.height,
-                frame.width(),
-                frame.height()
-            );
-        }
+        frame.check_size(self.width, self.height, "the a-trous filter")?;
         frame.require(
             OutputSet::of(&[Output::Colour, Output::Features]),
             "the a-trous filter",
