@@ -277,3 +277,47 @@ fn render_with_devices_writes_the_images_of_one_device() {
         &["--device"],
     );
 }
+
+#[test]
+fn a_moved_camera_gives_the_film_of_a_renderer_built_for_it() {
+    // The viewer moves the camera of a built film (thesis §4.2.2: the Film is reset and the new
+    // camera sent to every device); that film must be the one `render` builds for the moved
+    // camera, on one device and split.
+    let _serial = serial();
+    let [fast, slow] = two_devices();
+    let scene = scene();
+    let all = OutputSet::of(&[Output::Features, Output::Variance, Output::Position]);
+    let options = render_options(&scene, all);
+    let arrays = SceneArrays::build(&scene, &options.frame).unwrap();
+    let mut moved = scene.clone();
+    moved.camera.origin += glam::Vec3::new(0.13, -0.05, -0.4);
+    moved.camera.target += glam::Vec3::new(0.2, 0.0, 0.0);
+    moved.camera.fov_degrees = 33.0;
+    moved.camera.lens_radius = 0.02;
+    moved.camera.focal_distance = Some(2.5);
+    let fresh_arrays = SceneArrays::build(&moved, &options.frame).unwrap();
+    let mut fresh = Renderer::with_arrays(fast.clone(), &moved, fresh_arrays, &options).unwrap();
+    fresh.render_samples(3).unwrap();
+    let mut single = Renderer::with_arrays(fast.clone(), &scene, arrays.clone(), &options).unwrap();
+    let mut split = SplitRenderer::new(&[fast, slow], &scene, arrays, &options).unwrap();
+    single.render_samples(2).unwrap();
+    split.render_samples(2).unwrap();
+    single.set_camera(&moved).unwrap();
+    split.set_camera(&moved).unwrap();
+    assert_eq!(
+        single.samples_done(),
+        0,
+        "moving the camera empties the film"
+    );
+    single.render_samples(3).unwrap();
+    for s in [1, 2] {
+        split.render_samples(s).unwrap();
+    }
+    assert_eq!(single.arrays.params, fresh.arrays.params);
+    assert_same(&single.frame(), &fresh.frame(), "one device, camera moved");
+    assert_same(
+        &split.frame().unwrap(),
+        &fresh.frame(),
+        "two devices, camera moved",
+    );
+}

@@ -20,6 +20,9 @@
 //!   figures (equal-quality sample reduction, equal-time error ratio).
 //! - `sweep`: Table 7.1's one-parameter-at-a-time sweep and hypotheses 1-3 (§7.3), plus the
 //!   variance scales s_f the thesis leaves open.
+//! - `balance` (only when asked, with `--devices`): several devices sharing each frame
+//!   (thesis §4.2): each device's share and idle time per frame, with and without
+//!   re-balancing, and where the filter runs.
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -28,6 +31,7 @@
 //! tables and `plot` the charts and contact sheets.
 
 pub mod accuracy_time;
+pub mod balance;
 pub mod curves;
 pub mod filter_speed;
 pub mod ground_truth;
@@ -56,6 +60,8 @@ pub enum Study {
     Quality,
     AccuracyTime,
     Sweep,
+    /// Several devices per frame (needs --devices with two or more; not in the default set).
+    Balance,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -90,6 +96,10 @@ pub struct BenchArgs {
     /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
     #[arg(long)]
     pub device: Option<usize>,
+    /// Several devices (`--devices 1,0`): the balance study shares frames among them; the
+    /// other studies run on the first.
+    #[command(flatten)]
+    pub multi: crate::filters::MultiDeviceArgs,
     /// Scenes to use (repeatable) [default: every scene of the bundled scenes folder].
     #[arg(long)]
     pub scene: Vec<PathBuf>,
@@ -104,6 +114,10 @@ pub struct BenchArgs {
 /// Everything a study needs.
 pub struct Context {
     pub gpu: Arc<Gpu>,
+    /// Every device of --devices (the first is `gpu`); `gpu` alone without it.
+    pub gpus: Vec<Arc<Gpu>>,
+    /// --filter-placement and --no-rebalance, for the balance study.
+    pub multi: crate::filters::MultiDeviceArgs,
     pub out: PathBuf,
     pub quick: bool,
     pub quiet: bool,
@@ -256,7 +270,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         Some(dir) if args.scene.is_empty() => bundled_scenes(dir)?,
         _ => args.scene.clone(),
     };
-    let gpu = Gpu::open(args.device)?;
+    let gpus = args.multi.open(args.device)?;
+    let gpu = gpus[0].clone();
     // Outputs go under the current folder unless --out (and --cache) say otherwise.
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results").join(if args.quick {
@@ -271,6 +286,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     let ctx = Context {
         gpu,
+        gpus,
+        multi: args.multi.clone(),
         out,
         quick: args.quick,
         quiet: args.quiet,
@@ -298,6 +315,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::Quality => quality::quality(&ctx, args.fresh)?,
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
+            Study::Balance => balance::balance(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;
@@ -318,9 +336,16 @@ fn write_device_info(ctx: &Context) -> Result<()> {
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
         .unwrap_or_else(|| "unknown".into());
     let text = format!(
-        "# Device\n\n| | |\n|---|---|\n| device | {} ({}) |\n| platform | {} |\n| OpenCL | {} |\n| driver | {} |\n| compute units | {} |\n| max clock | {} MHz |\n| global memory | {} |\n| local memory | {} |\n| host CPUs | {} |\n| commit | {} |\n| command | `noisefree bench{}` |\n",
+        "# Device\n\n| | |\n|---|---|\n| device | {} ({}){} |\n| platform | {} |\n| OpenCL | {} |\n| driver | {} |\n| compute units | {} |\n| max clock | {} MHz |\n| global memory | {} |\n| local memory | {} |\n| host CPUs | {} |\n| commit | {} |\n| command | `noisefree bench{}` |\n",
         s.name,
         s.kind,
+        ctx.gpus[1..]
+            .iter()
+            .map(|g| format!(
+                ", then {} ({} compute units)",
+                g.summary.name, g.summary.compute_units
+            ))
+            .collect::<String>(),
         s.platform,
         s.version,
         s.driver,

@@ -35,8 +35,11 @@ pub enum Placement {
 }
 
 impl Placement {
-    /// What `--filter-placement` defaults to: the faster one in the balance study on this
-    /// project's machine (results/pocl-cpu/balance.md).
+    /// What `--filter-placement` defaults to. On this project's machine the two placements
+    /// filter in the same time within the noise (results/pocl-cpu/balance.md: both PoCL
+    /// devices share the same two cores, so the bands' filters cannot run faster side by side);
+    /// merged prepares the filter once, on one device, and gives every other reader of the film
+    /// (AOVs, images) the merged film without a further copy.
     pub const DEFAULT: Placement = Placement::Merged;
 
     pub fn name(self) -> &'static str {
