@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # The test suite on a fresh machine: set up, then run every test on the OpenCL device
-# (PoCL on a CPU-only machine).
+# (PoCL on a CPU-only machine), and the viewer's scripted test under Xvfb.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-source scripts/setup.sh
+NOISEFREE_SETUP_TESTS=1 source scripts/setup.sh
 ./scripts/check-format.sh
 # Intel OIDN beside our filters in the benchmarks (tests/bench_quick.rs checks its rows here):
 # a Python environment with pyoidn from PyPI.

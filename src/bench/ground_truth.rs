@@ -41,9 +41,14 @@ fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
 /// A hash of everything that decides a render's pixels: the scene as uploaded (geometry,
 /// materials, textures, lights, camera, resolution, seed) and the megakernel's sources.
 pub fn render_hash(arrays: &SceneArrays) -> u64 {
+    hash_with_params(arrays, &arrays.params)
+}
+
+/// [`render_hash`] with `params` in place of the arrays' own.
+fn hash_with_params(arrays: &SceneArrays, params: &crate::layout::SceneParams) -> u64 {
     let kernels: String = crate::kernels::SOURCES.iter().map(|(_, s)| *s).collect();
     fnv1a(&[
-        bytes_of(std::slice::from_ref(&arrays.params)),
+        bytes_of(std::slice::from_ref(params)),
         bytes_of(&arrays.nodes),
         bytes_of(&arrays.tri_geom),
         bytes_of(&arrays.tri_shading),
@@ -71,6 +76,36 @@ fn options_for(scene: &Scene, req: &ReferenceRequest) -> RenderOptions {
     o
 }
 
+/// The cache file name of a reference: scene, size, spp, seed and [`render_hash`].
+fn file_name(scene: &Path, width: u32, height: u32, spp: &str, seed: u32, hash: u64) -> String {
+    let stem = scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    format!("{stem}-{width}x{height}-{spp}spp-seed{seed}-{hash:016x}.exr")
+}
+
+/// The cached reference, at any spp (the most there is), of `scene` seen as `arrays` say
+/// (camera and size; rendered with [`REFERENCE_SEED`]): what the viewer compares with.
+pub fn find_cached(cache: &Path, scene: &Path, arrays: &SceneArrays) -> Option<PathBuf> {
+    let mut params = arrays.params;
+    params.seed = REFERENCE_SEED;
+    let hash = hash_with_params(arrays, &params);
+    let (w, h) = (params.image_width, params.image_height);
+    let pattern = file_name(scene, w, h, "*", REFERENCE_SEED, hash);
+    let (head, tail) = pattern.split_once('*')?;
+    std::fs::read_dir(cache)
+        .ok()?
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let spp: u32 = name.strip_prefix(head)?.strip_suffix(tail)?.parse().ok()?;
+            Some((spp, e.path()))
+        })
+        .max_by_key(|(spp, _)| *spp)
+        .map(|(_, p)| p)
+}
+
 /// The reference image for `req`: from the cache if present, else rendered and stored.
 /// Returns the image, its file and whether it came from the cache.
 pub fn get_or_render(
@@ -83,14 +118,13 @@ pub fn get_or_render(
     let options = options_for(&scene, req);
     let arrays = SceneArrays::build(&scene, &options.frame)?;
     let hash = render_hash(&arrays);
-    let stem = req
-        .scene
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let file = cache.join(format!(
-        "{stem}-{}x{}-{}spp-seed{}-{hash:016x}.exr",
-        req.width, req.height, req.spp, req.seed
+    let file = cache.join(file_name(
+        &req.scene,
+        req.width,
+        req.height,
+        &req.spp.to_string(),
+        req.seed,
+        hash,
     ));
     if file.exists() {
         let img = imaging::read_exr_rgb(&file)?;

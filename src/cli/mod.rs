@@ -1,4 +1,5 @@
-//! The command line: `noisefree devices | render | filter | compare | reference | bench | cache`.
+//! The command line: `noisefree devices | render | view | filter | compare | reference | bench |
+//! cache`.
 
 mod filter_cmd;
 mod render_cmd;
@@ -29,6 +30,9 @@ pub enum Command {
     Devices,
     /// Render a scene file to a PNG (and a linear EXR), optionally filtered.
     Render(RenderArgs),
+    /// Look around a scene in a window: progressive rendering filtered every frame, camera on
+    /// the keyboard and mouse (keys: README "Viewer keys"; F1 in the window).
+    View(crate::view::ViewArgs),
     /// Filter the per-pixel buffers of an AOV file (written by `render --aovs`) offline.
     Filter(FilterCommandArgs),
     /// Compare an image with a reference: MSE in CIELUV, MSE and relMSE in RGB, PSNR, SSIM.
@@ -47,6 +51,7 @@ pub fn command(registry: &Registry) -> clap::Command {
     let args = registry.clap_args();
     Cli::command()
         .mut_subcommand("render", |c| c.args(args.clone()))
+        .mut_subcommand("view", |c| c.args(args.clone()))
         .mut_subcommand("filter", |c| c.args(args.clone()))
 }
 
@@ -119,6 +124,7 @@ fn parse(registry: &Registry, matches: &clap::ArgMatches) -> Result<Cli, clap::E
         let settings = registry.flag_tables(sub);
         match &mut cli.command {
             Command::Render(a) => a.settings = settings,
+            Command::View(a) => a.settings = settings,
             Command::Filter(a) => a.settings = settings,
             _ => {}
         }
@@ -130,6 +136,7 @@ fn execute(cli: Cli, registry: &Registry) -> Result<()> {
     match cli.command {
         Command::Devices => devices(),
         Command::Render(args) => render(&args, registry).map(|_| ()),
+        Command::View(args) => crate::view::run(&args, registry),
         Command::Filter(args) => filter_cmd::run(&args, registry),
         Command::Compare(args) => tools::compare(&args),
         Command::Reference(args) => tools::reference(&args),
