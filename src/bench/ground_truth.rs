@@ -9,8 +9,9 @@ use std::sync::Arc;
 
 use anyhow::{Context as _, Result};
 
-use crate::gpu::{Gpu, fnv1a};
+use crate::gpu::Gpu;
 use crate::imaging::{self, RgbImage};
+pub use crate::render::render_hash;
 use crate::render::{RenderOptions, Renderer, SceneArrays};
 use crate::scene::{self, Scene};
 
@@ -30,31 +31,6 @@ pub struct ReferenceRequest {
     pub height: u32,
     pub spp: u32,
     pub seed: u32,
-}
-
-fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
-    // SAFETY: the shared layout types are plain f32/u32/i32 with explicit padding fields
-    // (src/layout.rs), so every byte is initialised.
-    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
-}
-
-/// A hash of everything that decides a render's pixels: the scene as uploaded (geometry,
-/// materials, textures, lights, camera, resolution, seed) and the megakernel's sources.
-pub fn render_hash(arrays: &SceneArrays) -> u64 {
-    let kernels: String = crate::kernels::SOURCES.iter().map(|(_, s)| *s).collect();
-    fnv1a(&[
-        bytes_of(std::slice::from_ref(&arrays.params)),
-        bytes_of(&arrays.nodes),
-        bytes_of(&arrays.tri_geom),
-        bytes_of(&arrays.tri_shading),
-        bytes_of(&arrays.spheres),
-        bytes_of(&arrays.materials),
-        bytes_of(&arrays.textures),
-        bytes_of(&arrays.texels),
-        bytes_of(&arrays.lights),
-        bytes_of(&arrays.light_cdf),
-        kernels.as_bytes(),
-    ])
 }
 
 /// The cache folder: `cache/references` under the current folder unless given.
