@@ -66,9 +66,9 @@ pub fn run(args: &MergeArgs, registry: &Registry) -> Result<()> {
     if let Some(name) = args.filter.as_deref().filter(|n| *n != "none") {
         registry.get(name).context("--filter")?;
     }
-    let plan = Plan::new(&args.parts)?;
-    let id = &plan.identity;
     if outputs.iter().all(|p| p.is_none()) {
+        let plan = Plan::bundle(&args.parts)?;
+        let id = &plan.identity;
         let path = args.partial.as_ref().expect("checked above");
         plan.write_bundle(path)?;
         println!(
@@ -82,6 +82,8 @@ pub fn run(args: &MergeArgs, registry: &Registry) -> Result<()> {
         );
         return Ok(());
     }
+    let plan = Plan::new(&args.parts)?;
+    let id = &plan.identity;
     let bar = crate::render::progress_bar(plan.order.len() as u32, args.quiet);
     bar.set_message("merging pieces");
     let merged = plan.merge(|done| bar.set_position(done as u64))?;

@@ -73,6 +73,16 @@ impl Plan {
     /// Opens every part and checks that they make up exactly one render: compatible headers,
     /// no file twice, no sample of any pixel twice or missing. Errors name the files.
     pub fn new(paths: &[PathBuf]) -> Result<Plan> {
+        Plan::build(paths, true)
+    }
+
+    /// As [`Plan::new`] for parts of one render that need not make up all of it (a bundle:
+    /// `merge --partial`): only overlaps are refused.
+    pub fn bundle(paths: &[PathBuf]) -> Result<Plan> {
+        Plan::build(paths, false)
+    }
+
+    fn build(paths: &[PathBuf], complete: bool) -> Result<Plan> {
         if paths.is_empty() {
             bail!("no parts to merge");
         }
@@ -112,7 +122,7 @@ impl Plan {
             files,
             order,
         };
-        plan.check_coverage()?;
+        plan.check_coverage(complete)?;
         Ok(plan)
     }
 
@@ -131,8 +141,9 @@ impl Plan {
         )
     }
 
-    /// Every pixel must get each sample 0..spp from exactly one piece.
-    fn check_coverage(&self) -> Result<()> {
+    /// Every pixel must get each sample 0..spp from exactly one piece (at most one, unless
+    /// `complete`).
+    fn check_coverage(&self, complete: bool) -> Result<()> {
         let id = &self.identity;
         let pixels = id.width as usize * id.height as usize;
         let mut next = vec![0u32; pixels];
@@ -182,7 +193,7 @@ impl Plan {
                 gap((n, id.spp), p);
             }
         }
-        if gaps.is_empty() {
+        if gaps.is_empty() || !complete {
             return Ok(());
         }
         let list: Vec<String> = gaps
@@ -240,7 +251,7 @@ impl Plan {
     }
 
     /// Folds every piece, in merge order, into the outputs of the whole render; `progress` is
-    /// called after each piece with the number done.
+    /// called after each piece with the number done. The plan must be complete ([`Plan::new`]).
     pub fn merge(&self, mut progress: impl FnMut(usize)) -> Result<Merged> {
         let mut acc = Accumulator::new(&self.identity);
         for i in 0..self.order.len() {
@@ -334,9 +345,8 @@ fn check_compatible(a: &PartialFile, b: &PartialFile) -> Result<()> {
     Ok(())
 }
 
-/// Floats of a WelfordSums and a WelfordState element.
+/// Floats of a WelfordSums element.
 const FS: usize = size_of::<WelfordSums>() / 4;
-const FW: usize = size_of::<WelfordState>() / 4;
 
 /// The merged state of every pixel, in double precision; per-sample buffers as they will be
 /// written.
@@ -449,22 +459,33 @@ impl Accumulator {
     }
 
     /// Every S_n after folding the piece in (Chan, Golub & LeVeque), from the means before it
-    /// moves them. A part's S_n is s − c: its Kahan compensation c taken out.
-    fn merged_sums(&self, px: &PiecePixel) -> Option<[f64; FS]> {
+    /// moves them, split as film.cl splits it: S = s − c, s a float. A part's S_n is s − c;
+    /// the merged one is kept the same way, s the float nearest to the double-precision sum and
+    /// c (in double precision until the end) the rest, so that a pixel's first piece is taken
+    /// as it is, bit for bit.
+    fn merged_sums(&self, px: &PiecePixel) -> Option<[(f64, f64); FS]> {
         let merged = self.element(BufferId::WelfordSums, px.p)?;
+        let state = self.element(BufferId::WelfordState, px.p)?;
         let (s, c) = (
             px.element(BufferId::WelfordSums),
             px.element(BufferId::WelfordState),
         );
         let (na, nb) = (px.na as f64, px.nb as f64);
-        let mut out = [0f64; FS];
+        let mut out = [(0f64, 0f64); FS];
         for &(lane, id, mean_lane) in WELFORD_MEANS {
+            let (s_b, c_b) = (s[lane] as f64, c[W_COMPENSATION + lane] as f64);
+            if px.na == 0 {
+                out[lane] = (s_b, c_b);
+                continue;
+            }
             let mean = self
                 .element(id, px.p)
                 .expect("the variances need their means")[mean_lane];
             let delta = self.piece_mean(px, id, mean_lane) - mean;
-            let s_b = s[lane] as f64 - c[W_COMPENSATION + lane] as f64;
-            out[lane] = merged[lane] + s_b + delta * delta * na * nb / (na + nb);
+            let s_a = merged[lane] - state[W_COMPENSATION + lane];
+            let sum = s_a + (s_b - c_b) + delta * delta * na * nb / (na + nb);
+            let float = (sum as f32) as f64;
+            out[lane] = (float, float - sum);
         }
         Some(out)
     }
@@ -527,16 +548,21 @@ impl Accumulator {
                         for &(_, l, mean) in means.iter().filter(|m| m.0 == *id) {
                             v[l] += (mean - v[l]) * w;
                         }
+                        let split = || sums.expect("the state comes with the sums");
                         match merge {
                             Merge::DepthShift if px.na == 0 => v[K] = own[K] as f64,
                             Merge::HitMeans => v[3] += own[3] as f64,
                             Merge::WelfordSums => {
-                                v.copy_from_slice(&sums.expect("the sums are gathered"))
+                                for (lane, (s, _)) in split().iter().enumerate() {
+                                    v[lane] = *s;
+                                }
                             }
-                            Merge::Means
-                            | Merge::DepthShift
-                            | Merge::WelfordState
-                            | Merge::PerSample => {}
+                            Merge::WelfordState => {
+                                for (lane, (_, c)) in split().iter().enumerate().take(S_LANES) {
+                                    v[W_COMPENSATION + lane] = *c;
+                                }
+                            }
+                            Merge::Means | Merge::DepthShift | Merge::PerSample => {}
                         }
                     }
                 }
@@ -545,9 +571,7 @@ impl Accumulator {
         }
     }
 
-    /// The buffers, rounded to float: F.depth = K + mean(x − K) as film.cl forms it, and the
-    /// Kahan compensation of every S_n the part of its double-precision value that the float
-    /// misses (film.cl's convention: the true sum is s − c).
+    /// The buffers, rounded to float, and F.depth = K + mean(x − K) formed as film.cl forms it.
     fn finish(self) -> Vec<(BufferId, HostBuffer)> {
         let pixels = self.count.len();
         let mut out = Vec::new();
@@ -574,19 +598,11 @@ impl Accumulator {
                         }
                     }
                 }
-                Merge::WelfordState => {
-                    let s = self
-                        .lanes(BufferId::WelfordSums)
-                        .expect("gathered with the state");
-                    for p in 0..pixels {
-                        for lane in 0..S_LANES {
-                            let exact = s[p * FS + lane];
-                            f[p * FW + W_COMPENSATION + lane] =
-                                ((exact as f32) as f64 - exact) as f32;
-                        }
-                    }
-                }
-                Merge::DepthShift | Merge::WelfordSums | Merge::HitMeans | Merge::PerSample => {}
+                Merge::DepthShift
+                | Merge::WelfordSums
+                | Merge::WelfordState
+                | Merge::HitMeans
+                | Merge::PerSample => {}
             }
             out.push((*id, h));
         }
