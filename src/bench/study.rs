@@ -24,7 +24,11 @@ pub struct Sizes {
 }
 
 pub fn sizes(ctx: &Context) -> Sizes {
-    if ctx.quick {
+    sizes_for(ctx.quick)
+}
+
+pub fn sizes_for(quick: bool) -> Sizes {
+    if quick {
         Sizes {
             width: 64,
             height: 64,
@@ -128,14 +132,19 @@ fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
     o
 }
 
-pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
-    let req = ReferenceRequest {
+/// The ground truth the studies compare a scene's images with.
+pub fn reference_request(path: &Path, s: &Sizes) -> ReferenceRequest {
+    ReferenceRequest {
         scene: path.to_path_buf(),
         width: s.width,
         height: s.height,
         spp: s.reference_spp,
         seed: ground_truth::REFERENCE_SEED,
-    };
+    }
+}
+
+pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
+    let req = reference_request(path, s);
     ctx.say(&format!(
         "reference: {} ({} spp)",
         path.display(),

@@ -107,16 +107,14 @@ fn sweep_params(quick: bool) -> Vec<Param> {
     p
 }
 
-/// Study 4: Table 7.1's one-at-a-time sweep from the base values, and hypothesis 3 (kernel
-/// size) with the final parameters of Table 7.2 and kw up to 55.
-pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
-    let s = sizes(ctx);
-    let columns = ["scene", "parameter", "value", "mse_luv", "rel_mse"];
-    let mut t = ctx.table("sweep", &columns, 3, fresh)?;
-    // Cornell diffuse with and without DOF for every parameter; glossy and outside for the
-    // direction and texture2 parameters (§7.3). DOF scenes at 16 spp, as in the thesis. Scenes
-    // by name, from the bundled scenes folder.
-    let plan: Vec<(&str, u32, Vec<&str>)> = vec![
+/// Scene name, spp and the parameters swept on it (empty: all).
+type SweepPlan = Vec<(&'static str, u32, Vec<&'static str>)>;
+
+/// The sweep's scenes, by name from the bundled scenes folder: Cornell diffuse with and without
+/// DOF for every parameter; glossy and outside for the direction and texture2 parameters
+/// (§7.3). DOF scenes at 16 spp, as in the thesis.
+fn sweep_plan(quick: bool) -> SweepPlan {
+    let plan: SweepPlan = vec![
         ("cornell_diffuse", 8, vec![]),
         ("cornell_diffuse_dof", 16, vec![]),
         (
@@ -140,11 +138,25 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
             ],
         ),
     ];
-    let plan: Vec<_> = if ctx.quick {
+    if quick {
         plan.into_iter().take(1).collect()
     } else {
         plan
-    };
+    }
+}
+
+/// The bundled scenes the sweep renders (and compares with their references).
+pub fn sweep_scenes(quick: bool) -> Vec<&'static str> {
+    sweep_plan(quick).into_iter().map(|p| p.0).collect()
+}
+
+/// Study 4: Table 7.1's one-at-a-time sweep from the base values, and hypothesis 3 (kernel
+/// size) with the final parameters of Table 7.2 and kw up to 55.
+pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
+    let s = sizes(ctx);
+    let columns = ["scene", "parameter", "value", "mse_luv", "rel_mse"];
+    let mut t = ctx.table("sweep", &columns, 3, fresh)?;
+    let plan = sweep_plan(ctx.quick);
     for (name, spp, only) in &plan {
         let path = ctx.scene_file(name)?;
         let study = StudyScene::load(&path, &s, STUDY_SEED)?;

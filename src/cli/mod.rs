@@ -4,6 +4,7 @@
 mod filter_cmd;
 mod merge_cmd;
 mod render_cmd;
+mod slurm;
 mod tools;
 
 use anyhow::Result;
@@ -141,7 +142,10 @@ fn execute(cli: Cli, registry: &Registry) -> Result<()> {
         Command::Merge(args) => merge_cmd::run(&args, registry),
         Command::Compare(args) => tools::compare(&args),
         Command::Reference(args) => tools::reference(&args),
-        Command::Bench(args) => crate::bench::run(&args),
+        Command::Bench(args) => match args.slurm {
+            Some(n) => tools::bench_on_slurm(&args, n),
+            None => crate::bench::run(&args),
+        },
         Command::Cache(args) => tools::cache(&args),
     }
 }
