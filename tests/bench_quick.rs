@@ -18,10 +18,10 @@ fn quick_benchmark_completes_with_well_formed_results() {
     for (study, columns) in [
         ("render-speed", 9),
         ("statistics", 6),
-        ("filter-speed", 9),
+        ("filter-speed", 10),
         ("quality", 8),
         ("accuracy-time", 6),
-        ("sweep", 5),
+        ("sweep", 6),
     ] {
         let csv = std::fs::read_to_string(out.join(format!("{study}.csv")))
             .unwrap_or_else(|e| panic!("{study}.csv: {e}"));
@@ -60,11 +60,11 @@ fn quick_benchmark_completes_with_well_formed_results() {
         );
     }
     for png in [
-        "filter-speed-64x48.png",
+        "filter-speed-cornell_diffuse.png",
         "quality-cornell_diffuse-small.png",
         "images/quality-cornell_diffuse.png",
         "accuracy-time-cornell_diffuse.png",
-        "sweep-cornell_diffuse.png",
+        "sweep-cornell_diffuse-kw21.png",
     ] {
         let bytes = std::fs::read(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert_eq!(&bytes[1..4], b"PNG");

@@ -9,9 +9,14 @@
 //   DDF_SKY       1: sky pixels keep their unfiltered colour (§6.3.4); 0 when the scene has
 //                    no environment light (no pixel can be sky).
 //   DDF_TEXTURE2  1: the texture2 term of eq. 6.14; 0 drops it.
-//   DDF_DIRECTION 0: eq. 6.14 as printed, exp(-sigma2_f,3), the same for every neighbour;
-//                 1: the documented variant exp(-sigma2_f,3 |dir - dir_N|^2) on the mean
-//                    first-bounce directions.
+//   DDF_DIRECTION 0: eq. 6.14 as printed, exp(-sigma2_f,3) with the centre's sigma2_f,3,
+//                    the same for every neighbour (it cancels in eq. 6.21);
+//                 1: exp(-sigma2_f,3 |dir - dir_N|^2) on the mean first-bounce directions;
+//                 2: exp(-sigma2_f,3(N)) with sigma2_f,3 formed by eq. 6.10 from the
+//                    NEIGHBOUR's direction variance (§6.2.3 says the bounce-direction variance
+//                    is used for the indirect weight): neighbours whose bounce directions
+//                    scatter (rough surfaces) weigh more than mirror-like ones; it does not
+//                    cancel.
 // Holes (§6.3.3) and the kernel width are run-time parameters (DdfParams).
 #pragma OPENCL FP_CONTRACT OFF
 
@@ -32,7 +37,7 @@
 typedef struct {
     float16 f;          // F of the centre (eq. 6.1)
     float sigma2_f[5];  // eq. 6.10
-    float3 direction;   // mean first-bounce direction (DDF_DIRECTION 1)
+    float3 direction;   // the direction term's input of the centre (neighbour_direction)
     float3 c_fd;        // filtered direct colour, accumulating (eq. 6.17)
     float3 c_fi;        // filtered indirect colour (eq. 6.18)
     float tw_d;         // total direct weight (eq. 6.19)
@@ -49,6 +54,23 @@ inline float sum_sq3(float3 a, float3 b) {
     return d.x * d.x + d.y * d.y + d.z * d.z;
 }
 
+// The direction term's input for pixel `index` (see DDF_DIRECTION): its mean first-bounce
+// direction (1), or (sigma2_f,3 of eq. 6.10 from its own direction variance, 0, 0) (2).
+inline float3 neighbour_direction(__constant const DdfParams* p, __global const float* gb,
+                                  __global const float* state, uint index) {
+#if DDF_DIRECTION == 1
+    return vload3(0, state + (size_t)index * WELFORD_STATE_FLOATS + WELFORD_STATE_DIRECTION_MEAN);
+#elif DDF_DIRECTION == 2
+    __global const float* g = gb + (size_t)index * WELFORD_SUMS_FLOATS + WELFORD_SUMS_DIRECTION;
+    float f = p->variance_factor;
+    float v = g[0] * f + g[1] * f + g[2] * f;        // the lane order of ddf_centre
+    return (float3)(p->sigma2_f[3] * (1.0f - clamp(v * p->variance_scale[3], 0.0f, 1.0f)),
+                    0.0f, 0.0f);
+#else
+    return (float3)(0.0f);
+#endif
+}
+
 // Initialisation (Alg. 8 lines 3-6): eq. 6.10 from the centre's variance GBuffer.
 inline DdfCentre ddf_centre(__constant const DdfParams* p, float16 f, __global const float* gb,
                             __global const float* state, uint pixel) {
@@ -63,11 +85,7 @@ inline DdfCentre ddf_centre(__constant const DdfParams* p, float16 f, __global c
                      sum_lanes3(g, WELFORD_SUMS_DIRECTION), sum_lanes3(g, WELFORD_SUMS_ALBEDO2)};
     for (int i = 0; i < 5; ++i)
         c.sigma2_f[i] = p->sigma2_f[i] * (1.0f - clamp(sums[i] * p->variance_scale[i], 0.0f, 1.0f));
-#if DDF_DIRECTION
-    c.direction = vload3(0, state + (size_t)pixel * WELFORD_STATE_FLOATS + WELFORD_STATE_DIRECTION_MEAN);
-#else
-    c.direction = (float3)(0.0f);
-#endif
+    c.direction = neighbour_direction(p, gb, state, pixel);
     c.c_fd = (float3)(0.0f);
     c.c_fi = (float3)(0.0f);
     c.tw_d = 0.0f;
@@ -89,8 +107,10 @@ inline void ddf_neighbour(__constant const DdfParams* p, DdfCentre* c, float16 n
 #if DDF_TEXTURE2
     e_fi += c->sigma2_f[4] * sum_sq3(c->f.sDEF, n.sDEF);
 #endif
-#if DDF_DIRECTION
+#if DDF_DIRECTION == 1
     e_fi += c->sigma2_f[3] * sum_sq3(c->direction, n_direction);
+#elif DDF_DIRECTION == 2
+    e_fi += n_direction.x;                     // the neighbour's own sigma2_f,3
 #else
     // As printed: one factor for every neighbour, which cancels in eq. 6.21.
     e_fi += c->sigma2_f[3];
@@ -119,13 +139,6 @@ inline bool ddf_centre_off_grid(__constant const DdfParams* p) {
     return (p->half_width % p->step) != 0;
 }
 
-inline float3 neighbour_direction(__global const float* state, uint index) {
-#if DDF_DIRECTION
-    return vload3(0, state + (size_t)index * WELFORD_STATE_FLOATS + WELFORD_STATE_DIRECTION_MEAN);
-#else
-    return (float3)(0.0f);
-#endif
-}
 
 inline float16 load_f_scalar(__global const FilterVector* fv, uint index) {
     __global const FilterVector* n = fv + index;
@@ -175,7 +188,7 @@ __kernel void ddf_filter(__constant const DdfParams* p,
             int nx = x + dx;
             if (nx < 0 || nx >= w) continue;
             uint ni = (uint)(ny * w + nx);
-            ddf_neighbour(p, &c, load_f(f, ni), neighbour_direction(state, ni));
+            ddf_neighbour(p, &c, load_f(f, ni), neighbour_direction(p, gb, state, ni));
         }
     }
     if (ddf_centre_off_grid(p)) ddf_neighbour(p, &c, fc, c.direction);
@@ -221,7 +234,7 @@ __kernel void ddf_filter(__constant const DdfParams* p,
                 int t = lid + dx;
                 uint ni = (uint)(ny * w + nx);
                 float16 n = (t >= 0 && t < run) ? row[t] : vload16(ni, f);
-                ddf_neighbour(p, &c, n, neighbour_direction(state, ni));
+                ddf_neighbour(p, &c, n, neighbour_direction(p, gb, state, ni));
             }
         }
         barrier(CLK_LOCAL_MEM_FENCE);

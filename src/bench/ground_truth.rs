@@ -17,9 +17,9 @@ use crate::render::{RenderOptions, Renderer, SceneArrays, kernel_hash, scene_has
 use crate::scene::{self, Scene};
 use crate::stats::merge::{CostSummary, Plan};
 
-/// Default reference samples per pixel on this project's 2-core PoCL machine (the thesis used
-/// 2048; `--spp` raises it on a GPU).
-pub const DEFAULT_REFERENCE_SPP: u32 = 1024;
+/// Samples per pixel of a ground-truth image: the thesis's 2048 (§7; `bench --reference-spp`
+/// and `reference --spp` change it).
+pub const DEFAULT_REFERENCE_SPP: u32 = 2048;
 
 /// Seed of every reference render (distinct from the seeds of the images compared with it, so
 /// their noise is independent).

@@ -29,12 +29,14 @@
 
 pub mod accuracy_time;
 pub mod curves;
+pub mod filter_speed;
 pub mod ground_truth;
 pub mod plot;
 pub mod quality;
 pub mod speed;
 pub mod study;
 pub mod sweep;
+pub mod sweep_report;
 pub mod table;
 
 use std::path::{Path, PathBuf};
@@ -77,6 +79,10 @@ pub struct BenchArgs {
     /// current folder, as for `noisefree reference`].
     #[arg(long, value_name = "DIR")]
     pub cache: Option<PathBuf>,
+    /// Samples per pixel of the ground-truth images (thesis §7: 2048) [default: 2048, 256
+    /// with --quick].
+    #[arg(long, value_name = "N")]
+    pub reference_spp: Option<u32>,
     /// Measure again even what the CSV files already hold.
     #[arg(long)]
     pub fresh: bool,
@@ -135,6 +141,9 @@ impl BenchArgs {
                 v.extend([flag.into(), path(p)]);
             }
         }
+        if let Some(n) = self.reference_spp {
+            v.extend(["--reference-spp".into(), n.to_string()]);
+        }
         if let Some(d) = self.device {
             v.extend(["--device".into(), d.to_string()]);
         }
@@ -153,6 +162,9 @@ struct Selection {
 }
 
 fn select(args: &BenchArgs) -> Result<Selection> {
+    if args.reference_spp == Some(0) {
+        bail!("--reference-spp must be at least 1");
+    }
     let mut studies = args.study.clone();
     if args.specialisation {
         studies.push(Study::RenderSpeed);
@@ -199,7 +211,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
 /// --slurm` renders on the cluster before the benchmark runs.
 pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::ReferenceRequest>> {
     let sel = select(args)?;
-    let sizes = study::sizes_for(args.quick);
+    let sizes = study::sizes_for(args.quick, args.reference_spp);
     let mut paths: Vec<PathBuf> = Vec::new();
     for s in &sel.studies {
         match s {
@@ -232,6 +244,8 @@ pub struct Context {
     pub scenes_dir: Option<PathBuf>,
     /// Where ground-truth images are cached.
     pub reference_cache: PathBuf,
+    /// `--reference-spp`, if given.
+    pub reference_spp: Option<u32>,
 }
 
 impl Context {
@@ -365,6 +379,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             .cache
             .clone()
             .unwrap_or_else(ground_truth::default_cache),
+        reference_spp: args.reference_spp,
     };
     ctx.say(&format!(
         "device: {} | bundled scenes: {} | results in {}",
@@ -378,7 +393,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         match s {
             Study::RenderSpeed => speed::render_speed(&ctx, args.fresh)?,
             Study::Statistics => speed::statistics_cost(&ctx, args.fresh)?,
-            Study::FilterSpeed => speed::filter_speed(&ctx, args.fresh)?,
+            Study::FilterSpeed => filter_speed::filter_speed(&ctx, args.fresh)?,
             Study::Quality => quality::quality(&ctx, args.fresh)?,
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,

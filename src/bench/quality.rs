@@ -35,9 +35,12 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
             format!("reference {} spp", s.reference_spp),
             reference.clone(),
         )];
-        // (method, spp) cells: unfiltered at 8, the thesis's filter at 8/16/32, the others at 8.
+        // (label, method, spp) cells: unfiltered at 8, the thesis's filter at 8/16/32, the
+        // others at 8, and the thesis's filter with holes and without the sky case at 8.
         let methods = study.methods()?;
-        let mut cells: Vec<(Option<&crate::filters::Configured>, u32)> = vec![(None, 8)];
+        let variants = study.thesis_variants()?;
+        let mut cells: Vec<(&str, Option<&crate::filters::Configured>, u32)> =
+            vec![("unfiltered", None, 8)];
         for m in &methods {
             let spps: Vec<u32> = if m.name() == Ddf::NAME {
                 ddf_spp.to_vec()
@@ -45,11 +48,13 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
                 vec![8]
             };
             for spp in spps {
-                cells.push((Some(m), spp));
+                cells.push((m.name(), Some(m), spp));
             }
         }
-        for (method, spp) in cells {
-            let label = method.as_ref().map_or("unfiltered", |m| m.name());
+        for (label, m) in &variants {
+            cells.push((label.as_str(), Some(m), 8));
+        }
+        for (label, method, spp) in cells {
             let key = vec![name.clone(), label.to_string(), spp.to_string()];
             let png = images.join(format!("{name}-{label}-{spp}spp.png"));
             let exr = png.with_extension("exr");

@@ -1,18 +1,17 @@
-//! Speed studies: the megakernel per scene (specialised vs generic), the cost of the per-pixel
-//! statistics, and the data-driven filter's kernel time (thesis §7.1-7.2).
+//! Speed studies of the renderer: the megakernel per scene (specialised vs generic) and the
+//! cost of the per-pixel statistics. The filters' speed is in `filter_speed.rs`.
 
 use std::time::Duration;
 
 use anyhow::Result;
 
-use super::plot::{Chart, Series, line_chart};
 use super::study::scene_name;
 use super::table::{ResultTable, num};
 use super::{Context, bar};
-use crate::filters::ddf::{DdfKernel, DdfSettings, Variant};
+
 use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
-use crate::render::{Frame, RenderOptions, Renderer};
+use crate::render::{RenderOptions, Renderer};
 use crate::scene::{self, Scene};
 
 fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
@@ -252,156 +251,5 @@ pub fn statistics_cost(ctx: &Context, fresh: bool) -> Result<()> {
             t.markdown()
         ),
     )?;
-    Ok(())
-}
-
-/// Rendered 8-spp outputs of Cornell diffuse at `w` x `h`, the filter's input (on the device).
-fn filter_input(ctx: &Context, w: u32, h: u32) -> Result<Frame> {
-    let path = ctx.scene_file("cornell_diffuse")?;
-    let scene = scene::load_scene(&path)?;
-    let mut o = options(&scene, w, h);
-    o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
-    let mut r = Renderer::new(ctx.gpu.clone(), &scene, &o)?;
-    r.render_samples(8)?;
-    Ok(r.frame())
-}
-
-/// Filter kernel time over kernel widths x resolutions x variants x work-group sizes, min /
-/// median / max over repeated runs after a warm-up (thesis §7.1-7.2).
-pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {
-    let (resolutions, widths, groups): (Vec<(u32, u32)>, Vec<u32>, Vec<usize>) = if ctx.quick {
-        (vec![(64, 48)], vec![7, 15], vec![64])
-    } else {
-        (
-            vec![(320, 240), (512, 512), (640, 480), (1280, 768)],
-            vec![7, 15, 25, 55],
-            vec![64, 256],
-        )
-    };
-    let variants = ["naive", "rows", "rows+holes"];
-    let columns = [
-        "width",
-        "height",
-        "kw",
-        "variant",
-        "work_group",
-        "runs",
-        "min_ms",
-        "median_ms",
-        "max_ms",
-    ];
-    let mut t = ctx.table("filter-speed", &columns, 5, fresh)?;
-    let cells = (resolutions.len() * widths.len() * variants.len() * groups.len()) as u64;
-    let pb = bar(ctx, cells, "filter speed");
-    for &(w, h) in &resolutions {
-        let mut input = None;
-        for &kw in &widths {
-            for variant in variants {
-                for &wg in &groups {
-                    let key = vec![
-                        w.to_string(),
-                        h.to_string(),
-                        kw.to_string(),
-                        variant.to_string(),
-                        wg.to_string(),
-                    ];
-                    pb.set_message(format!("filter speed: {w}x{h} kw {kw} {variant} wg {wg}"));
-                    if t.has(&key) {
-                        pb.inc(1);
-                        continue;
-                    }
-                    if input.is_none() {
-                        input = Some(filter_input(ctx, w, h)?);
-                    }
-                    let frame = input.as_ref().expect("rendered above");
-                    let (v, naive_wg) = match variant {
-                        "naive" => (Variant::Naive, Some(wg)),
-                        _ => (Variant::Rows, None),
-                    };
-                    let settings = DdfSettings {
-                        kw,
-                        holes: variant == "rows+holes",
-                        variant: v,
-                        work_group: wg as u32,
-                        ..Default::default()
-                    };
-                    let mut f =
-                        DdfKernel::with_work_group(ctx.gpu.clone(), &settings, w, h, naive_wg)?;
-                    f.filter(frame)?; // warm-up
-                    let mut times = Vec::new();
-                    let max_runs = if ctx.quick { 3 } else { 7 };
-                    let budget = Duration::from_secs(if ctx.quick { 5 } else { 60 });
-                    let mut spent = Duration::ZERO;
-                    while times.len() < max_runs && (times.len() < 2 || spent < budget) {
-                        let k = f.filter(frame)?.time();
-                        spent += k;
-                        times.push(k);
-                    }
-                    let (lo, med, hi) = crate::filters::time_summary(&times).expect("runs");
-                    let ms = |d: Duration| num(d.as_secs_f64() * 1e3);
-                    let mut row = key;
-                    row.extend([times.len().to_string(), ms(lo), ms(med), ms(hi)]);
-                    t.push(row)?;
-                    pb.inc(1);
-                }
-            }
-        }
-    }
-    pb.finish_and_clear();
-    write_filter_speed_outputs(ctx, &t)
-}
-
-fn write_filter_speed_outputs(ctx: &Context, t: &ResultTable) -> Result<()> {
-    let recs = t.records();
-    let mut resolutions: Vec<(String, String)> = recs
-        .iter()
-        .map(|r| (r["width"].to_string(), r["height"].to_string()))
-        .collect();
-    resolutions.dedup();
-    resolutions.sort_by_key(|(w, h)| w.parse::<u32>().unwrap_or(0) * h.parse::<u32>().unwrap_or(0));
-    resolutions.dedup();
-    let mut md = String::from(
-        "# Data-driven filter speed (thesis §7.1-7.2, Figs. 7.2-7.12)\n\n\
-         Input: Cornell diffuse at 8 spp. Kernel time from OpenCL profiling events, min / median /\n\
-         max over repeated runs after one warm-up run.\n\n",
-    );
-    for (w, h) in &resolutions {
-        let mut series: Vec<Series> = Vec::new();
-        for r in recs.iter().filter(|r| r["width"] == w && r["height"] == h) {
-            let label = format!("{} wg {}", r["variant"], r["work_group"]);
-            let p = (
-                r["kw"].parse::<f64>().unwrap_or(0.0),
-                r["median_ms"].parse::<f64>().unwrap_or(f64::NAN),
-            );
-            match series.iter_mut().find(|s| s.label == label) {
-                Some(s) => s.points.push(p),
-                None => series.push(Series {
-                    label,
-                    points: vec![p],
-                }),
-            }
-        }
-        for s in &mut series {
-            s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
-        }
-        let file = format!("filter-speed-{w}x{h}.png");
-        line_chart(
-            &ctx.out.join(&file),
-            &Chart {
-                title: format!("Data-driven filter, {w}x{h}: median kernel time"),
-                x_label: "kernel width kw".into(),
-                y_label: "ms".into(),
-                log_x: false,
-                log_y: true,
-            },
-            &series,
-        )?;
-        md.push_str(&format!(
-            "## {w}x{h}\n\n![filter time vs kernel width]({file})\n\n"
-        ));
-    }
-    md.push_str("## All measurements\n\n");
-    md.push_str(&t.markdown());
-    std::fs::write(ctx.out.join("filter-speed.md"), md)?;
     Ok(())
 }

@@ -24,21 +24,22 @@ pub struct Sizes {
 }
 
 pub fn sizes(ctx: &Context) -> Sizes {
-    sizes_for(ctx.quick)
+    sizes_for(ctx.quick, ctx.reference_spp)
 }
 
-pub fn sizes_for(quick: bool) -> Sizes {
+/// The image sizes of a run (`--quick`) and its references' spp (`--reference-spp`).
+pub fn sizes_for(quick: bool, reference_spp: Option<u32>) -> Sizes {
     if quick {
         Sizes {
             width: 64,
             height: 64,
-            reference_spp: 256,
+            reference_spp: reference_spp.unwrap_or(256),
         }
     } else {
         Sizes {
             width: 512,
             height: 512,
-            reference_spp: ground_truth::DEFAULT_REFERENCE_SPP,
+            reference_spp: reference_spp.unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
         }
     }
 }
@@ -87,6 +88,37 @@ impl StudyScene {
             o.sample_capacity = spp;
         }
         Renderer::with_arrays(ctx.gpu.clone(), &self.scene, self.arrays.clone(), &o)
+    }
+
+    /// The thesis's own variants of its filter, as extra cells of the quality study: with
+    /// holes (Fig. 6.12) and, where the scene has an environment light, without the sky
+    /// special case (Figs. 6.13, 7.19). (label, filter).
+    pub fn thesis_variants(&self) -> Result<Vec<(String, Configured)>> {
+        use crate::filters::FilterKind;
+        use crate::filters::ddf::{Ddf, DdfSettings};
+        let mut v = vec![(
+            format!("{}-holes", Ddf::NAME),
+            Configured::typed::<Ddf>(
+                DdfSettings {
+                    holes: true,
+                    ..Default::default()
+                },
+                &self.info,
+            )?,
+        )];
+        if self.info.has("HAS_ENV") {
+            v.push((
+                format!("{}-nosky", Ddf::NAME),
+                Configured::typed::<Ddf>(
+                    DdfSettings {
+                        sky: crate::filters::Auto::Set(false),
+                        ..Default::default()
+                    },
+                    &self.info,
+                )?,
+            ));
+        }
+        Ok(v)
     }
 
     /// The filters compared: every registered filter with its defaults (Table 7.2 for the

@@ -122,15 +122,7 @@ impl AtrousKernel {
     /// time is the sum over init, every pass and finish, from their profiling events.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
         let start = Instant::now();
-        if frame.width() != self.width || frame.height() != self.height {
-            bail!(
-                "the filter was built for {}x{}, the frame is {}x{}",
-                self.width,
-                self.height,
-                frame.width(),
-                frame.height()
-            );
-        }
+        frame.check_size(self.width, self.height, "the a-trous filter")?;
         frame.require(
             OutputSet::of(&[Output::Colour, Output::Features]),
             "the a-trous filter",

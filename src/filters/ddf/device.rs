@@ -62,7 +62,12 @@ impl DdfKernel {
             ("DDF_TEXTURE2".to_string(), flag(settings.uses_texture2())),
             (
                 "DDF_DIRECTION".to_string(),
-                flag(settings.direction == DirectionTerm::Difference),
+                match settings.direction {
+                    DirectionTerm::Thesis => "0",
+                    DirectionTerm::Difference => "1",
+                    DirectionTerm::Neighbour => "2",
+                }
+                .to_string(),
             ),
         ];
         let program = gpu.program("filters/ddf.cl", &defines, "")?;
@@ -126,15 +131,7 @@ impl DdfKernel {
     /// Filters `frame` (which must be width x height); returns the image and the kernel time.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
         let start = Instant::now();
-        if frame.width() != self.width || frame.height() != self.height {
-            bail!(
-                "the filter was built for {}x{}, the frame is {}x{}",
-                self.width,
-                self.height,
-                frame.width(),
-                frame.height()
-            );
-        }
+        frame.check_size(self.width, self.height, "the data-driven filter")?;
         frame.require(
             <super::Ddf as crate::filters::FilterKind>::needs(&self.settings),
             "the data-driven filter",

@@ -46,6 +46,12 @@ pub enum DirectionTerm {
     /// Our variant: exp(-sigma2_f,3 |d - d_N|^2) on the pixels' mean first-bounce directions,
     /// so glossy (high direction variance) and mirror-like pixels are told apart.
     Difference,
+    /// The other reading of the printed factor: exp(-sigma2_f,3) with sigma2_f,3 formed by
+    /// eq. 6.10 from the neighbour's own direction variance (§6.2.3: "the bounce direction
+    /// variance ... is used when the indirect weight is calculated"), so it differs from
+    /// neighbour to neighbour and does not cancel: rough neighbours (whose bounce directions
+    /// scatter) weigh more than mirror-like ones.
+    Neighbour,
 }
 
 /// The variance scales s_f (depth, normal, texture, direction, texture2). The thesis leaves
@@ -80,8 +86,9 @@ crate::filter_settings! {
         pub variance_scale: [f32; 5] = DEFAULT_VARIANCE_SCALE,
         /// Holes: every second neighbour in x and y (§6.3.3).
         pub holes: bool = false,
-        /// The direction factor of eq. 6.14: "thesis" (as printed; it cancels) or
-        /// "difference" (of the mean first-bounce directions).
+        /// The direction factor of eq. 6.14: "thesis" (as printed, the centre's variance; it
+        /// cancels), "neighbour" (the neighbour's variance) or "difference" (of the mean
+        /// first-bounce directions).
         pub direction: DirectionTerm = DirectionTerm::Thesis,
         /// The texture2 term of eq. 6.14; auto: on when the scene has mirror, glass or metal
         /// surfaces (§6.2.1: it keeps detail seen in mirrors and through glass).

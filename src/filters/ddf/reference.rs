@@ -26,8 +26,17 @@ pub fn reference(frame: &Frame, s: &DdfSettings) -> Result<RgbImage> {
         crate::stats::depth_scale(frame.info().scene.scene_size),
     );
     let (sky, texture2) = (s.keeps_sky(), s.uses_texture2());
+    // The direction term's input of pixel i (kernels/filters/ddf.cl neighbour_direction).
     let dir = |i: usize| match s.direction {
         DirectionTerm::Difference => state[i].direction_mean,
+        DirectionTerm::Neighbour => {
+            let v = crate::stats::feature_variance_sums(&crate::stats::scaled(
+                &sums[i],
+                p.variance_factor,
+            ))[3];
+            let s2 = p.sigma2_f[3] * (1.0 - (v * p.variance_scale[3]).clamp(0.0, 1.0));
+            [s2, 0.0, 0.0]
+        }
         DirectionTerm::Thesis => [0.0; 3],
     };
     let lanes = FilterVector::lanes;
@@ -62,6 +71,7 @@ pub fn reference(frame: &Frame, s: &DdfSettings) -> Result<RgbImage> {
                 e_fi += match s.direction {
                     DirectionTerm::Thesis => sigma2_f[3],
                     DirectionTerm::Difference => sigma2_f[3] * sq(&dc, &dn),
+                    DirectionTerm::Neighbour => dn[0],
                 };
                 let w_d = (-(e_dc + e_fd)).exp();
                 let w_i = (-(e_ic + e_fi)).exp();

@@ -1,0 +1,224 @@
+//! The data-driven filter's kernel time (thesis §7.1-7.2): per scene (Figs. 7.2-7.6 for the
+//! unoptimised kernel, 7.7-7.12 for the optimised ones, Fig. 7.11 with the sky-box filling the
+//! view), over kernel widths, resolutions, kernel variants and work-group sizes, with the lower
+//! and upper bounds the thesis reports (min / max over repeated runs) and the median.
+
+use std::time::Duration;
+
+use anyhow::Result;
+use glam::Vec3;
+
+use super::plot::{Chart, Series, line_chart};
+use super::table::{ResultTable, num};
+use super::{Context, bar};
+use crate::filters::ddf::{DdfKernel, DdfSettings, Variant};
+use crate::layout::outputs::{Output, OutputSet};
+use crate::render::{Frame, RenderOptions, Renderer};
+use crate::scene::{self, Scene};
+
+/// The scenes of Figs. 7.2-7.12; `outside_sky` is Outside looking straight up, so that the
+/// sky-box fills the view (Fig. 7.11: every pixel takes the sky special case of §6.3.4).
+const SCENES: &[&str] = &[
+    "cornell_diffuse",
+    "cornell_glossy",
+    "cornell_plane",
+    "outside",
+    "outside_sky",
+    "conference",
+];
+
+/// The kernel variants: the unoptimised one (Figs. 7.2-7.6), float16 loads (§6.3.1), local
+/// memory rows (§6.3.2) and rows with holes (§6.3.3; Figs. 7.7-7.12).
+const VARIANTS: &[&str] = &["naive", "vector", "rows", "rows+holes"];
+
+/// A scene by its name in the table (`outside_sky`: Outside with the camera turned to the sky).
+fn load(ctx: &Context, name: &str) -> Result<Scene> {
+    let file = name.strip_suffix("_sky").unwrap_or(name);
+    let mut scene = scene::load_scene(&ctx.scene_file(file)?)?;
+    if name.ends_with("_sky") {
+        let c = &mut scene.camera;
+        c.target = c.origin + Vec3::Y * 10.0;
+        c.up = Vec3::Z;
+    }
+    Ok(scene)
+}
+
+/// Rendered 8-spp outputs of `scene` at `w` x `h`, the filter's input (on the device).
+fn filter_input(ctx: &Context, scene: &Scene, w: u32, h: u32) -> Result<Frame> {
+    let mut o = RenderOptions::for_scene(scene);
+    (o.frame.width, o.frame.height) = (w, h);
+    o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
+    let mut r = Renderer::new(ctx.gpu.clone(), scene, &o)?;
+    r.render_samples(8)?;
+    Ok(r.frame())
+}
+
+/// Filter kernel time over scenes x resolutions x kernel widths x variants x work-group sizes,
+/// min / median / max over repeated runs after a warm-up (thesis §7.1-7.2).
+pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {
+    let (scenes, resolutions, widths, groups): (&[&str], Vec<(u32, u32)>, Vec<u32>, Vec<usize>) =
+        if ctx.quick {
+            (&SCENES[..1], vec![(64, 48)], vec![7, 15], vec![64])
+        } else {
+            (
+                SCENES,
+                vec![(320, 240), (512, 512), (640, 480), (1280, 768)],
+                vec![7, 15, 25, 55],
+                vec![64, 256],
+            )
+        };
+    let columns = [
+        "scene",
+        "width",
+        "height",
+        "kw",
+        "variant",
+        "work_group",
+        "runs",
+        "min_ms",
+        "median_ms",
+        "max_ms",
+    ];
+    let mut t = ctx.table("filter-speed", &columns, 6, fresh)?;
+    let cells =
+        (scenes.len() * resolutions.len() * widths.len() * VARIANTS.len() * groups.len()) as u64;
+    let pb = bar(ctx, cells, "filter speed");
+    for &name in scenes {
+        let mut scene = None;
+        for &(w, h) in &resolutions {
+            let mut input = None;
+            for &kw in &widths {
+                for &variant in VARIANTS {
+                    for &wg in &groups {
+                        let key = vec![
+                            name.to_string(),
+                            w.to_string(),
+                            h.to_string(),
+                            kw.to_string(),
+                            variant.to_string(),
+                            wg.to_string(),
+                        ];
+                        pb.set_message(format!("filter speed: {name} {w}x{h} kw {kw} {variant}"));
+                        if t.has(&key) {
+                            pb.inc(1);
+                            continue;
+                        }
+                        if scene.is_none() {
+                            scene = Some(load(ctx, name)?);
+                        }
+                        if input.is_none() {
+                            let s = scene.as_ref().expect("loaded above");
+                            input = Some(filter_input(ctx, s, w, h)?);
+                        }
+                        let frame = input.as_ref().expect("rendered above");
+                        let times = measure(ctx, frame, kw, variant, wg)?;
+                        let (lo, med, hi) = crate::filters::time_summary(&times).expect("runs");
+                        let ms = |d: Duration| num(d.as_secs_f64() * 1e3);
+                        let mut row = key;
+                        row.extend([times.len().to_string(), ms(lo), ms(med), ms(hi)]);
+                        t.push(row)?;
+                        pb.inc(1);
+                    }
+                }
+            }
+        }
+    }
+    pb.finish_and_clear();
+    write_report(ctx, &t)
+}
+
+/// Kernel times of one cell: a warm-up run, then at least 2 and at most 7 (3 with --quick)
+/// runs within a minute (5 s with --quick) of kernel time.
+fn measure(
+    ctx: &Context,
+    frame: &Frame,
+    kw: u32,
+    variant: &str,
+    wg: usize,
+) -> Result<Vec<Duration>> {
+    let (v, naive_wg) = match variant {
+        "naive" => (Variant::Naive, Some(wg)),
+        "vector" => (Variant::Vector, Some(wg)),
+        _ => (Variant::Rows, None),
+    };
+    let mut settings = DdfSettings {
+        kw,
+        holes: variant == "rows+holes",
+        variant: v,
+        work_group: wg as u32,
+        ..Default::default()
+    };
+    // Specialised like `render --filter ddf` (the sky case where the scene has a sky).
+    let info = frame.info().scene.clone();
+    <crate::filters::ddf::Ddf as crate::filters::FilterKind>::specialise(&mut settings, &info);
+    let (w, h) = (frame.width(), frame.height());
+    let mut f = DdfKernel::with_work_group(ctx.gpu.clone(), &settings, w, h, naive_wg)?;
+    f.filter(frame)?; // warm-up
+    let mut times = Vec::new();
+    let max_runs = if ctx.quick { 3 } else { 7 };
+    let budget = Duration::from_secs(if ctx.quick { 5 } else { 60 });
+    let mut spent = Duration::ZERO;
+    while times.len() < max_runs && (times.len() < 2 || spent < budget) {
+        let k = f.filter(frame)?.time();
+        spent += k;
+        times.push(k);
+    }
+    Ok(times)
+}
+
+/// One plot per scene: the upper bound (max) kernel time against the kernel width, a line per
+/// resolution and variant (work-group 64), as the thesis's figures; the table holds them all.
+fn write_report(ctx: &Context, t: &ResultTable) -> Result<()> {
+    let recs = t.records();
+    let scenes = super::table::distinct(&recs, "scene");
+    let mut md = String::from(
+        "# Data-driven filter speed (thesis §7.1-7.2, Figs. 7.2-7.12)\n\n\
+         Input: each scene at 8 spp (`outside_sky`: Outside looking straight up, the sky-box in\n\
+         full view, Fig. 7.11). Kernel time from OpenCL profiling events: min (the thesis's lower\n\
+         bound), median and max (its upper bound) over repeated runs after one warm-up run. The\n\
+         plots show the upper bound at work-group 64; `naive` is the unoptimised kernel of Figs.\n\
+         7.2-7.6, `rows` and `rows+holes` the optimised ones of Figs. 7.7-7.12.\n\n",
+    );
+    for name in &scenes {
+        let mut series: Vec<Series> = Vec::new();
+        for r in recs
+            .iter()
+            .filter(|r| r["scene"] == *name && r["work_group"] == "64")
+        {
+            let label = format!("{} {}x{}", r["variant"], r["width"], r["height"]);
+            let p = (
+                r["kw"].parse::<f64>().unwrap_or(0.0),
+                r["max_ms"].parse::<f64>().unwrap_or(f64::NAN),
+            );
+            match series.iter_mut().find(|s| s.label == label) {
+                Some(s) => s.points.push(p),
+                None => series.push(Series {
+                    label,
+                    points: vec![p],
+                }),
+            }
+        }
+        for s in &mut series {
+            s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        let file = format!("filter-speed-{name}.png");
+        line_chart(
+            &ctx.out.join(&file),
+            &Chart {
+                title: format!("Data-driven filter on {name}: upper-bound kernel time"),
+                x_label: "kernel width kw".into(),
+                y_label: "ms".into(),
+                log_x: false,
+                log_y: true,
+            },
+            &series,
+        )?;
+        md.push_str(&format!(
+            "## {name}\n\n![filter time vs kernel width]({file})\n\n"
+        ));
+    }
+    md.push_str("## All measurements\n\n");
+    md.push_str(&t.markdown());
+    std::fs::write(ctx.out.join("filter-speed.md"), md)?;
+    Ok(())
+}
