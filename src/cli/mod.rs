@@ -2,7 +2,9 @@
 //! | cache`.
 
 mod filter_cmd;
+mod interrupt;
 mod merge_cmd;
+mod partial_render;
 mod render_cmd;
 mod slurm;
 mod tools;
@@ -98,7 +100,7 @@ pub fn main_with(registry: &Registry) -> i32 {
     }
     match result {
         Ok(()) => 0,
-        Err(e) if e.is::<render_cmd::Interrupted>() => {
+        Err(e) if e.is::<interrupt::Interrupted>() => {
             eprintln!("{e}");
             130
         }

@@ -4,23 +4,25 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
+use super::interrupt::{Interrupted, catch_ctrl_c, interrupted};
+use super::partial_render::{check_partial_flags, parse_output, parse_range, write_part};
+
 use crate::filters::{Configured, FilterRequest, Registry};
 use crate::gpu::Gpu;
 use crate::imaging;
-use crate::layout::outputs::{OUTPUTS, Output, OutputSet};
+use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{
     Budget, RenderOptions, Renderer, SceneArrays, SceneInfo, Tile, progress_bar,
     render_progressively,
 };
 use crate::scene;
 use crate::stats::RenderRecord;
-use crate::stats::partial::{self, Piece, PieceInfo, RenderIdentity};
+use crate::stats::partial::{PieceInfo, RenderIdentity};
 use crate::stats::samples::SampleSet;
 
 #[derive(Args, Debug, Clone)]
@@ -122,67 +124,6 @@ pub struct RenderArgs {
     pub quiet: bool,
 }
 
-/// `A..B`: samples A to B-1.
-pub fn parse_range(s: &str) -> std::result::Result<std::ops::Range<u32>, String> {
-    let (a, b) = s
-        .split_once("..")
-        .ok_or_else(|| format!("expected A..B (samples A to B-1), e.g. 0..64, got {s:?}"))?;
-    let n = |t: &str| {
-        t.trim()
-            .parse::<u32>()
-            .map_err(|_| format!("{t:?} in {s:?} is not a sample number"))
-    };
-    let (a, b) = (n(a)?, n(b)?);
-    if a >= b {
-        return Err(format!("{s:?} is empty: A..B needs A < B"));
-    }
-    Ok(a..b)
-}
-
-fn parse_output(s: &str) -> std::result::Result<Output, String> {
-    OUTPUTS
-        .iter()
-        .find(|o| o.name == s.trim())
-        .map(|o| o.output)
-        .ok_or_else(|| {
-            let names: Vec<&str> = OUTPUTS.iter().map(|o| o.name).collect();
-            format!("no output named {s:?}; outputs: {}", names.join(", "))
-        })
-}
-
-/// Refuses the flags a partial render does not use (it writes no image: its merge does).
-fn check_partial_flags(args: &RenderArgs) -> Result<()> {
-    if args.partial.is_none() {
-        if args.samples.is_some() || args.tile.is_some() {
-            bail!(
-                "--samples and --tile render a part of an image: give --partial FILE.nfp, and \
-                 merge the parts with `noisefree merge`"
-            );
-        }
-        return Ok(());
-    }
-    let images = [
-        (args.out.is_some(), "--out"),
-        (args.exr.is_some(), "--exr"),
-        (args.exr_unfiltered.is_some(), "--exr-unfiltered"),
-        (args.aovs.is_some(), "--aovs"),
-        (args.aov_png.is_some(), "--aov-png"),
-        (args.save_samples.is_some(), "--save-samples"),
-        (args.timings, "--timings"),
-        (args.time_limit.is_some(), "--time-limit"),
-        (args.save_partial, "--save-partial"),
-    ];
-    if let Some((_, flag)) = images.iter().find(|(given, _)| *given) {
-        bail!(
-            "{flag} does not go with --partial: a partial render writes its samples' \
-             accumulators, not images (`noisefree merge` writes the images, AOVs and filtered \
-             result; --gather samples keeps the sample vectors, and every part renders all of \
-             its range)"
-        );
-    }
-    Ok(())
-}
-
 fn parse_size(s: &str) -> std::result::Result<[usize; 2], String> {
     let (a, b) = s
         .split_once('x')
@@ -242,37 +183,6 @@ fn default_output(scene: &Path, ext: &str) -> PathBuf {
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "render".into());
     PathBuf::from("out").join(format!("{stem}.{ext}"))
-}
-
-/// Set by the Ctrl-C handler; the render loop stops after the launch in flight.
-static INTERRUPTED: AtomicBool = AtomicBool::new(false);
-
-/// The error of a render stopped by Ctrl-C without --save-partial (exit status 130).
-#[derive(Debug)]
-pub struct Interrupted;
-
-impl std::fmt::Display for Interrupted {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "interrupted: nothing was written (use --save-partial to keep what was rendered)"
-        )
-    }
-}
-
-impl std::error::Error for Interrupted {}
-
-/// Installs the Ctrl-C handler once per process.
-fn catch_ctrl_c() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        // If another handler is already installed, Ctrl-C keeps its default meaning.
-        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst));
-    });
-}
-
-pub fn interrupted() -> bool {
-    INTERRUPTED.load(Ordering::SeqCst)
 }
 
 /// The filter `render` runs: the flag, else the scene's `[filter] method`; "none" or neither:
@@ -555,39 +465,15 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         rays: renderer.rays_total,
         filter_times: Vec::new(),
     };
-    if let (Some(path), Some(mut identity)) = (&args.partial, identity) {
-        identity.record = record;
-        identity.record.extra.insert("spp".into(), spp.to_string());
+    if let (Some(path), Some(identity)) = (&args.partial, identity) {
         let info = PieceInfo {
             tile: renderer.tile(),
-            samples: range.clone(),
+            samples: range,
             rays: renderer.rays_total,
             seconds: summary.kernel_seconds,
             device: gpu.summary.name.clone(),
         };
-        let piece = Piece::of_frame(&frame, info)?;
-        partial::write(path, &identity, &[piece])?;
-        println!(
-            "{} of {}x{}: samples {}..{} of {spp} in {:.2} s (kernel {:.2} s): {:.2} spp/s, \
-             {:.2} Mrays/s -> {}",
-            if args
-                .tile
-                .is_some_and(|t| !t.is_whole(options.frame.width, options.frame.height))
-            {
-                format!("tile {}", renderer.tile())
-            } else {
-                "image".to_string()
-            },
-            options.frame.width,
-            options.frame.height,
-            range.start,
-            range.end,
-            summary.seconds,
-            summary.kernel_seconds,
-            summary.spp_per_second(),
-            summary.mrays_per_second(),
-            path.display()
-        );
+        write_part(path, identity, record, &frame, info, &summary)?;
         return Ok(summary);
     }
     let unfiltered = frame.beauty()?;
