@@ -6,7 +6,10 @@
 //! cancelled, the merge job fails naming the missing sample range and the task to submit again,
 //! writes nothing, and `submit.sh` with only that task completes the reference.
 //!
-//! Opt-in, as it needs Debian's slurm-wlm and munge packages: `cargo test --release --test
+//! Without a cluster: `--dry-run` prints the job and writes nothing, and the job's mistakes are
+//! errors before anything is written or submitted.
+//!
+//! The cluster test is opt-in, as it needs Debian's slurm-wlm and munge packages: `cargo test --release --test
 //! slurm -- --ignored`, which scripts/test.sh runs when the packages install. Waiting for the
 //! scheduler is bounded ([`WAIT`]) so that a stuck cluster fails the test instead of hanging
 //! it; no time is asserted. Every daemon the test started is stopped, by its process id, even
@@ -266,4 +269,136 @@ fn a_job_array_renders_a_reference_and_a_killed_task_is_rendered_again() {
     assert_equal_to_float_rounding(&cached(&dir.join("again")), &one);
     drop(cluster);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+// ---- Without a cluster ----
+
+#[test]
+fn dry_run_prints_the_job_and_writes_nothing() {
+    let dir = tempdir("slurm-dry-run");
+    let scene = bundled_scene_path("cornell_diffuse").display().to_string();
+    let run = |args: &[&str]| {
+        let out = noisefree().args(args).current_dir(&dir).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {stderr}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let mut args = vec![
+        "reference",
+        &scene,
+        "--cache",
+        "refs",
+        "--slurm",
+        "4",
+        "--dry-run",
+    ];
+    args.extend(ARGS);
+    let job = run(&args);
+    for line in [
+        "TASKS=4",
+        "RENDERS=1",
+        "NAME_0=cornell_diffuse-32x24-16spp",
+        "SPP_0=16",
+        &format!("WORKDIR={}", dir.display()),
+        &format!("NOISEFREE={}", env!("CARGO_BIN_EXE_noisefree")),
+        &format!(
+            "RENDER_0=({scene} --spp 16 --width 32 --height 24 --seed 1592598600 --filter none)"
+        ),
+        &format!(
+            "MERGE_0=(reference {scene} --spp 16 --width 32 --height 24 --seed 1592598600 \
+             --cache refs --from-parts)"
+        ),
+        "sbatch --parsable --array=0-3 render.sbatch",
+        "sbatch --parsable --dependency=afterany:<array job> merge.sbatch",
+    ] {
+        assert!(
+            job.lines().any(|l| l.trim_start_matches("#   ") == line),
+            "{line:?} is not in:\n{job}"
+        );
+    }
+    // bench: one render per reference its studies need, then the benchmark in the merge job.
+    let scenes = repo_path("scenes").display().to_string();
+    let bench = run(&[
+        "bench",
+        "--quick",
+        "--scenes",
+        &scenes,
+        "--slurm",
+        "2",
+        "--dry-run",
+    ]);
+    assert!(bench.contains("RENDERS=1\n"), "{bench}");
+    assert!(
+        bench.contains("NAME_0=cornell_diffuse-64x64-256spp"),
+        "{bench}"
+    );
+    let final_line = format!("FINAL=(bench --quick --scenes {scenes} --cache cache/references)");
+    assert!(
+        bench.lines().any(|l| l == final_line),
+        "{final_line:?} is not in:\n{bench}"
+    );
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        0,
+        "a dry run writes nothing"
+    );
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}
+
+#[test]
+fn slurm_job_mistakes_are_errors_before_anything_is_written() {
+    let dir = tempdir("slurm-errors");
+    let scene = bundled_scene_path("cornell_diffuse").display().to_string();
+    let fails_in = |args: &[&str], path: Option<&str>, needles: &[&str]| {
+        let mut c = noisefree();
+        c.args(args).current_dir(&dir);
+        if let Some(p) = path {
+            c.env("PATH", p);
+        }
+        fails_with(ERROR, &mut c, needles);
+    };
+    let reference = |extra: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> = ["reference", &scene, "--cache", "refs"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        v.extend(ARGS.iter().chain(extra).map(|s| s.to_string()));
+        v
+    };
+    fails_in(
+        &strs(&reference(&["--slurm", "0", "--dry-run"])),
+        None,
+        &["--slurm 0: a job array needs at least one task"],
+    );
+    fails_in(
+        &strs(&reference(&["--slurm", "17", "--dry-run"])),
+        None,
+        &["16 spp, fewer than the 17 tasks"],
+    );
+    // No sbatch: the job is not written either.
+    let empty = dir.join("no-programs");
+    std::fs::create_dir(&empty).unwrap();
+    fails_in(
+        &strs(&reference(&["--slurm", "4"])),
+        Some(&empty.display().to_string()),
+        &["sbatch is not on PATH", "--dry-run"],
+    );
+    assert!(!dir.join("slurm").exists(), "no job folder");
+    // A job folder in use is not overwritten.
+    let used = dir.join("used");
+    std::fs::create_dir(&used).unwrap();
+    std::fs::write(used.join("job.env"), "keep").unwrap();
+    fails_in(
+        &strs(&reference(&["--slurm", "4", "--job-dir", "used"])),
+        None,
+        &["the job folder", "exists already", "submit.sh"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(used.join("job.env")).unwrap(),
+        "keep"
+    );
+    usage_fails(&["reference", &scene, "--dry-run"], &["--slurm"]);
 }

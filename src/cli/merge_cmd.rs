@@ -1,5 +1,5 @@
 //! `noisefree merge`: partial renders (`render --samples A..B --partial part.nfp`, `--tile`)
-//! merged into the render of all their samples (src/stats/merge.rs), then written as `render`
+//! merged into the render of all their samples (src/stats/merge/), then written as `render`
 //! writes a render: the image (filtered as the render chose, or with --filter), its EXR, the
 //! AOVs. Or the parts bundled into one partial file (--partial). Every part is checked against
 //! the others before anything is read or written; on any error nothing is written.

@@ -1,6 +1,6 @@
 //! The partial side of `noisefree render` (`--samples A..B`, `--tile`, `--partial`, `--gather`):
 //! its flags, and writing the render's outputs as one piece of a partial file
-//! (src/stats/partial.rs) for `noisefree merge`.
+//! (src/stats/partial/) for `noisefree merge`.
 
 use std::path::Path;
 

@@ -12,8 +12,8 @@
 //!   output still loads when the chosen filter does not need it;
 //! - the layout test's device sizes, and the generic defines of the test kernels;
 //! - how renders of disjoint sample ranges or tiles merge into one ([`Merge`], applied by
-//!   src/stats/merge.rs with an exhaustive match, and written into partial files by
-//!   src/stats/partial.rs).
+//!   src/stats/merge/ with an exhaustive match, and written into partial files by
+//!   src/stats/partial/).
 //!
 //! Adding an output: a row in [`OUTPUTS`] (and its buffer in [`BUFFERS`], with its merge rule),
 //! the kernel code that writes it (kernels/render/film.cl), and the filter that reads it.
@@ -58,7 +58,7 @@ pub enum Per {
 }
 
 /// How the buffers of renders of disjoint sample ranges (or tiles) of one image combine into
-/// the buffer of a single render of all those samples (`noisefree merge`, src/stats/merge.rs).
+/// the buffer of a single render of all those samples (`noisefree merge`, src/stats/merge/).
 /// Every buffer declares one, so an output cannot be added without saying how it merges, and
 /// the merge matches on it exhaustively.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

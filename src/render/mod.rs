@@ -3,7 +3,7 @@
 //! §4.2.3, §4.3). Which buffers exist, and how they are bound to the kernel, comes from the
 //! output table of src/layout/outputs.rs; what the renderer leaves is read through a
 //! [`Frame`]. A renderer may cover a range of the samples and a [`Tile`] of the image: such
-//! partial renders merge into the whole (src/stats/merge.rs).
+//! partial renders merge into the whole (src/stats/merge/).
 
 pub mod cpu;
 pub mod features;

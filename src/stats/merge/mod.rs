@@ -1,4 +1,4 @@
-//! Merging partial renders (src/stats/partial.rs) into the render of all their samples: the
+//! Merging partial renders (src/stats/partial/) into the render of all their samples: the
 //! parts of one render, each a range of the samples of a tile of the image, combine into the
 //! outputs a single render of every sample would have left, to float rounding.
 //!

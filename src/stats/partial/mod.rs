@@ -1,6 +1,6 @@
 //! Partial renders: the outputs of a range of the samples (and a tile of the image) of one
 //! render, in a file that `noisefree merge` combines with the others into the whole render
-//! (src/stats/merge.rs). `render --samples A..B --partial part.nfp` writes one; `merge
+//! (src/stats/merge/). `render --samples A..B --partial part.nfp` writes one; `merge
 //! --partial` writes the pieces of several into one file.
 //!
 //! A part holds every accumulator of every output buffer the render gathered, exactly as the
