@@ -51,8 +51,10 @@ fn piece(scene: &noisefree::scene::Scene, range: std::ops::Range<u32>, tile: Til
 fn identity(scene: &noisefree::scene::Scene) -> RenderIdentity {
     let o = options_for(scene);
     let arrays = noisefree::render::SceneArrays::build(scene, &o.frame).unwrap();
-    let mut record = noisefree::stats::RenderRecord::default();
-    record.scene = Some(noisefree::render::SceneInfo::new(scene, &arrays));
+    let record = noisefree::stats::RenderRecord {
+        scene: Some(noisefree::render::SceneInfo::new(scene, &arrays)),
+        ..Default::default()
+    };
     RenderIdentity {
         scene: "test".into(),
         scene_hash: noisefree::render::scene_hash(&arrays),
