@@ -178,6 +178,11 @@ fn plan(quick: bool) -> Vec<PlanEntry> {
     ]
 }
 
+/// The bundled scenes the sweep renders (and compares with their references).
+pub fn sweep_scenes(quick: bool) -> Vec<&'static str> {
+    plan(quick).into_iter().map(|e| e.scene).collect()
+}
+
 /// The kernel widths of the Table 7.1 sweep (Appendix B: 11 × 11, 15 × 15, 21 × 21).
 pub(super) const SWEEP_WIDTHS: &[u32] = &[11, 15, 21];
 /// The kernel widths of hypothesis 3 (Fig. 7.17).
