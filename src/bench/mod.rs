@@ -90,7 +90,9 @@ pub struct BenchArgs {
     /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
     #[arg(long)]
     pub device: Option<usize>,
-    /// Scenes to use (repeatable) [default: every scene of the bundled scenes folder].
+    /// Scenes to use (repeatable) [default: every scene of the bundled scenes folder]; the
+    /// sweep runs those of its plan named here (by file name), and writes its report from every
+    /// row of its table.
     #[arg(long)]
     pub scene: Vec<PathBuf>,
     /// The bundled scenes folder (the sweep and filter-speed read their scenes from it too)

@@ -195,7 +195,14 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
     let columns = ["scene", "kw", "parameter", "value", "mse_luv", "rel_mse"];
     let mut t = ctx.table("sweep", &columns, 4, fresh)?;
     let widths: &[u32] = if ctx.quick { &[21] } else { SWEEP_WIDTHS };
-    for entry in plan(ctx.quick) {
+    // `--scene` narrows the plan to the named scenes (by file name); by default every scene of
+    // the plan is a bundled one, so nothing is left out.
+    let chosen = |name: &str| {
+        ctx.scenes
+            .iter()
+            .any(|p| p.file_stem().is_some_and(|s| s == name))
+    };
+    for entry in plan(ctx.quick).into_iter().filter(|e| chosen(e.scene)) {
         let mut runs: Vec<(u32, String, String, DdfSettings)> = Vec::new();
         if entry.rows != Rows::None {
             for &kw in widths {
