@@ -191,17 +191,44 @@ pub fn default_cache_dir() -> Option<PathBuf> {
 
 /// FNV-1a, 64 bit: a stable hash (std's hasher may change between Rust releases).
 pub fn fnv1a(parts: &[&[u8]]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut h = Fnv1a::new();
     for part in parts {
-        for &b in *part {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0100_0000_01b3);
-        }
-        // Separate the parts, so ("ab", "c") and ("a", "bc") differ.
-        h ^= 0xff;
-        h = h.wrapping_mul(0x0100_0000_01b3);
+        h.update(part);
+        h.end_part();
     }
-    h
+    h.finish()
+}
+
+/// [`fnv1a`] fed part by part (data that is streamed, e.g. a file's payload).
+#[derive(Clone, Copy, Debug)]
+pub struct Fnv1a(u64);
+
+impl Default for Fnv1a {
+    fn default() -> Self {
+        Fnv1a::new()
+    }
+}
+
+impl Fnv1a {
+    pub fn new() -> Fnv1a {
+        Fnv1a(0xcbf2_9ce4_8422_2325)
+    }
+
+    pub fn update(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= b as u64;
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+
+    /// Separates the parts, so ("ab", "c") and ("a", "bc") differ.
+    pub fn end_part(&mut self) {
+        self.update(&[0xff]);
+    }
+
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
 }
 
 impl Gpu {

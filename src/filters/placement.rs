@@ -51,7 +51,7 @@ impl Placement {
 }
 
 /// Several devices rendering one frame (thesis §4.2), for render, view and bench.
-#[derive(Args, Debug, Clone)]
+#[derive(Args, Debug, Clone, PartialEq)]
 pub struct MultiDeviceArgs {
     /// Render each frame on several devices (numbers from `noisefree devices`, e.g. 0,1),
     /// split by rows in proportion to their measured speed; the image is the same.
@@ -80,6 +80,25 @@ impl MultiDeviceArgs {
         } else {
             Gpu::open_all(&self.devices)
         }
+    }
+
+    /// The flags that give these arguments again (for a command line that runs elsewhere).
+    pub fn to_args(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        if !self.devices.is_empty() {
+            let list: Vec<String> = self.devices.iter().map(|d| d.to_string()).collect();
+            v.extend(["--devices".to_string(), list.join(",")]);
+        }
+        if self.filter_placement != Placement::DEFAULT {
+            v.extend([
+                "--filter-placement".to_string(),
+                self.filter_placement.name().to_string(),
+            ]);
+        }
+        if self.no_rebalance {
+            v.push("--no-rebalance".to_string());
+        }
+        v
     }
 
     /// A film on `gpus`, re-balanced unless --no-rebalance.

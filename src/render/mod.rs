@@ -2,7 +2,8 @@
 //! to the outputs asked for, and adds samples progressively to the per-pixel outputs (thesis
 //! §4.2.3, §4.3). Which buffers exist, and how they are bound to the kernel, comes from the
 //! output table of src/layout/outputs.rs; what the renderer leaves is read through a
-//! [`Frame`].
+//! [`Frame`]. A renderer may cover a range of the samples and a [`Tile`] of the image: such
+//! partial renders merge into the whole (src/stats/merge/).
 
 pub mod balance;
 pub mod cpu;
@@ -10,6 +11,7 @@ pub mod features;
 pub mod frame;
 pub mod progressive;
 pub mod split;
+pub mod tile;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -18,7 +20,7 @@ use anyhow::{Context as _, Result};
 use ocl::{Buffer, Kernel};
 
 pub use crate::arrays::{FrameSettings, SceneArrays};
-use crate::gpu::{Gpu, enqueue_rows, event_duration, round_up};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, fnv1a, round_up};
 use crate::layout::outputs::{BUFFERS, BufferId, Output, OutputSet};
 use crate::layout::{
     BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
@@ -29,6 +31,7 @@ pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 pub use progressive::{Budget, progress_bar, render_progressively};
 pub use split::{SplitFrame, SplitRenderer};
+pub use tile::Tile;
 
 /// How to render, besides the scene itself.
 #[derive(Clone, Debug)]
@@ -44,6 +47,11 @@ pub struct RenderOptions {
     pub local_size: Option<[usize; 2]>,
     /// Compile in the debug counters of kernels/arrays/trace.cl (tests only).
     pub debug_counters: bool,
+    /// The render's first sample: it renders the samples from here on (`render --samples
+    /// A..B`), counted from here in its statistics. 0 for a whole render.
+    pub first_sample: u32,
+    /// The part of the image rendered; None: all of it.
+    pub tile: Option<Tile>,
 }
 
 impl RenderOptions {
@@ -55,7 +63,15 @@ impl RenderOptions {
             all_features: false,
             local_size: None,
             debug_counters: false,
+            first_sample: 0,
+            tile: None,
         }
+    }
+
+    /// The rectangle rendered: the tile, or the whole image.
+    pub fn tile(&self) -> Tile {
+        self.tile
+            .unwrap_or_else(|| Tile::whole(self.frame.width, self.frame.height))
     }
 }
 
@@ -125,6 +141,8 @@ pub struct Renderer {
     all_features: bool,
     debug: bool,
     local_size: Option<[usize; 2]>,
+    tile: Tile,
+    first_sample: u32,
     /// One buffer per entry of the output table: allocated when its output is on, a
     /// one-element stand-in otherwise.
     buffers: Vec<(BufferId, Buffer<u8>)>,
@@ -154,7 +172,7 @@ impl Renderer {
         options: &RenderOptions,
     ) -> Result<Renderer> {
         check_size(&gpu, options)?;
-        let frame = &options.frame;
+        let tile = options.tile();
         let outputs = options.outputs.closed();
         let capacity = if outputs.contains(Output::Samples) {
             options.sample_capacity.max(1)
@@ -168,7 +186,7 @@ impl Renderer {
         };
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let scene_info = SceneInfo::new(scene, &arrays);
-        let (w, h) = (frame.width, frame.height);
+        let (w, h) = (tile.width, tile.height);
         // Only what is asked for is allocated: the others are one-element stand-ins.
         let buffers = BUFFERS
             .iter()
@@ -194,6 +212,8 @@ impl Renderer {
             all_features: options.all_features,
             debug: options.debug_counters,
             local_size: options.local_size,
+            tile,
+            first_sample: options.first_sample,
             buffers,
             ray_counts,
             debug_counters,
@@ -249,7 +269,12 @@ impl Renderer {
             .arg_named("ray_counts", &self.ray_counts)
             .arg_named("debug_counters", &self.debug_counters)
             .arg_named("sample_capacity", self.sample_capacity)
-            .arg_named("sample_base", 0u32)
+            .arg_named("tile_x", self.tile.x)
+            .arg_named("tile_y", self.tile.y)
+            .arg_named("tile_width", self.tile.width)
+            .arg_named("tile_height", self.tile.height)
+            .arg_named("range_first", self.first_sample)
+            .arg_named("sample_base", self.first_sample)
             .arg_named("sample_count", 0u32);
         builder.build().context("creating the render kernel")
     }
@@ -272,18 +297,35 @@ impl Renderer {
             "ray_counts",
             "debug_counters",
             "sample_capacity",
+            "tile_x",
+            "tile_y",
+            "tile_width",
+            "tile_height",
+            "range_first",
             "sample_base",
             "sample_count",
         ]);
         v
     }
 
+    /// Width of what this renderer's buffers hold: the tile's (the image's for a whole render).
     pub fn width(&self) -> u32 {
-        self.arrays.params.image_width
+        self.tile.width
     }
 
     pub fn height(&self) -> u32 {
-        self.arrays.params.image_height
+        self.tile.height
+    }
+
+    /// The part of the image rendered.
+    pub fn tile(&self) -> Tile {
+        self.tile
+    }
+
+    /// The first sample of the render's range: it has rendered samples
+    /// `first_sample()..first_sample() + samples_done()`.
+    pub fn first_sample(&self) -> u32 {
+        self.first_sample
     }
 
     /// The outputs this renderer gathers.
@@ -291,7 +333,7 @@ impl Renderer {
         self.outputs
     }
 
-    /// Samples per pixel accumulated so far.
+    /// Samples per pixel accumulated so far (from [`Renderer::first_sample`] on).
     pub fn samples_done(&self) -> u32 {
         self.samples_done
     }
@@ -333,7 +375,7 @@ impl Renderer {
 
     fn launch(&mut self, count: u32, rows: std::ops::Range<u32>) -> Result<LaunchStats> {
         let kernel = self.kernel.as_ref().expect("built in with_arrays");
-        kernel.set_arg("sample_base", self.samples_done)?;
+        kernel.set_arg("sample_base", self.first_sample + self.samples_done)?;
         kernel.set_arg("sample_count", count)?;
         let w = self.width() as usize;
         // SAFETY: every buffer argument is alive (owned by self) and sized for the whole
@@ -438,7 +480,9 @@ impl Renderer {
 
 /// Refuses sizes the device cannot hold, before anything is built.
 fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
-    let (w, h) = (options.frame.width, options.frame.height);
+    let tile = options.tile();
+    tile.check_within(options.frame.width, options.frame.height)?;
+    let (w, h) = (tile.width, tile.height);
     let outputs = options.outputs.closed();
     let capacity = options.sample_capacity.max(1);
     for b in outputs.buffers() {
@@ -448,4 +492,55 @@ fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
         outputs.bytes(w, h, capacity) + 4 * w as u64 * h as u64,
         &format!("the per-pixel outputs ({})", outputs.names().join(", ")),
     )
+}
+
+fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
+    // SAFETY: the shared layout types are plain f32/u32/i32 with explicit padding fields
+    // (src/layout/mod.rs), so every byte is initialised.
+    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
+}
+
+/// A hash of the scene as uploaded: geometry, materials, textures, lights, camera, resolution
+/// and seed. With [`kernel_hash`] it decides every pixel of a render.
+pub fn scene_hash(arrays: &SceneArrays) -> u64 {
+    fnv1a(&scene_bytes(arrays))
+}
+
+fn scene_bytes(arrays: &SceneArrays) -> [&[u8]; 10] {
+    [
+        bytes_of(std::slice::from_ref(&arrays.params)),
+        bytes_of(&arrays.nodes),
+        bytes_of(&arrays.tri_geom),
+        bytes_of(&arrays.tri_shading),
+        bytes_of(&arrays.spheres),
+        bytes_of(&arrays.materials),
+        bytes_of(&arrays.textures),
+        bytes_of(&arrays.texels),
+        bytes_of(&arrays.lights),
+        bytes_of(&arrays.light_cdf),
+    ]
+}
+
+fn kernel_sources() -> String {
+    crate::kernels::SOURCES.iter().map(|(_, s)| *s).collect()
+}
+
+/// A hash of the kernels' sources (this build's megakernel).
+pub fn kernel_hash() -> u64 {
+    fnv1a(&[kernel_sources().as_bytes()])
+}
+
+/// A hash of everything that decides a render's pixels: the scene as uploaded and the
+/// megakernel's sources (the key of the reference cache, src/bench/ground_truth.rs).
+pub fn render_hash(arrays: &SceneArrays) -> u64 {
+    render_hash_with(arrays, &arrays.params)
+}
+
+/// [`render_hash`] with `params` in place of the arrays' own (another seed or camera).
+pub fn render_hash_with(arrays: &SceneArrays, params: &SceneParams) -> u64 {
+    let kernels = kernel_sources();
+    let mut parts = scene_bytes(arrays).to_vec();
+    parts[0] = bytes_of(std::slice::from_ref(params));
+    parts.push(kernels.as_bytes());
+    fnv1a(&parts)
 }

@@ -20,9 +20,15 @@ use crate::layout::outputs::{BufferId, ChannelScale, OUTPUTS, Output, OutputSet}
 use crate::layout::{FilterVector, SKY_DEPTH, WelfordSums};
 use crate::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 
+/// The header attribute that holds the render record.
+pub const RECORD_ATTRIBUTE: &str = "noisefree.record";
+
 /// Writes the frame's per-pixel outputs as one OpenEXR layer with named channels, plus the
 /// beauty (`R`, `G`, `B`) for viewers and a constant `spp` channel; `record` goes into the
-/// header as text attributes `noisefree.<key>`.
+/// header as one text attribute, `noisefree.record`: its attributes as a TOML table, keys
+/// sorted. One attribute, because the exr crate writes a header's attributes in the order of
+/// a std HashMap, which differs from process to process: with one, the same frame gives the
+/// same bytes every time (what `noisefree merge` promises).
 pub fn write_aov_exr(path: &Path, frame: &Frame, record: &RenderRecord) -> Result<()> {
     use exr::prelude::*;
     let info = frame.info();
@@ -64,12 +70,11 @@ pub fn write_aov_exr(path: &Path, frame: &Frame, record: &RenderRecord) -> Resul
         FlatSamples::F32(vec![info.spp as f32; n]),
     ));
     let mut attributes = LayerAttributes::named("noisefree");
-    for (k, v) in record.to_attributes() {
-        attributes.other.insert(
-            Text::from(format!("noisefree.{k}").as_str()),
-            AttributeValue::Text(Text::from(v.as_str())),
-        );
-    }
+    let table = toml::to_string(&record.to_attributes()).expect("text attributes serialise");
+    attributes.other.insert(
+        Text::from(RECORD_ATTRIBUTE),
+        AttributeValue::Text(Text::from(table.as_str())),
+    );
     let layer = Layer::new(
         (info.width as usize, info.height as usize),
         attributes,
@@ -173,10 +178,23 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
             path.display()
         );
     }
+    // The record: one TOML attribute, or (files written before it was one) an attribute
+    // `noisefree.<key>` per key.
     let mut attributes = BTreeMap::new();
     for (k, v) in &layer.attributes.other {
-        if let (Some(key), AttributeValue::Text(t)) = (k.to_string().strip_prefix("noisefree."), v)
-        {
+        let (k, AttributeValue::Text(t)) = (k.to_string(), v) else {
+            continue;
+        };
+        if k == RECORD_ATTRIBUTE {
+            let table: BTreeMap<String, String> = toml::from_str(&t.to_string()).map_err(|e| {
+                anyhow!(
+                    "{}: the render record in the header: {}",
+                    path.display(),
+                    e.message()
+                )
+            })?;
+            attributes.extend(table);
+        } else if let Some(key) = k.strip_prefix("noisefree.") {
             attributes.insert(key.to_string(), t.to_string());
         }
     }
