@@ -51,6 +51,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "filters/atrous.cl",
         include_str!("../kernels/filters/atrous.cl"),
     ),
+    (
+        "filters/bmfr.cl",
+        include_str!("../kernels/filters/bmfr.cl"),
+    ),
     ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];
 

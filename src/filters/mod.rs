@@ -41,6 +41,7 @@ builtin_filters! {
     ddf::Ddf,       // the data-driven filter (thesis ch. 6)
     rpf::Rpf,       // Random Parameter Filtering (thesis ch. 5)
     atrous::Atrous, // the edge-avoiding à-trous wavelet filter (Dammertz et al. 2010)
+    bmfr::Bmfr,     // blockwise feature regression (single-frame BMFR, Koskela et al. 2019)
 }
 
 /// A filter, as its module declares it. Implement this; the registry sees it as a [`Filter`].

@@ -1,0 +1,322 @@
+// Blockwise feature regression: single-frame BMFR (Koskela et al., ACM TOG 38(5) 2019); see
+// src/filters/bmfr/mod.rs for the method and src/filters/bmfr/reference.rs for the same
+// operations in Rust, in the same order (the reductions included).
+//
+// bmfr_fit: one work-group of BMFR_WG work-items per block of one grid. Work-item t holds the
+// rows r = t + q * BMFR_WG (q < ROWS) of the block's matrix, row r being pixel
+// (x0 + r % B, y0 + r / B). The matrix, column-major in local memory, has K feature columns and
+// 6 target columns (direct rgb / albedo, indirect rgb / albedo). Householder QR column by
+// column (paper Algorithm 1): the dot products of column j with every column c >= j over rows
+// >= j are summed per work-item, then over the work-items in order; from them the reflection
+//     alpha = -sign(x_j) |x|,  v = x - alpha e_j,  |v|^2 = |x|^2 - x_j^2 + v_j^2,
+//     a_c -= (2 (x . a_c - alpha a_c[j]) / |v|^2) v      (x . a_c - alpha a_c[j] = v . a_c)
+// is applied to the later columns, and column j becomes alpha e_j. Back-substitution of
+// R w = Q^T b then gives the K weights of each target; weights and the block's rescaling go
+// to global memory; block (bx, by) of grid g is slot g * stride + by * across + bx.
+//
+// bmfr_apply: per pixel, the fitted light of each grid's block (negative values clamped to 0)
+// times the albedo, blended over the grids with tent weights (1 at a block's centre, 1/B at its
+// edge) times min(1, m / (4K)), m the block's surface pixels.
+//
+// Build options (src/filters/bmfr/device.rs):
+//   BMFR_BLOCK, BMFR_WG, BMFR_GRIDS    block side, work-items per block, shifted grids
+//   BMFR_DEPTH, BMFR_TEXTURE, BMFR_TEXTURE2   0/1: the optional features
+//   BMFR_NOISE, BMFR_ALBEDO_EPSILON, BMFR_PIVOT_MIN   float literals
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "layout.cl"
+#include "render/rng.cl"
+
+#if !defined(BMFR_BLOCK) || !defined(BMFR_WG) || !defined(BMFR_GRIDS) || !defined(BMFR_DEPTH) \
+    || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
+    || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN)
+#error "noisefree: a bmfr filter switch is missing from the build options"
+#endif
+
+#define BMFR_N (BMFR_BLOCK * BMFR_BLOCK)
+#define BMFR_ROWS (BMFR_N / BMFR_WG)
+#define BMFR_K (10 + BMFR_DEPTH + 3 * BMFR_TEXTURE + 3 * BMFR_TEXTURE2)
+#define BMFR_C (BMFR_K + 6)
+#define BMFR_INFO 9
+// Column of the depth feature (after 1, normal, position, position^2).
+#define BMFR_COL_DEPTH 10
+
+// The shift of grid g (src/filters/bmfr/mod.rs grid_offset).
+inline int2 bmfr_grid_offset(uint g) {
+    int hb = BMFR_BLOCK / 2;
+#if BMFR_GRIDS == 2
+    return (int2)((int)g * hb, (int)g * hb);
+#elif BMFR_GRIDS == 4
+    return (int2)((int)(g & 1u) * hb, (int)(g >> 1) * hb);
+#else
+    return (int2)(0, 0);
+#endif
+}
+
+inline int bmfr_blocks_across(uint width, int2 off) {
+    return ((int)width + off.x + BMFR_BLOCK - 1) / BMFR_BLOCK;
+}
+
+// Sky, or a light seen directly: kept as it is, and no row of any fit. A light's albedo is its
+// emission's chromaticity (kernels/render/materials.cl surface_albedo), whose largest channel
+// is exactly 1 (e / max(e)), and the running mean of 1s stays 1; a light's emission would
+// otherwise be fitted by the block's smooth polynomial and spread as a halo around it. (A
+// surface of albedo exactly 1 in a channel is kept as it is too.)
+inline bool bmfr_kept(__global const FilterVector* f) {
+    return f->depth >= SKY_DEPTH || fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f;
+}
+
+inline float3 bmfr_albedo(__global const FilterVector* f) {
+    return fmax((float3)(f->albedo[0], f->albedo[1], f->albedo[2]), (float3)(BMFR_ALBEDO_EPSILON));
+}
+
+// The raw values of the four rescaled features (position xyz, depth) of a pixel.
+inline float4 bmfr_raw(__global const FilterVector* f, __global const float4* pos) {
+    float4 p = *pos;
+    return (float4)(p.x, p.y, p.z, f->depth);
+}
+
+// The K features of a pixel, rescaled with the block's minimum and 1 / range.
+inline void bmfr_features(__global const FilterVector* f, float4 raw, float4 lo, float4 scale,
+                          float* out) {
+    float4 s = (raw - lo) * scale;
+    out[0] = 1.0f;
+    out[1] = f->normal[0];
+    out[2] = f->normal[1];
+    out[3] = f->normal[2];
+    out[4] = s.x;
+    out[5] = s.y;
+    out[6] = s.z;
+    out[7] = s.x * s.x;
+    out[8] = s.y * s.y;
+    out[9] = s.z * s.z;
+    int k = 10;
+#if BMFR_DEPTH
+    out[k++] = s.w;
+#endif
+#if BMFR_TEXTURE
+    out[k++] = f->albedo[0];
+    out[k++] = f->albedo[1];
+    out[k++] = f->albedo[2];
+#endif
+#if BMFR_TEXTURE2
+    out[k++] = f->albedo2[0];
+    out[k++] = f->albedo2[1];
+    out[k++] = f->albedo2[2];
+#endif
+}
+
+// Regularisation noise of feature column c at pixel i: uniform in [-noise/2, noise/2).
+inline float bmfr_noise(uint pixel, uint c) {
+    uint h = hash_u32(hash_u32(pixel ^ 0x62d3f1a7u) ^ c);
+    return ((float)(h >> 8) * 0x1.0p-24f - 0.5f) * BMFR_NOISE;
+}
+
+__kernel __attribute__((reqd_work_group_size(BMFR_WG, 1, 1)))
+void bmfr_fit(__global const FilterVector* fv,
+              __global const float4* positions,
+              uint width, uint height, uint grid, uint stride,
+              __global float* weights,
+              __global float* info) {
+    __local float a[BMFR_C * BMFR_N];
+    __local float partial[BMFR_WG * BMFR_C];
+    __local float dots[BMFR_C];
+    __local float factor[BMFR_C];
+    __local float range[9];
+    int t = (int)get_local_id(0);
+    uint block = (uint)get_group_id(0);
+    int2 off = bmfr_grid_offset(grid);
+    int across = bmfr_blocks_across(width, off);
+    int x0 = (int)(block % (uint)across) * BMFR_BLOCK - off.x;
+    int y0 = (int)(block / (uint)across) * BMFR_BLOCK - off.y;
+    uint slot = grid * stride + block;
+
+    // Rows: raw features, targets, and the work-item's minimum and maximum of the rescaled ones.
+    float4 lo = (float4)(INFINITY), hi = (float4)(-INFINITY);
+    float count = 0.0f;
+    for (int q = 0; q < BMFR_ROWS; ++q) {
+        int r = t + q * BMFR_WG;
+        int x = x0 + r % BMFR_BLOCK, y = y0 + r / BMFR_BLOCK;
+        bool valid = x >= 0 && y >= 0 && x < (int)width && y < (int)height;
+        uint i = valid ? (uint)y * width + (uint)x : 0u;
+        valid = valid && !bmfr_kept(fv + i);
+        if (!valid) {
+            for (int c = 0; c < BMFR_C; ++c) a[c * BMFR_N + r] = 0.0f;
+            continue;
+        }
+        __global const FilterVector* f = fv + i;
+        float4 raw = bmfr_raw(f, positions + i);
+        lo = fmin(lo, raw);
+        hi = fmax(hi, raw);
+        count += 1.0f;
+        a[4 * BMFR_N + r] = raw.x;
+        a[5 * BMFR_N + r] = raw.y;
+        a[6 * BMFR_N + r] = raw.z;
+        a[7 * BMFR_N + r] = raw.w;         // parked; its column is rewritten below
+        float3 alb = bmfr_albedo(f);
+        float3 d = (float3)(f->direct[0], f->direct[1], f->direct[2]) / alb;
+        float3 n = (float3)(f->indirect[0], f->indirect[1], f->indirect[2]) / alb;
+        a[(BMFR_K + 0) * BMFR_N + r] = d.x;
+        a[(BMFR_K + 1) * BMFR_N + r] = d.y;
+        a[(BMFR_K + 2) * BMFR_N + r] = d.z;
+        a[(BMFR_K + 3) * BMFR_N + r] = n.x;
+        a[(BMFR_K + 4) * BMFR_N + r] = n.y;
+        a[(BMFR_K + 5) * BMFR_N + r] = n.z;
+    }
+    partial[t * BMFR_C + 0] = lo.x;
+    partial[t * BMFR_C + 1] = lo.y;
+    partial[t * BMFR_C + 2] = lo.z;
+    partial[t * BMFR_C + 3] = lo.w;
+    partial[t * BMFR_C + 4] = hi.x;
+    partial[t * BMFR_C + 5] = hi.y;
+    partial[t * BMFR_C + 6] = hi.z;
+    partial[t * BMFR_C + 7] = hi.w;
+    partial[t * BMFR_C + 8] = count;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (t < 9) {
+        float v = partial[t];
+        for (int u = 1; u < BMFR_WG; ++u) {
+            float p = partial[u * BMFR_C + t];
+            v = t < 4 ? fmin(v, p) : t < 8 ? fmax(v, p) : v + p;
+        }
+        range[t] = v;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    // The block's rescaling: minimum and 1 / (max - min); a constant feature (or no surface
+    // pixel) rescales to 0.
+    float4 bmin = (float4)(range[0], range[1], range[2], range[3]);
+    float4 bmax = (float4)(range[4], range[5], range[6], range[7]);
+    int4 spread = isless(bmin, bmax);
+    float4 blo = select((float4)(0.0f), bmin, spread);
+    float4 bscale = select((float4)(0.0f), (float4)(1.0f) / (bmax - bmin), spread);
+    if (t == 0) {
+        __global float* o = info + slot * BMFR_INFO;
+        o[0] = blo.x; o[1] = blo.y; o[2] = blo.z; o[3] = blo.w;
+        o[4] = bscale.x; o[5] = bscale.y; o[6] = bscale.z; o[7] = bscale.w;
+        o[8] = range[8];
+    }
+    // Feature columns, with the regularisation noise on every column but the constant.
+    for (int q = 0; q < BMFR_ROWS; ++q) {
+        int r = t + q * BMFR_WG;
+        int x = x0 + r % BMFR_BLOCK, y = y0 + r / BMFR_BLOCK;
+        bool valid = x >= 0 && y >= 0 && x < (int)width && y < (int)height;
+        uint i = valid ? (uint)y * width + (uint)x : 0u;
+        if (!valid || bmfr_kept(fv + i)) continue;
+        float4 raw = (float4)(a[4 * BMFR_N + r], a[5 * BMFR_N + r], a[6 * BMFR_N + r],
+                              a[7 * BMFR_N + r]);
+        float feat[BMFR_K];
+        bmfr_features(fv + i, raw, blo, bscale, feat);
+        a[r] = feat[0];
+        for (int c = 1; c < BMFR_K; ++c) a[c * BMFR_N + r] = feat[c] + bmfr_noise(i, (uint)c);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+
+    // Householder QR, column by column.
+    for (int j = 0; j < BMFR_K; ++j) {
+        for (int c = j; c < BMFR_C; ++c) {
+            float s = 0.0f;
+            for (int q = 0; q < BMFR_ROWS; ++q) {
+                int r = t + q * BMFR_WG;
+                if (r >= j) s += a[j * BMFR_N + r] * a[c * BMFR_N + r];
+            }
+            partial[t * BMFR_C + c] = s;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (t >= j && t < BMFR_C) {
+            float s = 0.0f;
+            for (int u = 0; u < BMFR_WG; ++u) s += partial[u * BMFR_C + t];
+            dots[t] = s;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (t >= j && t < BMFR_C) {
+            float norm2 = dots[j];
+            float xj = a[j * BMFR_N + j];
+            float norm = sqrt(norm2);
+            float alpha = xj > 0.0f ? -norm : norm;
+            float vj = xj - alpha;
+            float vnorm2 = norm2 - xj * xj + vj * vj;
+            if (t == j) {
+                factor[j] = vj;
+                range[0] = alpha;  // the min/max are no longer needed
+            } else {
+                factor[t] = vnorm2 > 0.0f ? 2.0f * (dots[t] - alpha * a[t * BMFR_N + j]) / vnorm2
+                                          : 0.0f;
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        float vj = factor[j];
+        for (int q = 0; q < BMFR_ROWS; ++q) {
+            int r = t + q * BMFR_WG;
+            if (r < j) continue;
+            float v = r == j ? vj : a[j * BMFR_N + r];
+            for (int c = j + 1; c < BMFR_C; ++c) a[c * BMFR_N + r] -= factor[c] * v;
+            if (r == j) a[j * BMFR_N + j] = range[0];
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+
+    // Back-substitution, one target per work-item.
+    if (t < 6) {
+        float w[BMFR_K];
+        __global float* o = weights + (slot * 6u + (uint)t) * BMFR_K;
+        for (int j = BMFR_K - 1; j >= 0; --j) {
+            float s = a[(BMFR_K + t) * BMFR_N + j];
+            for (int i = j + 1; i < BMFR_K; ++i) s -= a[i * BMFR_N + j] * w[i];
+            float rjj = a[j * BMFR_N + j];
+            w[j] = fabs(rjj) > BMFR_PIVOT_MIN ? s / rjj : 0.0f;
+            o[j] = w[j];
+        }
+    }
+}
+
+// The tent weight of local coordinate l in [0, B): 1 - 1/B next to the centre, 1/B at the edges.
+inline float bmfr_tent(int l) {
+    float d = fabs((float)l + 0.5f - 0.5f * (float)BMFR_BLOCK);
+    return 1.0f - d / (0.5f * (float)BMFR_BLOCK);
+}
+
+__kernel void bmfr_apply(__global const FilterVector* fv,
+                         __global const float4* positions,
+                         uint width, uint height, uint stride,
+                         __global const float* weights,
+                         __global const float* info,
+                         __global float4* out) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    __global const FilterVector* f = fv + i;
+    float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
+                             f->direct[2] + f->indirect[2]);
+    if (bmfr_kept(f)) {
+        out[i] = (float4)(beauty, 0.0f);
+        return;
+    }
+    float4 raw = bmfr_raw(f, positions + i);
+    float3 alb = bmfr_albedo(f);
+    float3 sum = (float3)(0.0f);
+    float wsum = 0.0f;
+    for (uint g = 0; g < BMFR_GRIDS; ++g) {
+        int2 off = bmfr_grid_offset(g);
+        int across = bmfr_blocks_across(width, off);
+        int bx = (x + off.x) / BMFR_BLOCK, by = (y + off.y) / BMFR_BLOCK;
+        uint slot = g * stride + (uint)(by * across + bx);
+        __global const float* b = info + slot * BMFR_INFO;
+        float4 lo = (float4)(b[0], b[1], b[2], b[3]);
+        float4 scale = (float4)(b[4], b[5], b[6], b[7]);
+        float feat[BMFR_K];
+        bmfr_features(f, raw, lo, scale, feat);
+        __global const float* wt = weights + slot * 6u * BMFR_K;
+        float fit[6];
+        for (int c = 0; c < 6; ++c) {
+            float s = 0.0f;
+            for (int k = 0; k < BMFR_K; ++k) s += wt[c * BMFR_K + k] * feat[k];
+            fit[c] = fmax(s, 0.0f);
+        }
+        float3 light = ((float3)(fit[0], fit[1], fit[2]) + (float3)(fit[3], fit[4], fit[5])) * alb;
+        float wg = bmfr_tent(x + off.x - bx * BMFR_BLOCK) * bmfr_tent(y + off.y - by * BMFR_BLOCK)
+                 * fmin(1.0f, b[8] / (4.0f * (float)BMFR_K));
+        sum += wg * light;
+        wsum += wg;
+    }
+    out[i] = (float4)(sum / wsum, 0.0f);
+}

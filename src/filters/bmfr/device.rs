@@ -1,0 +1,162 @@
+//! The regression filter on the device: one `bmfr_fit` launch per block grid (a work-group per
+//! block), then one `bmfr_apply` launch over the pixels (kernels/filters/bmfr.cl).
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result, bail};
+use ocl::{Buffer, Kernel};
+
+use super::{
+    ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
+    grid_blocks, grid_offset,
+};
+use crate::filters::{FilterRun, PreparedFilter};
+use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
+use crate::layout::Float4;
+use crate::layout::outputs::{BufferId, Output, OutputSet};
+use crate::render::Frame;
+
+/// The regression filter, built once for an image size.
+pub struct BmfrKernel {
+    gpu: Arc<Gpu>,
+    fits: Vec<Kernel>,
+    apply: Kernel,
+    _weights: Buffer<f32>,
+    _info: Buffer<f32>,
+    out: Buffer<Float4>,
+    width: u32,
+    height: u32,
+}
+
+impl BmfrKernel {
+    pub fn new(gpu: Arc<Gpu>, s: &BmfrSettings, width: u32, height: u32) -> Result<BmfrKernel> {
+        s.validate()?;
+        if width == 0 || height == 0 {
+            bail!("the image must be at least 1x1 pixels, got {width}x{height}");
+        }
+        let b = s.block_size;
+        let wg = WORK_GROUP.min(b * b);
+        let max = gpu.summary.max_work_group_size;
+        if max > 0 && wg as usize > max {
+            bail!(
+                "the bmfr filter needs work-groups of {wg}, {} allows {max}",
+                gpu.summary.name
+            );
+        }
+        let k = s.features();
+        let local_bytes = ((b * b) as usize * (k + TARGETS) + wg as usize * (k + TARGETS)) * 4;
+        let have = gpu.summary.local_mem_bytes;
+        if have > 0 && local_bytes as u64 > have {
+            bail!(
+                "the bmfr filter with block_size {b} needs {local_bytes} bytes of local memory, \
+                 {} has {have}; use a smaller block_size",
+                gpu.summary.name
+            );
+        }
+        let flag = |v: bool| (v as u32).to_string();
+        let defines: Vec<(String, String)> = [
+            ("BMFR_BLOCK", b.to_string()),
+            ("BMFR_WG", wg.to_string()),
+            ("BMFR_GRIDS", s.grids.to_string()),
+            ("BMFR_DEPTH", flag(s.depth)),
+            ("BMFR_TEXTURE", flag(s.texture)),
+            ("BMFR_TEXTURE2", flag(s.texture2)),
+            ("BMFR_NOISE", format!("{:e}f", s.noise as f32)),
+            ("BMFR_ALBEDO_EPSILON", format!("{ALBEDO_EPSILON:e}f")),
+            ("BMFR_PIVOT_MIN", format!("{PIVOT_MIN:e}f")),
+        ]
+        .into_iter()
+        .map(|(n, v)| (n.to_string(), v))
+        .collect();
+        let program = gpu.program("filters/bmfr.cl", &defines, "")?;
+        let stride = blocks_per_grid(width, height, b);
+        let slots = (stride * s.grids) as usize;
+        let weights = gpu.zeroed::<f32>(slots * TARGETS * k, "bmfr weights")?;
+        let info = gpu.zeroed::<f32>(slots * INFO_FLOATS, "bmfr block information")?;
+        let out = gpu.zeroed::<Float4>(width as usize * height as usize, "bmfr image")?;
+        let fits = (0..s.grids)
+            .map(|g| {
+                let (across, down) = grid_blocks(width, height, b, grid_offset(g, s.grids, b));
+                Kernel::builder()
+                    .program(&program)
+                    .name("bmfr_fit")
+                    .queue(gpu.queue.clone())
+                    .global_work_size([(across * down * wg) as usize])
+                    .local_work_size([wg as usize])
+                    .arg_named("fv", None::<&Buffer<u8>>)
+                    .arg_named("positions", None::<&Buffer<u8>>)
+                    .arg(width)
+                    .arg(height)
+                    .arg(g)
+                    .arg(stride)
+                    .arg(&weights)
+                    .arg(&info)
+                    .build()
+                    .context("creating the bmfr fit kernel")
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let apply = Kernel::builder()
+            .program(&program)
+            .name("bmfr_apply")
+            .queue(gpu.queue.clone())
+            .global_work_size([width as usize, height as usize])
+            .arg_named("fv", None::<&Buffer<u8>>)
+            .arg_named("positions", None::<&Buffer<u8>>)
+            .arg(width)
+            .arg(height)
+            .arg(stride)
+            .arg(&weights)
+            .arg(&info)
+            .arg(&out)
+            .build()
+            .context("creating the bmfr apply kernel")?;
+        Ok(BmfrKernel {
+            gpu,
+            fits,
+            apply,
+            _weights: weights,
+            _info: info,
+            out,
+            width,
+            height,
+        })
+    }
+
+    /// Filters `frame` (which must be width × height) and reads the image back. The kernel
+    /// time is the sum over the fits and the blend, from their profiling events.
+    pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
+        let start = Instant::now();
+        frame.check_size(self.width, self.height, "the bmfr filter")?;
+        frame.require(
+            OutputSet::of(&[Output::Colour, Output::Features, Output::Position]),
+            "the bmfr filter",
+        )?;
+        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
+        let pos = frame.device(&self.gpu, BufferId::Positions)?;
+        let mut events = Vec::with_capacity(self.fits.len() + 1);
+        for k in self.fits.iter().chain(std::iter::once(&self.apply)) {
+            k.set_arg("fv", fv)?;
+            k.set_arg("positions", pos)?;
+            // SAFETY: every buffer outlives its launch (we wait for all of them below) and is
+            // sized for the image and the grids the kernels were built for; the in-order queue
+            // runs the blend after the fits.
+            events.push(unsafe { enqueue(k, "a bmfr filter kernel")? });
+        }
+        let mut kernel_time = Duration::ZERO;
+        for e in &events {
+            kernel_time += event_duration(e)?;
+        }
+        Ok(FilterRun {
+            image: read_rgb(&self.out, self.width, self.height)?,
+            wall_time: start.elapsed(),
+            kernel_time: Some(kernel_time),
+        })
+    }
+}
+
+impl PreparedFilter for BmfrKernel {
+    fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter(frame)
+    }
+}

@@ -1,0 +1,180 @@
+//! Blockwise feature regression, a single-frame adaptation of BMFR (Koskela, Immonen, Mäkitalo,
+//! Foi, Viitanen, Jääskeläinen, Kultala, Takala, "Blockwise Multi-Order Feature Regression for
+//! Real-Time Path-Tracing Reconstruction", ACM TOG 38(5), 2019): settings here, the OpenCL
+//! kernels of kernels/filters/bmfr.cl in `device.rs`, and the plain Rust reference of the same
+//! operations in the same order in `reference.rs`.
+//!
+//! Per block of `block_size`² pixels, a least-squares fit of the noisy light to per-pixel
+//! features (paper §3): the light divided by the first-hit albedo (both direct and indirect
+//! are reflected by it; the albedo mean is noise-free after a few samples, so texture comes back
+//! exactly when it is multiplied back), fitted as a linear combination of
+//! `1, n_x, n_y, n_z, p_x, p_y, p_z, p_x², p_y², p_z²` (mean shading normal, mean first-hit
+//! world position rescaled to [0, 1] by the block's minimum and maximum, as the paper does),
+//! and optionally the first-hit depth (rescaled the same way), the albedo ("texture") and the
+//! albedo of the second hit ("texture2") of our FilterVector. Direct and indirect light are
+//! fitted separately (six right-hand sides of one factorisation): their dependence on the
+//! features differs (shadow edges against colour bleeding).
+//!
+//! The fit is a Householder QR of the block's `pixels × (features + 6)` matrix in local memory,
+//! one work-group per block (paper §3.2, Algorithm 1), then back-substitution per right-hand
+//! side. Sky pixels and pixels outside the image are zero rows (they take no part). A small
+//! noise, uniform in ±`noise`/2 from a counter-based hash of (pixel, feature), is added to the
+//! feature columns before the factorisation (the paper's stochastic regularisation, §3.3): a
+//! block whose features are collinear (a flat wall: constant normal, one position axis
+//! constant) still has a well-posed fit, and evaluating without the noise only drops its tiny
+//! share.
+//!
+//! Seams. The paper shifts the block grid every frame and hides the seams by temporal
+//! blending. One frame has no history, so this filter fits `grids` grids shifted by half a
+//! block (1: none; 2: (0, 0) and (B/2, B/2); 4: every combination of 0 and B/2 in x and y) and
+//! blends the fits per pixel with the weight `t(x) t(y) · min(1, m / (4 K))`: t is a tent that
+//! is 1 at the block centre and 1/B at its edge, so each pixel is led by the grids whose block
+//! is centred on it; m is the block's count of surface pixels and K the number of features,
+//! so a block with few surface pixels (an image corner, a small object against the sky), whose
+//! fit is nearly an interpolation of the noise, counts less.
+//!
+//! Fitted values are clamped below at 0 (as the paper does), multiplied by the albedo (clamped
+//! below at [`ALBEDO_EPSILON`], the same clamp as the division); sky pixels keep their input
+//! bit for bit.
+
+mod device;
+mod reference;
+
+use std::sync::Arc;
+
+use anyhow::{Result, bail};
+
+use super::{FilterKind, PreparedFilter};
+use crate::gpu::Gpu;
+use crate::layout::outputs::{Output, OutputSet};
+use crate::render::{FrameInfo, SceneInfo};
+pub use device::BmfrKernel;
+pub use reference::reference;
+
+/// Albedo channels are clamped below at this before the light is divided by them (and the same
+/// clamp is multiplied back), as in the à-trous filter.
+pub const ALBEDO_EPSILON: f32 = 1.0e-3;
+
+/// Right-hand sides of the fit: direct rgb and indirect rgb, each divided by the albedo.
+pub const TARGETS: usize = 6;
+
+/// Work-items per block: each holds `block_size² / WORK_GROUP` rows of the block's matrix.
+pub const WORK_GROUP: u32 = 256;
+
+/// A pivot |R_jj| at or below this gives weight 0 to its feature: the column is a combination
+/// of the others even with the regularisation noise (a block with fewer surface pixels than
+/// features). The noise alone gives a column norm of about noise · √(m / 12) ≈ 3e-3 for one
+/// pixel at the default noise, rounding about 1e-6 · the column norm (≤ 32).
+pub const PIVOT_MIN: f32 = 1.0e-4;
+
+/// Block sizes the kernel supports: block_size² must be a multiple of [`WORK_GROUP`], and the
+/// matrix (block_size² × up to 23 floats) must fit in local memory (368 KiB at 64).
+pub const BLOCK_SIZES: [u32; 3] = [16, 32, 64];
+
+crate::filter_settings! {
+    /// The regression filter's parameters.
+    pub struct BmfrSettings, flags "bmfr-" {
+        /// Side of the square blocks fitted, pixels: 16, 32 or 64 (the paper's 32).
+        pub block_size: u32 = 32,
+        /// Block grids, shifted by half a block, fitted and blended per pixel: 1, 2 or 4.
+        pub grids: u32 = 4,
+        /// Amplitude of the regularisation noise added to the features (the paper's 1e-2).
+        pub noise: f64 = 0.01,
+        /// Also fit to the first-hit depth (rescaled per block like the positions).
+        pub depth: bool = false,
+        /// Also fit to the first-hit albedo ("texture").
+        pub texture: bool = false,
+        /// Also fit to the albedo of the second hit ("texture2").
+        pub texture2: bool = false,
+    }
+}
+
+impl BmfrSettings {
+    /// Number of features K (columns of the fit, the constant included).
+    pub fn features(&self) -> usize {
+        10 + self.depth as usize + 3 * self.texture as usize + 3 * self.texture2 as usize
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if !BLOCK_SIZES.contains(&self.block_size) {
+            bail!(
+                "the bmfr block_size must be one of {BLOCK_SIZES:?} pixels, got {}",
+                self.block_size
+            );
+        }
+        if ![1, 2, 4].contains(&self.grids) {
+            bail!("the bmfr grids must be 1, 2 or 4, got {}", self.grids);
+        }
+        if !(self.noise >= 0.0 && self.noise <= 1.0) {
+            bail!(
+                "the bmfr noise must be a number in [0, 1], got {}",
+                self.noise
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The shift of grid `g` of `grids`, pixels: block (bx, by) of the grid covers
+/// x in [bx·B − ox, (bx + 1)·B − ox) (kernels/filters/bmfr.cl `bmfr_grid_offset`).
+pub fn grid_offset(g: u32, grids: u32, block: u32) -> (i32, i32) {
+    let half = (block / 2) as i32;
+    match grids {
+        2 => (g as i32 * half, g as i32 * half),
+        4 => ((g & 1) as i32 * half, (g >> 1) as i32 * half),
+        _ => (0, 0),
+    }
+}
+
+/// Blocks of a grid shifted by `offset` across a `width` × `height` image: (across, down).
+pub fn grid_blocks(width: u32, height: u32, block: u32, offset: (i32, i32)) -> (u32, u32) {
+    (
+        (width + offset.0 as u32).div_ceil(block),
+        (height + offset.1 as u32).div_ceil(block),
+    )
+}
+
+/// The largest count of blocks of any grid: the stride of one grid in the weight buffers.
+pub fn blocks_per_grid(width: u32, height: u32, block: u32) -> u32 {
+    (width.div_ceil(block) + 1) * (height.div_ceil(block) + 1)
+}
+
+/// Floats per block in the block-information buffer: the minimum and 1 / range of the four
+/// rescaled features (position xyz, depth), and the count of surface pixels.
+pub const INFO_FLOATS: usize = 9;
+
+/// The regression filter in the registry.
+pub struct Bmfr;
+
+impl FilterKind for Bmfr {
+    type Settings = BmfrSettings;
+    const NAME: &'static str = "bmfr";
+    const SUMMARY: &'static str = "blockwise feature regression, single-frame BMFR of Koskela et al. 2019 \
+         (on the device)";
+
+    fn check(s: &BmfrSettings) -> Result<()> {
+        s.validate()
+    }
+
+    fn specialise(_s: &mut BmfrSettings, _scene: &SceneInfo) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// Colour, normals and albedos of F, and the mean world positions.
+    fn needs(_: &BmfrSettings) -> OutputSet {
+        OutputSet::of(&[Output::Colour, Output::Features, Output::Position])
+    }
+
+    fn prepare(
+        s: &BmfrSettings,
+        frame: &FrameInfo,
+        gpu: &Arc<Gpu>,
+    ) -> Result<Box<dyn PreparedFilter>> {
+        Ok(Box::new(BmfrKernel::new(
+            gpu.clone(),
+            s,
+            frame.width,
+            frame.height,
+        )?))
+    }
+}
