@@ -180,3 +180,56 @@ fn quick_benchmark_runs_outside_the_repository() {
     assert!(stderr.contains("no-such-scenes"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--method` narrows the quality studies to the named methods (and the unfiltered image), and
+/// a name that is no method is refused before anything is measured, naming the methods there
+/// are.
+#[test]
+fn method_selects_the_compared_methods() {
+    let out = tempdir("bench-method");
+    let run = noisefree()
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "bench",
+            "--quick",
+            "-q",
+            "--study",
+            "quality",
+            "--method",
+            "bmfr",
+            "--scene",
+            "scenes/cornell_diffuse.toml",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("quality.csv")).unwrap();
+    let methods: std::collections::BTreeSet<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap())
+        .collect();
+    assert_eq!(
+        methods.into_iter().collect::<Vec<_>>(),
+        ["bmfr", "unfiltered"],
+        "{csv}"
+    );
+    let bad = noisefree()
+        .args(["bench", "--quick", "-q", "--method", "bmrf", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--method bmrf") && stderr.contains("bmfr") && stderr.contains("oidn"),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -48,7 +48,10 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         pb.set_message(format!("accuracy against time: {name}"));
         let reference = reference_image(ctx, path, &s)?;
         let methods = study.methods()?;
-        for candidate in Candidate::all(&methods, &[], oidn.as_ref()) {
+        for candidate in Candidate::all(&methods, &[], oidn.as_ref())
+            .into_iter()
+            .filter(|c| ctx.wants(&c.label()))
+        {
             let max_spp = max_spp(&candidate);
             let label = candidate.label();
             let checkpoints: Vec<u32> = (0..)

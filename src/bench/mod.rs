@@ -105,6 +105,11 @@ pub struct BenchArgs {
     /// row of its table.
     #[arg(long)]
     pub scene: Vec<PathBuf>,
+    /// Methods of the quality and accuracy-time studies (repeatable): a filter's name, or
+    /// `oidn`; a name also keeps its variants (`ddf` the thesis's ddf-holes and ddf-nosky, `oidn`
+    /// every quality); the unfiltered image is always in [default: every method].
+    #[arg(long, value_name = "NAME")]
+    pub method: Vec<String>,
     /// The bundled scenes folder (the sweep and filter-speed read their scenes from it too)
     /// [default: scenes/ of the source tree this binary was built from, else ./scenes].
     #[arg(long, value_name = "DIR")]
@@ -164,6 +169,9 @@ impl BenchArgs {
         for s in &self.scene {
             v.extend(["--scene".into(), path(s)]);
         }
+        for m in &self.method {
+            v.extend(["--method".into(), m.clone()]);
+        }
         v
     }
 }
@@ -178,6 +186,17 @@ struct Selection {
 fn select(args: &BenchArgs) -> Result<Selection> {
     if args.reference_spp == Some(0) {
         bail!("--reference-spp must be at least 1");
+    }
+    let known: Vec<&str> = crate::filters::Registry::builtin()
+        .names()
+        .into_iter()
+        .chain(["oidn", "unfiltered"])
+        .collect();
+    if let Some(m) = args.method.iter().find(|m| !known.contains(&m.as_str())) {
+        bail!(
+            "--method {m}: no such method (noisefree has: {})",
+            known.join(", ")
+        );
     }
     let mut studies = args.study.clone();
     if args.specialisation {
@@ -264,6 +283,8 @@ pub struct Context {
     pub reference_cache: PathBuf,
     /// `--reference-spp`, if given.
     pub reference_spp: Option<u32>,
+    /// `--method`: the methods of the quality studies (empty: all).
+    pub methods: Vec<String>,
 }
 
 impl Context {
@@ -286,6 +307,16 @@ impl Context {
     pub fn scene_file(&self, name: &str) -> Result<PathBuf> {
         let dir = self.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
         Ok(dir.join(format!("{name}.toml")))
+    }
+
+    /// Whether `--method` keeps a candidate labelled `label` (unfiltered always).
+    pub fn wants(&self, label: &str) -> bool {
+        label == "unfiltered"
+            || self.methods.is_empty()
+            || self
+                .methods
+                .iter()
+                .any(|m| label == m || label.starts_with(&format!("{m}-")))
     }
 
     pub fn say(&self, msg: &str) {
@@ -401,6 +432,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             .clone()
             .unwrap_or_else(ground_truth::default_cache),
         reference_spp: args.reference_spp,
+        methods: args.method.clone(),
     };
     ctx.say(&format!(
         "device: {} | bundled scenes: {} | results in {}",

@@ -44,7 +44,10 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
         let methods = study.methods()?;
         let variants = study.thesis_variants()?;
         let mut cells: Vec<(Candidate, u32)> = Vec::new();
-        for c in Candidate::all(&methods, &variants, oidn.as_ref()) {
+        for c in Candidate::all(&methods, &variants, oidn.as_ref())
+            .into_iter()
+            .filter(|c| ctx.wants(&c.label()))
+        {
             let thesis = matches!(&c, Candidate::Filter { label, .. } if label == Ddf::NAME);
             let spps: &[u32] = if thesis { ddf_spp } else { &[8] };
             for &spp in spps {
