@@ -61,9 +61,13 @@ inline int bmfr_blocks_across(uint width, int2 off) {
 // emission's chromaticity (kernels/render/materials.cl surface_albedo), whose largest channel
 // is exactly 1 (e / max(e)), and the running mean of 1s stays 1; a light's emission would
 // otherwise be fitted by the block's smooth polynomial and spread as a halo around it. (A
-// surface of albedo exactly 1 in a channel is kept as it is too.)
-inline bool bmfr_kept(__global const FilterVector* f) {
-    return f->depth >= SKY_DEPTH || fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f;
+// surface of albedo exactly 1 in a channel is kept as it is too.) So is a pixel whose samples
+// did not all hit a surface (position.w, the hits, below the frame's spp): silhouettes against
+// the sky and out-of-focus edges mix sky light with a surface's mean albedo, and demodulated
+// by that small mean they are outliers that would ruin their block's least-squares fit.
+inline bool bmfr_kept(__global const FilterVector* f, __global const float4* pos, float spp) {
+    return f->depth >= SKY_DEPTH || fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f
+        || (*pos).w < spp;
 }
 
 inline float3 bmfr_albedo(__global const FilterVector* f) {
@@ -115,7 +119,7 @@ inline float bmfr_noise(uint pixel, uint c) {
 __kernel __attribute__((reqd_work_group_size(BMFR_WG, 1, 1)))
 void bmfr_fit(__global const FilterVector* fv,
               __global const float4* positions,
-              uint width, uint height, uint grid, uint stride,
+              uint width, uint height, uint grid, uint stride, float spp,
               __global float* weights,
               __global float* info) {
     __local float a[BMFR_C * BMFR_N];
@@ -139,7 +143,7 @@ void bmfr_fit(__global const FilterVector* fv,
         int x = x0 + r % BMFR_BLOCK, y = y0 + r / BMFR_BLOCK;
         bool valid = x >= 0 && y >= 0 && x < (int)width && y < (int)height;
         uint i = valid ? (uint)y * width + (uint)x : 0u;
-        valid = valid && !bmfr_kept(fv + i);
+        valid = valid && !bmfr_kept(fv + i, positions + i, spp);
         if (!valid) {
             for (int c = 0; c < BMFR_C; ++c) a[c * BMFR_N + r] = 0.0f;
             continue;
@@ -201,7 +205,7 @@ void bmfr_fit(__global const FilterVector* fv,
         int x = x0 + r % BMFR_BLOCK, y = y0 + r / BMFR_BLOCK;
         bool valid = x >= 0 && y >= 0 && x < (int)width && y < (int)height;
         uint i = valid ? (uint)y * width + (uint)x : 0u;
-        if (!valid || bmfr_kept(fv + i)) continue;
+        if (!valid || bmfr_kept(fv + i, positions + i, spp)) continue;
         float4 raw = (float4)(a[4 * BMFR_N + r], a[5 * BMFR_N + r], a[6 * BMFR_N + r],
                               a[7 * BMFR_N + r]);
         float feat[BMFR_K];
@@ -277,7 +281,7 @@ inline float bmfr_tent(int l) {
 
 __kernel void bmfr_apply(__global const FilterVector* fv,
                          __global const float4* positions,
-                         uint width, uint height, uint stride,
+                         uint width, uint height, uint stride, float spp,
                          __global const float* weights,
                          __global const float* info,
                          __global float4* out) {
@@ -287,7 +291,7 @@ __kernel void bmfr_apply(__global const FilterVector* fv,
     __global const FilterVector* f = fv + i;
     float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
                              f->direct[2] + f->indirect[2]);
-    if (bmfr_kept(f)) {
+    if (bmfr_kept(f, positions + i, spp)) {
         out[i] = (float4)(beauty, 0.0f);
         return;
     }

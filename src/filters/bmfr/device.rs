@@ -90,6 +90,7 @@ impl BmfrKernel {
                     .arg(height)
                     .arg(g)
                     .arg(stride)
+                    .arg_named("spp", 0f32)
                     .arg(&weights)
                     .arg(&info)
                     .build()
@@ -106,6 +107,7 @@ impl BmfrKernel {
             .arg(width)
             .arg(height)
             .arg(stride)
+            .arg_named("spp", 0f32)
             .arg(&weights)
             .arg(&info)
             .arg(&out)
@@ -138,6 +140,7 @@ impl BmfrKernel {
         for k in self.fits.iter().chain(std::iter::once(&self.apply)) {
             k.set_arg("fv", fv)?;
             k.set_arg("positions", pos)?;
+            k.set_arg("spp", frame.info().spp as f32)?;
             // SAFETY: every buffer outlives its launch (we wait for all of them below) and is
             // sized for the image and the grids the kernels were built for; the in-order queue
             // runs the blend after the fits.

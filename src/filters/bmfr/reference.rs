@@ -19,9 +19,10 @@ fn albedo(f: &FilterVector) -> [f32; 3] {
     f.albedo.map(|a| a.max(ALBEDO_EPSILON))
 }
 
-/// kernels/filters/bmfr.cl `bmfr_kept`: sky, or a light seen directly.
-pub fn kept(f: &FilterVector) -> bool {
-    f.depth >= SKY_DEPTH || f.albedo[0].max(f.albedo[1].max(f.albedo[2])) >= 1.0
+/// kernels/filters/bmfr.cl `bmfr_kept`: sky, a light seen directly, or a pixel whose samples
+/// did not all hit a surface.
+pub fn kept(f: &FilterVector, p: &Float4, spp: f32) -> bool {
+    f.depth >= SKY_DEPTH || f.albedo[0].max(f.albedo[1].max(f.albedo[2])) >= 1.0 || p.0[3] < spp
 }
 
 fn raw(f: &FilterVector, p: &Float4) -> [f32; 4] {
@@ -65,6 +66,7 @@ fn fit_block(
     pos: &[Float4],
     (w, h): (u32, u32),
     (x0, y0): (i32, i32),
+    spp: f32,
 ) -> (Vec<f32>, [f32; INFO_FLOATS]) {
     let b = s.block_size as i32;
     let n = (b * b) as usize;
@@ -78,7 +80,7 @@ fn fit_block(
             return None;
         }
         let i = (y as u32 * w + x as u32) as usize;
-        (!kept(&fv[i])).then_some(i)
+        (!kept(&fv[i], &pos[i], spp)).then_some(i)
     };
     let mut a = vec![0f32; cols * n];
     // Per work-item minimum, maximum and count, reduced in work-item order.
@@ -195,6 +197,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     let pos: &[Float4] = frame.host_slice(BufferId::Positions)?;
     let b = s.block_size;
     let k = s.features();
+    let spp = frame.info().spp as f32;
     let stride = blocks_per_grid(w, h, b) as usize;
     // (grid, block) -> fit, for every block of every grid.
     let fits: Vec<Vec<(Vec<f32>, [f32; INFO_FLOATS])>> = (0..s.grids)
@@ -206,7 +209,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
                 .map(|blk| {
                     let x0 = (blk % across * b) as i32 - off.0;
                     let y0 = (blk / across * b) as i32 - off.1;
-                    fit_block(s, fv, pos, (w, h), (x0, y0))
+                    fit_block(s, fv, pos, (w, h), (x0, y0), spp)
                 })
                 .collect()
         })
@@ -217,7 +220,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         .map(|i| {
             let f = &fv[i];
             let beauty: [f32; 3] = std::array::from_fn(|c| f.direct[c] + f.indirect[c]);
-            if kept(f) {
+            if kept(f, &pos[i], spp) {
                 return beauty;
             }
             let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
