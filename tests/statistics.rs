@@ -139,6 +139,7 @@ material = "white"
                 y,
                 rng_sample_key(21, i as u32, s),
                 &mut rays,
+                u32::MAX,
             );
             for c in 0..3 {
                 total[c] += ps.total[c] as f64 / spp as f64;

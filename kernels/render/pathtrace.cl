@@ -10,6 +10,7 @@
 #include "render/materials.cl"
 #include "render/lights.cl"
 #include "render/film.cl"
+#include "render/shadows.cl"
 
 inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 
@@ -20,8 +21,10 @@ inline void add_light(PathSample* ps, uint bounce, float3 value) {
     if (bounce <= 1u) ps->direct += value; else ps->indirect += value;
 }
 
-// Algorithm 1 for one sample. `bounce` counts the surfaces the path has left.
-inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count) {
+// Algorithm 1 for one sample. `bounce` counts the surfaces the path has left. With
+// OUTPUT_SHADOWS, `shadow_light` is the light whose soft shadows AAF filters.
+inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count,
+                             uint shadow_light) {
     __constant const SceneParams* params = s->params;
     PathSample ps = path_sample_empty();
     float3 o, d;
@@ -30,6 +33,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
     bool count_emission = true;               // no light connection was made at the last vertex
 #if OUTPUT_FEATURES
     bool want_albedo2 = true;
+#endif
+#if OUTPUT_SHADOWS
+    bool first_diffuse = false;               // the first surface is diffuse (a receiver)
 #endif
     for (uint bounce = 0u; bounce < params->max_vertices; ++bounce) {
 #if HAS_RUSSIAN_ROULETTE
@@ -70,7 +76,14 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 #endif
         if (m->kind == MATERIAL_EMITTER) {    // an implicit connection ends the path
             // Lights emit from their front (outside) only, matching sample_direct_light.
-            if (count_emission && sf.entering) add_light(&ps, bounce, throughput * m->emission.xyz);
+            if (count_emission && sf.entering) {
+                add_light(&ps, bounce, throughput * m->emission.xyz);
+#if OUTPUT_SHADOWS
+                // Without light sampling, the shadow light's direct term arrives here.
+                if (bounce == 1u && first_diffuse && sf.light >= 0 && (uint)sf.light == shadow_light)
+                    ps.shadow_direct += throughput * m->emission.xyz;
+#endif
+            }
 #if OUTPUT_FEATURES
             if (bounce == 0u) {
                 ps.depth = hit.t;
@@ -95,8 +108,21 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
         // Alg. 1 line 18: SampleLights, at diffuse hits only. The light count is checked at run
         // time too: the generic kernel (all effects compiled in) renders light-less scenes.
         if (m->kind == MATERIAL_DIFFUSE && params->light_count > 0u) {
-            float3 li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, ray_count);
+            uint chosen;
+            float3 li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, ray_count,
+                                            &chosen);
             add_light(&ps, bounce + 1u, throughput * albedo * INV_PI_F * li);
+#if OUTPUT_SHADOWS
+            if (bounce == 0u && chosen == shadow_light)
+                ps.shadow_direct += throughput * albedo * INV_PI_F * li;
+#endif
+        }
+#endif
+#if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
+        if (bounce == 0u && m->kind == MATERIAL_DIFFUSE && shadow_light < params->light_count) {
+            first_diffuse = true;
+            float3 p = offset_ray_origin(sf.p, sf.ng, params->scene_size);
+            ps.shadow_unshadowed = albedo * shadow_unshadowed(s->lights + shadow_light, p, sf.ns);
         }
 #endif
         Scatter sc = scatter(s, &sf, d, albedo, key, bounce);   // Alg. 1 line 17: SampleBRDF
@@ -120,6 +146,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
             float k = limit / peak;
             ps.direct *= k;
             ps.indirect *= k;
+#if OUTPUT_SHADOWS
+            ps.shadow_direct *= k;
+#endif
         }
     }
     return ps;
@@ -143,7 +172,8 @@ __kernel void render(__constant const SceneParams* params,
                      __global uint* debug_counters,     // DEBUG_COUNTERS builds only
                      uint sample_capacity,              // samples per pixel sample_vectors holds
                      uint sample_base,
-                     uint sample_count) {
+                     uint sample_count,
+                     uint shadow_light) {                // OUTPUT_SHADOWS builds only
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
@@ -155,7 +185,7 @@ __kernel void render(__constant const SceneParams* params,
     for (uint k = 0u; k < sample_count; ++k) {
         uint sample = sample_base + k;
         uint key = rng_sample_key(params->seed, pixel, sample);
-        PathSample ps = trace_path(&s, x, y, key, &rays);
+        PathSample ps = trace_path(&s, x, y, key, &rays, shadow_light);
         film_accumulate(&stats, &ps, sample + 1u);
 #if OUTPUT_SAMPLES
         if (sample < sample_capacity)

@@ -17,7 +17,10 @@
 
 use std::mem::{offset_of, size_of};
 
-use super::{DepthShift, FilterVector, Float4, SampleVector, WelfordState, WelfordSums};
+use super::{
+    DepthShift, FilterVector, Float4, SampleVector, ShadowPixel, ShadowTerms, WelfordState,
+    WelfordSums,
+};
 
 /// A group of per-pixel outputs switched on together.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -33,6 +36,9 @@ pub enum Output {
     Position,
     /// Every sample's Random Parameter Filtering vector (thesis §5.1.1, Table 5.1).
     Samples,
+    /// AAF soft shadows of one sphere light (Wang 2013 ch. 3): the unshadowed term and the
+    /// part of F it replaces, and the sparse + adaptive light samples of the pixel centre.
+    Shadows,
 }
 
 /// A device buffer of the megakernel.
@@ -44,6 +50,8 @@ pub enum BufferId {
     WelfordState,
     Positions,
     SampleVectors,
+    ShadowTerms,
+    ShadowPixels,
 }
 
 /// How many elements a buffer holds.
@@ -134,6 +142,21 @@ const S_ALBEDO: usize = lane(offset_of!(WelfordSums, albedo));
 const S_DIRECTION: usize = lane(offset_of!(WelfordSums, direction));
 const S_ALBEDO2: usize = lane(offset_of!(WelfordSums, albedo2));
 const W_DIRECTION: usize = lane(offset_of!(WelfordState, direction_mean));
+const T_UNSHADOWED: usize = lane(offset_of!(ShadowTerms, unshadowed));
+const T_DIRECT: usize = lane(offset_of!(ShadowTerms, direct));
+const P_VISIBLE: usize = lane(offset_of!(ShadowPixel, visible));
+const P_WEIGHT: usize = lane(offset_of!(ShadowPixel, weight));
+const P_SAMPLES: usize = lane(offset_of!(ShadowPixel, samples));
+const P_OCCLUDED: usize = lane(offset_of!(ShadowPixel, occluded));
+const P_DISTANCE: usize = lane(offset_of!(ShadowPixel, light_distance));
+const P_SLOPE_MAX: usize = lane(offset_of!(ShadowPixel, slope_max));
+const P_SLOPE_MIN: usize = lane(offset_of!(ShadowPixel, slope_min));
+const P_SLOPE_SOURCE: usize = lane(offset_of!(ShadowPixel, slope_source));
+const P_PIXEL_SIZE: usize = lane(offset_of!(ShadowPixel, pixel_size));
+const P_TARGET: usize = lane(offset_of!(ShadowPixel, target));
+const P_OBJECT: usize = lane(offset_of!(ShadowPixel, object));
+const P_POSITION: usize = lane(offset_of!(ShadowPixel, position));
+const P_NORMAL: usize = lane(offset_of!(ShadowPixel, normal));
 
 /// Every output buffer, in the order of the megakernel's parameters.
 pub const BUFFERS: &[BufferDecl] = &[
@@ -184,6 +207,22 @@ pub const BUFFERS: &[BufferDecl] = &[
         element_bytes: size_of::<SampleVector>(),
         per: Per::Sample,
         doc: "RPF sample vectors (26 floats per sample, thesis §5.1.1)",
+    },
+    BufferDecl {
+        id: ShadowTerms,
+        name: "shadow_terms",
+        element: "ShadowTerms",
+        element_bytes: size_of::<ShadowTerms>(),
+        per: Per::Pixel,
+        doc: "AAF shadows: unshadowed term r and the direct light it replaces, per pixel",
+    },
+    BufferDecl {
+        id: ShadowPixels,
+        name: "shadow_pixels",
+        element: "ShadowPixel",
+        element_bytes: size_of::<ShadowPixel>(),
+        per: Per::Pixel,
+        doc: "AAF shadows: visibility sums, slopes and the pixel centre's hit, per pixel",
     },
 ];
 
@@ -273,6 +312,39 @@ pub const OUTPUTS: &[OutputDecl] = &[
         buffers: &[SampleVectors],
         channels: &[],
         doc: "every sample's RPF vector (thesis §5.1.1); kept in a samples file, not the AOVs",
+    },
+    OutputDecl {
+        output: Output::Shadows,
+        name: "shadows",
+        switch: Some("OUTPUT_SHADOWS"),
+        requires: &[Output::Colour],
+        buffers: &[ShadowTerms, ShadowPixels],
+        channels: &[
+            ch("shadow.unshadowed.R", ShadowTerms, T_UNSHADOWED),
+            ch("shadow.unshadowed.G", ShadowTerms, T_UNSHADOWED + 1),
+            ch("shadow.unshadowed.B", ShadowTerms, T_UNSHADOWED + 2),
+            ch("shadow.direct.R", ShadowTerms, T_DIRECT),
+            ch("shadow.direct.G", ShadowTerms, T_DIRECT + 1),
+            ch("shadow.direct.B", ShadowTerms, T_DIRECT + 2),
+            ch("shadow.visible", ShadowPixels, P_VISIBLE),
+            ch("shadow.weight", ShadowPixels, P_WEIGHT),
+            ch("shadow.samples", ShadowPixels, P_SAMPLES),
+            ch("shadow.occluded", ShadowPixels, P_OCCLUDED),
+            ch("shadow.light_distance", ShadowPixels, P_DISTANCE),
+            ch("shadow.slope_max", ShadowPixels, P_SLOPE_MAX),
+            ch("shadow.slope_min", ShadowPixels, P_SLOPE_MIN),
+            ch("shadow.slope_source", ShadowPixels, P_SLOPE_SOURCE),
+            ch("shadow.pixel_size", ShadowPixels, P_PIXEL_SIZE),
+            ch("shadow.target", ShadowPixels, P_TARGET),
+            ch("shadow.object", ShadowPixels, P_OBJECT),
+            ch("shadow.position.X", ShadowPixels, P_POSITION),
+            ch("shadow.position.Y", ShadowPixels, P_POSITION + 1),
+            ch("shadow.position.Z", ShadowPixels, P_POSITION + 2),
+            ch("shadow.normal.X", ShadowPixels, P_NORMAL),
+            ch("shadow.normal.Y", ShadowPixels, P_NORMAL + 1),
+            ch("shadow.normal.Z", ShadowPixels, P_NORMAL + 2),
+        ],
+        doc: "AAF soft shadows of one sphere light: unshadowed term, visibility sums, slopes",
     },
 ];
 

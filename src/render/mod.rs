@@ -8,11 +8,12 @@ pub mod cpu;
 pub mod features;
 pub mod frame;
 pub mod progressive;
+pub mod shadows;
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use anyhow::{Context as _, Result};
+use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
 
 pub use crate::arrays::{FrameSettings, SceneArrays};
@@ -26,6 +27,7 @@ use crate::scene::Scene;
 pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 pub use progressive::{Budget, progress_bar, render_progressively};
+pub use shadows::{ShadowSampling, ShadowStats};
 
 /// How to render, besides the scene itself.
 #[derive(Clone, Debug)]
@@ -41,6 +43,8 @@ pub struct RenderOptions {
     pub local_size: Option<[usize; 2]>,
     /// Compile in the debug counters of kernels/arrays/trace.cl (tests only).
     pub debug_counters: bool,
+    /// How the shadow output is sampled (with [`Output::Shadows`]).
+    pub shadows: ShadowSampling,
 }
 
 impl RenderOptions {
@@ -52,6 +56,7 @@ impl RenderOptions {
             all_features: false,
             local_size: None,
             debug_counters: false,
+            shadows: ShadowSampling::default(),
         }
     }
 }
@@ -84,6 +89,20 @@ impl DeviceScene {
             lights: gpu.upload(&a.lights)?,
             light_cdf: gpu.upload(&a.light_cdf)?,
         })
+    }
+
+    /// Binds the scene arguments every scene kernel starts with, by name, in their order.
+    fn bind<'b>(&'b self, b: &mut ocl::builders::KernelBuilder<'b>) {
+        b.arg_named("params", &self.params)
+            .arg_named("nodes", &self.nodes)
+            .arg_named("tri_geom", &self.tri_geom)
+            .arg_named("tri_shading", &self.tri_shading)
+            .arg_named("spheres", &self.spheres)
+            .arg_named("materials", &self.materials)
+            .arg_named("textures", &self.textures)
+            .arg_named("texels", &self.texels)
+            .arg_named("lights", &self.lights)
+            .arg_named("light_cdf", &self.light_cdf);
     }
 }
 
@@ -125,6 +144,9 @@ pub struct Renderer {
     ray_counts: Buffer<u32>,
     debug_counters: Buffer<u32>,
     kernel: Kernel,
+    /// The AAF shadow passes, with the shadow output; run before the first path samples.
+    shadow_passes: Option<shadows::ShadowPasses>,
+    shadow_stats: Option<ShadowStats>,
     _scene: DeviceScene,
     samples_done: u32,
     pub rays_total: u64,
@@ -164,6 +186,25 @@ impl Renderer {
             "DEBUG_COUNTERS".into(),
             (options.debug_counters as u32).to_string(),
         ));
+        // The shadow output samples one sphere light (they lead the light list).
+        let shadow_light = if outputs.contains(Output::Shadows) {
+            options.shadows.check()?;
+            let spheres = arrays
+                .lights
+                .iter()
+                .take_while(|l| l.kind == crate::layout::LIGHT_SPHERE)
+                .count() as u32;
+            if options.shadows.light >= spheres {
+                bail!(
+                    "the shadow output samples sphere light {} (counting from 0), but the scene \
+                     has {spheres} sphere light(s)",
+                    options.shadows.light
+                );
+            }
+            Some(options.shadows.light)
+        } else {
+            None
+        };
         let program = gpu.program("render/pathtrace.cl", &defines, "")?;
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let (w, h) = (frame.width, frame.height);
@@ -201,18 +242,7 @@ impl Renderer {
         }
         // Every argument by name, in the kernel's order (checked against the kernel's own
         // argument names by tests/layout.rs).
-        let d = &device_scene;
-        builder
-            .arg_named("params", &d.params)
-            .arg_named("nodes", &d.nodes)
-            .arg_named("tri_geom", &d.tri_geom)
-            .arg_named("tri_shading", &d.tri_shading)
-            .arg_named("spheres", &d.spheres)
-            .arg_named("materials", &d.materials)
-            .arg_named("textures", &d.textures)
-            .arg_named("texels", &d.texels)
-            .arg_named("lights", &d.lights)
-            .arg_named("light_cdf", &d.light_cdf);
+        device_scene.bind(&mut builder);
         for (id, b) in &buffers {
             builder.arg_named(id.decl().name, b);
         }
@@ -221,9 +251,29 @@ impl Renderer {
             .arg_named("debug_counters", &debug_counters)
             .arg_named("sample_capacity", capacity)
             .arg_named("sample_base", 0u32)
-            .arg_named("sample_count", 0u32);
+            .arg_named("sample_count", 0u32)
+            .arg_named("shadow_light", shadow_light.unwrap_or(u32::MAX));
         let kernel = builder.build().context("creating the render kernel")?;
         let scene_info = SceneInfo::new(scene, &arrays);
+        let shadow_passes = match shadow_light {
+            Some(_) => {
+                let pixels = &buffers
+                    .iter()
+                    .find(|(id, _)| *id == BufferId::ShadowPixels)
+                    .expect("every buffer is allocated")
+                    .1;
+                Some(shadows::ShadowPasses::new(
+                    &gpu,
+                    &program,
+                    [wu, hu],
+                    options.shadows,
+                    &device_scene,
+                    &debug_counters,
+                    pixels,
+                )?)
+            }
+            None => None,
+        };
         Ok(Renderer {
             gpu,
             arrays,
@@ -235,6 +285,8 @@ impl Renderer {
             ray_counts,
             debug_counters,
             kernel,
+            shadow_passes,
+            shadow_stats: None,
             _scene: device_scene,
             samples_done: 0,
             rays_total: 0,
@@ -263,6 +315,7 @@ impl Renderer {
             "sample_capacity",
             "sample_base",
             "sample_count",
+            "shadow_light",
         ]);
         v
     }
@@ -290,14 +343,23 @@ impl Renderer {
         if count == 0 {
             return Ok(LaunchStats::default());
         }
+        let (mut rays, mut kernel_time) = (0u64, Duration::ZERO);
+        if self.samples_done == 0
+            && let Some(passes) = &self.shadow_passes
+        {
+            (rays, kernel_time) = passes.run()?;
+            let frame = self.frame();
+            let pixels = frame.host_slice::<crate::layout::ShadowPixel>(BufferId::ShadowPixels)?;
+            self.shadow_stats = Some(shadows::shadow_stats(pixels, rays, kernel_time));
+        }
         self.kernel.set_arg("sample_base", self.samples_done)?;
         self.kernel.set_arg("sample_count", count)?;
         // SAFETY: every buffer argument is alive (owned by self) and sized for the global range.
         let event = unsafe { enqueue(&self.kernel, "the render kernel")? };
-        let kernel_time = event_duration(&event)?;
+        kernel_time += event_duration(&event)?;
         let mut counts = vec![0u32; self.ray_counts.len()];
         self.ray_counts.read(&mut counts).enq()?;
-        let rays: u64 = counts.iter().map(|&c| c as u64).sum();
+        rays += counts.iter().map(|&c| c as u64).sum::<u64>();
         self.samples_done += count;
         self.rays_total += rays;
         self.kernel_time_total += kernel_time;
@@ -329,6 +391,12 @@ impl Renderer {
             self.gpu.clone(),
             buffers,
         )
+    }
+
+    /// How the shadow output was sampled, and what it spent (after the first launch); None
+    /// without the shadow output.
+    pub fn shadow_stats(&self) -> Option<(ShadowSampling, ShadowStats)> {
+        Some((self.shadow_passes.as_ref()?.sampling(), self.shadow_stats?))
     }
 
     /// The debug counters (all zero unless built with `debug_counters`), named by

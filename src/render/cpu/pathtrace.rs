@@ -224,7 +224,8 @@ fn select_light(s: &SceneArrays, u: f32) -> usize {
 
 pub const SHADOW_RAY_SHORTEN: f32 = 0.9999;
 
-/// kernels/render/lights.cl sample_direct_light.
+/// kernels/render/lights.cl sample_direct_light: the estimate, and the index of the light
+/// chosen.
 pub fn sample_direct_light(
     s: &SceneArrays,
     surface_p: Vec3,
@@ -233,9 +234,27 @@ pub fn sample_direct_light(
     key: u32,
     bounce: u32,
     rays: &mut u32,
+) -> (Vec3, u32) {
+    let index = select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT));
+    (
+        direct_from(s, index, surface_p, ng, ns, key, bounce, rays),
+        index as u32,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn direct_from(
+    s: &SceneArrays,
+    index: usize,
+    surface_p: Vec3,
+    ng: Vec3,
+    ns: Vec3,
+    key: u32,
+    bounce: u32,
+    rays: &mut u32,
 ) -> Vec3 {
     let p = offset_ray_origin(surface_p, ng, s.params.scene_size);
-    let light = &s.lights[select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT))];
+    let light = &s.lights[index];
     let r1 = rng_uniform(key, bounce, DIM_LIGHT_U);
     let r2 = rng_uniform(key, bounce, DIM_LIGHT_V);
     let (dir, dist, inv_pdf);
@@ -297,6 +316,10 @@ pub struct PathSample {
     pub albedo: Vec3,
     pub albedo2: Vec3,
     pub direction: Vec3,
+    /// AAF's r(x) at a diffuse first hit (kernels/render/film.cl `shadow_unshadowed`).
+    pub shadow_unshadowed: Vec3,
+    /// The light the path brought to its first surface straight from the shadow light.
+    pub shadow_direct: Vec3,
 }
 
 impl PathSample {
@@ -310,6 +333,8 @@ impl PathSample {
             albedo: Vec3::ZERO,
             albedo2: Vec3::ZERO,
             direction: Vec3::ZERO,
+            shadow_unshadowed: Vec3::ZERO,
+            shadow_direct: Vec3::ZERO,
         }
     }
 
@@ -336,7 +361,8 @@ impl PathSample {
     }
 }
 
-/// Algorithm 1 for one sample (kernels/render/pathtrace.cl trace_path).
+/// Algorithm 1 for one sample (kernels/render/pathtrace.cl trace_path). `shadow_light` is
+/// the light whose shadow terms the sample records (u32::MAX: none).
 pub fn trace_path(
     s: &SceneArrays,
     opt: ReferenceOptions,
@@ -344,6 +370,7 @@ pub fn trace_path(
     y: u32,
     key: u32,
     rays: &mut u32,
+    shadow_light: u32,
 ) -> PathSample {
     let params = &s.params;
     let mut ps = PathSample::empty();
@@ -351,7 +378,9 @@ pub fn trace_path(
     let mut throughput = Vec3::ONE;
     let mut count_emission = true;
     let mut want_albedo2 = true;
+    let mut first_diffuse = false;
     let has_lights = params.light_count > 0;
+    let shadow = (shadow_light < params.light_count).then(|| &s.lights[shadow_light as usize]);
     for bounce in 0..params.max_vertices {
         if bounce >= params.rr_depth {
             if !opt.russian_roulette {
@@ -373,6 +402,13 @@ pub fn trace_path(
         if m.kind == MATERIAL_EMITTER {
             if count_emission && sf.entering {
                 ps.add_light(bounce, throughput * m.emission.xyz());
+                let light = match hit.prim {
+                    Prim::Triangle(k) => s.tri_shading[k as usize].light,
+                    Prim::Sphere(i) => s.spheres[i as usize].light,
+                };
+                if bounce == 1 && first_diffuse && light >= 0 && light as u32 == shadow_light {
+                    ps.shadow_direct += throughput * m.emission.xyz();
+                }
             }
             if bounce == 0 {
                 ps.depth = hit.t;
@@ -391,8 +427,19 @@ pub fn trace_path(
             want_albedo2 = false;
         }
         if has_lights && opt.next_event_estimation && m.kind == MATERIAL_DIFFUSE {
-            let li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, rays);
+            let (li, chosen) = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, rays);
             ps.add_light(bounce + 1, throughput * albedo * (1.0 / PI) * li);
+            if bounce == 0 && chosen == shadow_light {
+                ps.shadow_direct += throughput * albedo * (1.0 / PI) * li;
+            }
+        }
+        if let Some(light) = shadow
+            && bounce == 0
+            && m.kind == MATERIAL_DIFFUSE
+        {
+            first_diffuse = true;
+            let p = offset_ray_origin(sf.p, sf.ng, params.scene_size);
+            ps.shadow_unshadowed = albedo * super::shadows::shadow_unshadowed(light, p, sf.ns);
         }
         let sc = scatter(s, &sf, d, albedo, key, bounce);
         if bounce == 0 && !sc.absorbed {
@@ -416,6 +463,7 @@ pub fn trace_path(
             ps.direct *= k;
             ps.indirect *= k;
             ps.total *= k;
+            ps.shadow_direct *= k;
         }
     }
     ps
@@ -443,7 +491,7 @@ pub fn render(
             for k in 0..count {
                 let sample = sample_base + k;
                 let key = rng_sample_key(s.params.seed, pixel as u32, sample);
-                let x16 = trace_path(s, opt, x, y, key, &mut rays).to_array();
+                let x16 = trace_path(s, opt, x, y, key, &mut rays, u32::MAX).to_array();
                 let n = (sample + 1) as f32;
                 for (i, (m, v)) in mean.iter_mut().zip(x16).enumerate() {
                     if i == DEPTH_LANE {
@@ -460,6 +508,34 @@ pub fn render(
             rays as u64
         })
         .sum()
+}
+
+/// The shadow terms (ShadowTerms lanes: r, pad, replaced light, pad) of samples
+/// [sample_base, sample_base + count) of every pixel for light `shadow_light`, folded as
+/// kernels/render/film.cl folds them (eq. 6.5), into `terms`.
+pub fn render_shadow_terms(
+    s: &SceneArrays,
+    opt: ReferenceOptions,
+    shadow_light: u32,
+    terms: &mut [[f32; 8]],
+    sample_base: u32,
+    count: u32,
+) {
+    let w = s.params.image_width;
+    terms.par_iter_mut().enumerate().for_each(|(pixel, t)| {
+        let (x, y) = (pixel as u32 % w, pixel as u32 / w);
+        let mut rays = 0u32;
+        for k in 0..count {
+            let sample = sample_base + k;
+            let key = rng_sample_key(s.params.seed, pixel as u32, sample);
+            let ps = trace_path(s, opt, x, y, key, &mut rays, shadow_light);
+            let n = (sample + 1) as f32;
+            for c in 0..3 {
+                t[c] += (ps.shadow_unshadowed[c] - t[c]) / n;
+                t[4 + c] += (ps.shadow_direct[c] - t[4 + c]) / n;
+            }
+        }
+    });
 }
 
 /// The depth lane of [`PathSample::to_array`] (FilterVector.depth).
