@@ -237,17 +237,14 @@ typedef struct __attribute__((aligned(16))) {
 } AtrousParams;
 
 // AAF soft shadows (Wang 2013 ch. 3), what the megakernel gathers per pixel for the one
-// sphere light whose shadows are filtered: running means over the path samples, like F.
+// sphere light whose shadows are filtered: a running mean over the path samples, like F.
 typedef struct __attribute__((aligned(16))) {
-    float unshadowed[3]; // r(x) of eq. 3.1: the light's unshadowed direct term from its centre, albedo included  (albedo · L · sin²α · cos θ_c at diffuse first hits, 0 elsewhere).
+    float direct[3]; // The light the path samples whose first hit is the pixel centre's receiver brought  to it straight from that light (its next-event estimate, or its emission found by  the first bounce): the part of F that the filtered term replaces.
     float pad0;
-    float direct[3]; // The light this path brought to the first surface straight from that light (its  next-event estimate, or its emission found by the first bounce): the part of F that  the filtered term replaces.
-    float pad1;
 } ShadowTerms;
 // Float lanes of ShadowTerms (offset / 4).
-#define SHADOW_TERMS_UNSHADOWED 0
-#define SHADOW_TERMS_DIRECT 4
-#define SHADOW_TERMS_FLOATS 8
+#define SHADOW_TERMS_DIRECT 0
+#define SHADOW_TERMS_FLOATS 4
 
 // AAF soft shadows: the primary hit through the pixel centre (and the lens centre) and its
 // light samples (kernels/render/shadows.cl), from the sparse and the adaptive pass.
@@ -268,6 +265,8 @@ typedef struct __attribute__((aligned(16))) {
     float pad1;
     float normal[3]; // Shading normal at the hit, facing the camera.
     float pad2;
+    float unshadowed[3]; // Σ r(x_k) over the light samples' points x_k on the receiver: r of eq. 3.1, the  light's unshadowed direct term from its centre with the albedo (albedo · L sin²α  cos θ_c); divided by `samples` it is r over the pixel, anti-aliased as the samples  spread over it.
+    float pad3;
 } ShadowPixel;
 // Float lanes of ShadowPixel (offset / 4).
 #define SHADOW_PIXEL_VISIBLE 0
@@ -283,7 +282,8 @@ typedef struct __attribute__((aligned(16))) {
 #define SHADOW_PIXEL_OBJECT 10
 #define SHADOW_PIXEL_POSITION 12
 #define SHADOW_PIXEL_NORMAL 16
-#define SHADOW_PIXEL_FLOATS 20
+#define SHADOW_PIXEL_UNSHADOWED 20
+#define SHADOW_PIXEL_FLOATS 24
 
 // Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
 typedef struct __attribute__((aligned(16))) {

@@ -10,7 +10,8 @@
 //    on distances measured in the plane perpendicular to the direction to the light (the
 //    "plane parallel to the light": the sphere's silhouette disk), rejecting neighbours whose
 //    normal, offset along the light direction or beta differ too much.
-// 3. aaf_compose: F - (the light the filtered term replaces) + r * filtered visibility.
+// 3. aaf_compose: F - (the light the filtered term replaces) + r * filtered visibility, r the
+//    mean of the unshadowed term over the pixel's light samples.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -89,7 +90,8 @@ __kernel void aaf_pass(__constant const AafShadowParams* p, __global const float
 }
 
 __kernel void aaf_compose(__constant const AafShadowParams* p, __global const float* fv,
-                          __global const float* terms, __global const float4* guide,
+                          __global const float* terms, __global const float* pixels,
+                          __global const float4* guide,
                           __global const float* visibility, __global float4* image) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= p->width || y >= p->height) return;
@@ -101,6 +103,8 @@ __kernel void aaf_compose(__constant const AafShadowParams* p, __global const fl
         return;
     }
     __global const float* t = terms + (size_t)i * SHADOW_TERMS_FLOATS;
+    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
     float3 rest = beauty - aaf_lane3(t, SHADOW_TERMS_DIRECT);
-    image[i] = (float4)(rest + aaf_lane3(t, SHADOW_TERMS_UNSHADOWED) * visibility[i], 0.0f);
+    float3 r = aaf_lane3(px, SHADOW_PIXEL_UNSHADOWED) / px[SHADOW_PIXEL_SAMPLES];
+    image[i] = (float4)(rest + r * visibility[i], 0.0f);
 }

@@ -17,8 +17,8 @@
 #include "render/rng.cl"
 
 #if FILTER_VECTOR_FLOATS != 16 || WELFORD_SUMS_FLOATS != 16 || WELFORD_STATE_FLOATS != 20 \
-    || DEPTH_SHIFT_FLOATS != 2 || SHADOW_TERMS_FLOATS != 8
-#error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16, ShadowTerms as float8"
+    || DEPTH_SHIFT_FLOATS != 2 || SHADOW_TERMS_FLOATS != 4
+#error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16, ShadowTerms as float4"
 #endif
 
 // One path's contribution and first-hit features.
@@ -39,8 +39,8 @@ typedef struct {
     float3 normal2;    // shading normal at the second hit, 0 if none
 #endif
 #if OUTPUT_SHADOWS
-    float3 shadow_unshadowed;  // AAF's r(x) at a diffuse first hit (ShadowTerms.unshadowed)
-    float3 shadow_direct;      // light straight from the shadow light to the first surface
+    float3 shadow_direct;      // light straight from the shadow light to the first surface,
+                               // when that is the pixel centre's receiver (ShadowTerms)
 #endif
 } PathSample;
 
@@ -62,7 +62,6 @@ inline PathSample path_sample_empty(void) {
     ps.normal2 = (float3)(0.0f);
 #endif
 #if OUTPUT_SHADOWS
-    ps.shadow_unshadowed = (float3)(0.0f);
     ps.shadow_direct = (float3)(0.0f);
 #endif
     return ps;
@@ -82,7 +81,7 @@ typedef struct {
     float position[4];                     // mean first-hit position (xyz), hits (w)
 #endif
 #if OUTPUT_SHADOWS
-    float shadow[SHADOW_TERMS_FLOATS];     // ShadowTerms: means of r and the replaced light
+    float shadow[SHADOW_TERMS_FLOATS];     // ShadowTerms: the mean of the replaced light
 #endif
 } PixelStats;
 
@@ -101,7 +100,7 @@ inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
     vstore4(vload4(pixel, positions), 0, p->position);
 #endif
 #if OUTPUT_SHADOWS
-    vstore8(vload8(pixel, shadow_terms), 0, p->shadow);
+    vstore4(vload4(pixel, shadow_terms), 0, p->shadow);
 #endif
 }
 
@@ -120,7 +119,7 @@ inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pi
     vstore4(vload4(0, p->position), pixel, positions);
 #endif
 #if OUTPUT_SHADOWS
-    vstore8(vload8(0, p->shadow), pixel, shadow_terms);
+    vstore4(vload4(0, p->shadow), pixel, shadow_terms);
 #endif
 }
 
@@ -207,9 +206,6 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
 #endif
 #if OUTPUT_SHADOWS
     float* sh = p->shadow;
-    running_mean(&sh[SHADOW_TERMS_UNSHADOWED], ps->shadow_unshadowed.x, n);
-    running_mean(&sh[SHADOW_TERMS_UNSHADOWED + 1], ps->shadow_unshadowed.y, n);
-    running_mean(&sh[SHADOW_TERMS_UNSHADOWED + 2], ps->shadow_unshadowed.z, n);
     running_mean(&sh[SHADOW_TERMS_DIRECT], ps->shadow_direct.x, n);
     running_mean(&sh[SHADOW_TERMS_DIRECT + 1], ps->shadow_direct.y, n);
     running_mean(&sh[SHADOW_TERMS_DIRECT + 2], ps->shadow_direct.z, n);

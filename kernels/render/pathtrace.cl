@@ -22,9 +22,11 @@ inline void add_light(PathSample* ps, uint bounce, float3 value) {
 }
 
 // Algorithm 1 for one sample. `bounce` counts the surfaces the path has left. With
-// OUTPUT_SHADOWS, `shadow_light` is the light whose soft shadows AAF filters.
+// OUTPUT_SHADOWS, `shadow_light` is the light whose soft shadows AAF filters and
+// `shadow_object` the object the pixel centre's receiver belongs to (NaN: none): the samples
+// whose first hit is on it record the light's terms (kernels/render/shadows.cl).
 inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count,
-                             uint shadow_light) {
+                             uint shadow_light, float shadow_object) {
     __constant const SceneParams* params = s->params;
     PathSample ps = path_sample_empty();
     float3 o, d;
@@ -35,7 +37,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
     bool want_albedo2 = true;
 #endif
 #if OUTPUT_SHADOWS
-    bool first_diffuse = false;               // the first surface is diffuse (a receiver)
+    bool on_receiver = false;                 // the first hit is the centre's receiver
 #endif
     for (uint bounce = 0u; bounce < params->max_vertices; ++bounce) {
 #if HAS_RUSSIAN_ROULETTE
@@ -80,7 +82,8 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
                 add_light(&ps, bounce, throughput * m->emission.xyz);
 #if OUTPUT_SHADOWS
                 // Without light sampling, the shadow light's direct term arrives here.
-                if (bounce == 1u && first_diffuse && sf.light >= 0 && (uint)sf.light == shadow_light)
+                if (bounce == 1u && on_receiver && sf.light >= 0
+                    && (uint)sf.light == shadow_light)
                     ps.shadow_direct += throughput * m->emission.xyz;
 #endif
             }
@@ -104,6 +107,12 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
             want_albedo2 = false;
         }
 #endif
+#if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
+        if (bounce == 0u && m->kind == MATERIAL_DIFFUSE && shadow_light < params->light_count
+            && hit_object(s, &hit) == shadow_object) {
+            on_receiver = true;
+        }
+#endif
 #if HAS_LIGHTS && NEXT_EVENT_ESTIMATION
         // Alg. 1 line 18: SampleLights, at diffuse hits only. The light count is checked at run
         // time too: the generic kernel (all effects compiled in) renders light-less scenes.
@@ -113,16 +122,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
                                             &chosen);
             add_light(&ps, bounce + 1u, throughput * albedo * INV_PI_F * li);
 #if OUTPUT_SHADOWS
-            if (bounce == 0u && chosen == shadow_light)
+            if (bounce == 0u && on_receiver && chosen == shadow_light)
                 ps.shadow_direct += throughput * albedo * INV_PI_F * li;
 #endif
-        }
-#endif
-#if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
-        if (bounce == 0u && m->kind == MATERIAL_DIFFUSE && shadow_light < params->light_count) {
-            first_diffuse = true;
-            float3 p = offset_ray_origin(sf.p, sf.ng, params->scene_size);
-            ps.shadow_unshadowed = albedo * shadow_unshadowed(s->lights + shadow_light, p, sf.ns);
         }
 #endif
         Scatter sc = scatter(s, &sf, d, albedo, key, bounce);   // Alg. 1 line 17: SampleBRDF
@@ -181,11 +183,17 @@ __kernel void render(__constant const SceneParams* params,
                    textures, texels, lights, light_cdf, debug_counters};
     PixelStats stats;
     pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, pixel);
+    float shadow_object = NAN;
+#if OUTPUT_SHADOWS
+    // The shadow passes ran before the first path samples.
+    __global const float* centre = shadow_pixels + (size_t)pixel * SHADOW_PIXEL_FLOATS;
+    if (centre[SHADOW_PIXEL_WEIGHT] > 0.0f) shadow_object = centre[SHADOW_PIXEL_OBJECT];
+#endif
     uint rays = 0u;
     for (uint k = 0u; k < sample_count; ++k) {
         uint sample = sample_base + k;
         uint key = rng_sample_key(params->seed, pixel, sample);
-        PathSample ps = trace_path(&s, x, y, key, &rays, shadow_light);
+        PathSample ps = trace_path(&s, x, y, key, &rays, shadow_light, shadow_object);
         film_accumulate(&stats, &ps, sample + 1u);
 #if OUTPUT_SAMPLES
         if (sample < sample_capacity)

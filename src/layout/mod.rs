@@ -405,18 +405,14 @@ device_structs! {
     }
 
     /// AAF soft shadows (Wang 2013 ch. 3), what the megakernel gathers per pixel for the one
-    /// sphere light whose shadows are filtered: running means over the path samples, like F.
+    /// sphere light whose shadows are filtered: a running mean over the path samples, like F.
     #[align(16)]
     pub struct ShadowTerms {
-        /// r(x) of eq. 3.1: the light's unshadowed direct term from its centre, albedo included
-        /// (albedo · L · sin²α · cos θ_c at diffuse first hits, 0 elsewhere).
-        pub unshadowed: [f32; 3],
-        pub pad0: f32,
-        /// The light this path brought to the first surface straight from that light (its
-        /// next-event estimate, or its emission found by the first bounce): the part of F that
-        /// the filtered term replaces.
+        /// The light the path samples whose first hit is the pixel centre's receiver brought
+        /// to it straight from that light (its next-event estimate, or its emission found by
+        /// the first bounce): the part of F that the filtered term replaces.
         pub direct: [f32; 3],
-        pub pad1: f32,
+        pub pad0: f32,
     }
 
     /// AAF soft shadows: the primary hit through the pixel centre (and the lens centre) and its
@@ -452,6 +448,12 @@ device_structs! {
         /// Shading normal at the hit, facing the camera.
         pub normal: [f32; 3],
         pub pad2: f32,
+        /// Σ r(x_k) over the light samples' points x_k on the receiver: r of eq. 3.1, the
+        /// light's unshadowed direct term from its centre with the albedo (albedo · L sin²α
+        /// cos θ_c); divided by `samples` it is r over the pixel, anti-aliased as the samples
+        /// spread over it.
+        pub unshadowed: [f32; 3],
+        pub pad3: f32,
     }
 
     /// Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).

@@ -36,8 +36,8 @@ pub enum Output {
     Position,
     /// Every sample's Random Parameter Filtering vector (thesis §5.1.1, Table 5.1).
     Samples,
-    /// AAF soft shadows of one sphere light (Wang 2013 ch. 3): the unshadowed term and the
-    /// part of F it replaces, and the sparse + adaptive light samples of the pixel centre.
+    /// AAF soft shadows of one sphere light (Wang 2013 ch. 3): the part of F the filtered term
+    /// replaces, and the sparse + adaptive light samples of each pixel's centre receiver.
     Shadows,
 }
 
@@ -142,7 +142,6 @@ const S_ALBEDO: usize = lane(offset_of!(WelfordSums, albedo));
 const S_DIRECTION: usize = lane(offset_of!(WelfordSums, direction));
 const S_ALBEDO2: usize = lane(offset_of!(WelfordSums, albedo2));
 const W_DIRECTION: usize = lane(offset_of!(WelfordState, direction_mean));
-const T_UNSHADOWED: usize = lane(offset_of!(ShadowTerms, unshadowed));
 const T_DIRECT: usize = lane(offset_of!(ShadowTerms, direct));
 const P_VISIBLE: usize = lane(offset_of!(ShadowPixel, visible));
 const P_WEIGHT: usize = lane(offset_of!(ShadowPixel, weight));
@@ -157,6 +156,7 @@ const P_TARGET: usize = lane(offset_of!(ShadowPixel, target));
 const P_OBJECT: usize = lane(offset_of!(ShadowPixel, object));
 const P_POSITION: usize = lane(offset_of!(ShadowPixel, position));
 const P_NORMAL: usize = lane(offset_of!(ShadowPixel, normal));
+const P_UNSHADOWED: usize = lane(offset_of!(ShadowPixel, unshadowed));
 
 /// Every output buffer, in the order of the megakernel's parameters.
 pub const BUFFERS: &[BufferDecl] = &[
@@ -214,7 +214,7 @@ pub const BUFFERS: &[BufferDecl] = &[
         element: "ShadowTerms",
         element_bytes: size_of::<ShadowTerms>(),
         per: Per::Pixel,
-        doc: "AAF shadows: unshadowed term r and the direct light it replaces, per pixel",
+        doc: "AAF shadows: the direct light the filtered term replaces, per pixel",
     },
     BufferDecl {
         id: ShadowPixels,
@@ -320,9 +320,6 @@ pub const OUTPUTS: &[OutputDecl] = &[
         requires: &[Output::Colour],
         buffers: &[ShadowTerms, ShadowPixels],
         channels: &[
-            ch("shadow.unshadowed.R", ShadowTerms, T_UNSHADOWED),
-            ch("shadow.unshadowed.G", ShadowTerms, T_UNSHADOWED + 1),
-            ch("shadow.unshadowed.B", ShadowTerms, T_UNSHADOWED + 2),
             ch("shadow.direct.R", ShadowTerms, T_DIRECT),
             ch("shadow.direct.G", ShadowTerms, T_DIRECT + 1),
             ch("shadow.direct.B", ShadowTerms, T_DIRECT + 2),
@@ -343,6 +340,9 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.normal.X", ShadowPixels, P_NORMAL),
             ch("shadow.normal.Y", ShadowPixels, P_NORMAL + 1),
             ch("shadow.normal.Z", ShadowPixels, P_NORMAL + 2),
+            ch("shadow.unshadowed.R", ShadowPixels, P_UNSHADOWED),
+            ch("shadow.unshadowed.G", ShadowPixels, P_UNSHADOWED + 1),
+            ch("shadow.unshadowed.B", ShadowPixels, P_UNSHADOWED + 2),
         ],
         doc: "AAF soft shadows of one sphere light: unshadowed term, visibility sums, slopes",
     },

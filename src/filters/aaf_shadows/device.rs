@@ -79,7 +79,7 @@ impl AafShadowKernel {
         let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
         let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
         let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
-        for k in [&p.prepare, &p.rows, &p.columns] {
+        for k in [&p.prepare, &p.rows, &p.columns, &p.compose] {
             k.set_arg("pixels", pixels)?;
         }
         p.compose.set_arg("fv", fv)?;
@@ -157,6 +157,7 @@ impl Passes {
             .arg_named("p", &params[0])
             .arg_named("fv", none)
             .arg_named("terms", none)
+            .arg_named("pixels", none)
             .arg(&guide)
             .arg(&visibility[0])
             .arg(&image)

@@ -105,6 +105,7 @@ pub fn pass(
 pub fn compose(
     fv: &[FilterVector],
     terms: &[ShadowTerms],
+    pixels: &[ShadowPixel],
     guide: &[Guide],
     visibility: &[f32],
     width: u32,
@@ -118,8 +119,10 @@ pub fn compose(
             if guide[i].kind == NONE {
                 return beauty;
             }
-            let t = &terms[i];
-            std::array::from_fn(|c| (beauty[c] - t.direct[c]) + t.unshadowed[c] * visibility[i])
+            let (t, p) = (&terms[i], &pixels[i]);
+            std::array::from_fn(|c| {
+                (beauty[c] - t.direct[c]) + p.unshadowed[c] / p.samples * visibility[i]
+            })
         })
         .collect();
     RgbImage {
@@ -148,5 +151,5 @@ pub fn reference(
     let v0: Vec<f32> = guide.iter().map(|g| g.visibility).collect();
     let v1 = pass(&p0, pixels, &guide, &v0);
     let v2 = pass(&p1, pixels, &guide, &v1);
-    Ok(compose(frame.filter_vectors()?, terms, &guide, &v2, w, h))
+    Ok(compose(frame.filter_vectors()?, terms, pixels, &guide, &v2, w, h))
 }

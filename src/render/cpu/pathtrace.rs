@@ -316,9 +316,8 @@ pub struct PathSample {
     pub albedo: Vec3,
     pub albedo2: Vec3,
     pub direction: Vec3,
-    /// AAF's r(x) at a diffuse first hit (kernels/render/film.cl `shadow_unshadowed`).
-    pub shadow_unshadowed: Vec3,
-    /// The light the path brought to its first surface straight from the shadow light.
+    /// The light the path brought to its first surface straight from the shadow light, when
+    /// that surface is the pixel centre's receiver.
     pub shadow_direct: Vec3,
 }
 
@@ -333,7 +332,6 @@ impl PathSample {
             albedo: Vec3::ZERO,
             albedo2: Vec3::ZERO,
             direction: Vec3::ZERO,
-            shadow_unshadowed: Vec3::ZERO,
             shadow_direct: Vec3::ZERO,
         }
     }
@@ -361,8 +359,24 @@ impl PathSample {
     }
 }
 
-/// Algorithm 1 for one sample (kernels/render/pathtrace.cl trace_path). `shadow_light` is
-/// the light whose shadow terms the sample records (u32::MAX: none).
+/// Whose shadow terms a path sample records (kernels/render/pathtrace.cl): the light's, when
+/// the first hit is on `object`, the pixel centre's receiver.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowTarget {
+    /// Index into the light list; u32::MAX: none.
+    pub light: u32,
+    /// The receiver's object (kernels/render/shadows.cl `hit_object`); NaN: none.
+    pub object: f32,
+}
+
+impl ShadowTarget {
+    pub const NONE: ShadowTarget = ShadowTarget {
+        light: u32::MAX,
+        object: f32::NAN,
+    };
+}
+
+/// Algorithm 1 for one sample (kernels/render/pathtrace.cl trace_path).
 pub fn trace_path(
     s: &SceneArrays,
     opt: ReferenceOptions,
@@ -370,7 +384,7 @@ pub fn trace_path(
     y: u32,
     key: u32,
     rays: &mut u32,
-    shadow_light: u32,
+    target: ShadowTarget,
 ) -> PathSample {
     let params = &s.params;
     let mut ps = PathSample::empty();
@@ -378,8 +392,9 @@ pub fn trace_path(
     let mut throughput = Vec3::ONE;
     let mut count_emission = true;
     let mut want_albedo2 = true;
-    let mut first_diffuse = false;
+    let mut on_receiver = false;
     let has_lights = params.light_count > 0;
+    let shadow_light = target.light;
     let shadow = (shadow_light < params.light_count).then(|| &s.lights[shadow_light as usize]);
     for bounce in 0..params.max_vertices {
         if bounce >= params.rr_depth {
@@ -406,7 +421,7 @@ pub fn trace_path(
                     Prim::Triangle(k) => s.tri_shading[k as usize].light,
                     Prim::Sphere(i) => s.spheres[i as usize].light,
                 };
-                if bounce == 1 && first_diffuse && light >= 0 && light as u32 == shadow_light {
+                if bounce == 1 && on_receiver && light >= 0 && light as u32 == shadow_light {
                     ps.shadow_direct += throughput * m.emission.xyz();
                 }
             }
@@ -426,20 +441,19 @@ pub fn trace_path(
             ps.albedo2 = albedo;
             want_albedo2 = false;
         }
+        if shadow.is_some()
+            && bounce == 0
+            && m.kind == MATERIAL_DIFFUSE
+            && super::shadows::hit_object(s, &hit) == target.object
+        {
+            on_receiver = true;
+        }
         if has_lights && opt.next_event_estimation && m.kind == MATERIAL_DIFFUSE {
             let (li, chosen) = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, rays);
             ps.add_light(bounce + 1, throughput * albedo * (1.0 / PI) * li);
-            if bounce == 0 && chosen == shadow_light {
+            if bounce == 0 && on_receiver && chosen == shadow_light {
                 ps.shadow_direct += throughput * albedo * (1.0 / PI) * li;
             }
-        }
-        if let Some(light) = shadow
-            && bounce == 0
-            && m.kind == MATERIAL_DIFFUSE
-        {
-            first_diffuse = true;
-            let p = offset_ray_origin(sf.p, sf.ng, params.scene_size);
-            ps.shadow_unshadowed = albedo * super::shadows::shadow_unshadowed(light, p, sf.ns);
         }
         let sc = scatter(s, &sf, d, albedo, key, bounce);
         if bounce == 0 && !sc.absorbed {
@@ -491,7 +505,7 @@ pub fn render(
             for k in 0..count {
                 let sample = sample_base + k;
                 let key = rng_sample_key(s.params.seed, pixel as u32, sample);
-                let x16 = trace_path(s, opt, x, y, key, &mut rays, u32::MAX).to_array();
+                let x16 = trace_path(s, opt, x, y, key, &mut rays, ShadowTarget::NONE).to_array();
                 let n = (sample + 1) as f32;
                 for (i, (m, v)) in mean.iter_mut().zip(x16).enumerate() {
                     if i == DEPTH_LANE {
@@ -508,34 +522,6 @@ pub fn render(
             rays as u64
         })
         .sum()
-}
-
-/// The shadow terms (ShadowTerms lanes: r, pad, replaced light, pad) of samples
-/// [sample_base, sample_base + count) of every pixel for light `shadow_light`, folded as
-/// kernels/render/film.cl folds them (eq. 6.5), into `terms`.
-pub fn render_shadow_terms(
-    s: &SceneArrays,
-    opt: ReferenceOptions,
-    shadow_light: u32,
-    terms: &mut [[f32; 8]],
-    sample_base: u32,
-    count: u32,
-) {
-    let w = s.params.image_width;
-    terms.par_iter_mut().enumerate().for_each(|(pixel, t)| {
-        let (x, y) = (pixel as u32 % w, pixel as u32 / w);
-        let mut rays = 0u32;
-        for k in 0..count {
-            let sample = sample_base + k;
-            let key = rng_sample_key(s.params.seed, pixel as u32, sample);
-            let ps = trace_path(s, opt, x, y, key, &mut rays, shadow_light);
-            let n = (sample + 1) as f32;
-            for c in 0..3 {
-                t[c] += (ps.shadow_unshadowed[c] - t[c]) / n;
-                t[4 + c] += (ps.shadow_direct[c] - t[4 + c]) / n;
-            }
-        }
-    });
 }
 
 /// The depth lane of [`PathSample::to_array`] (FilterVector.depth).

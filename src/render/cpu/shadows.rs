@@ -5,11 +5,14 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::pathtrace::{SHADOW_RAY_SHORTEN, Surface, surface_at};
-use super::rng::{DIM_LIGHT_U, DIM_LIGHT_V, rng_sample_key, rng_uniform};
+use super::pathtrace::{
+    ReferenceOptions, SHADOW_RAY_SHORTEN, ShadowTarget, Surface, surface_albedo, surface_at,
+    trace_path,
+};
+use super::rng::{DIM_LIGHT_U, DIM_LIGHT_V, DIM_PIXEL_X, DIM_PIXEL_Y, rng_sample_key, rng_uniform};
 use super::sampling::{pinhole_direction, sample_cone};
 use crate::arrays::SceneArrays;
-use crate::arrays::trace::{Prim, intersect_closest, occluder_range};
+use crate::arrays::trace::{Hit, Prim, intersect_closest, occluder_range};
 use crate::geometry::{offset_ray_origin, ray_sphere};
 use crate::layout::{Light, MATERIAL_DIFFUSE, ShadowPixel};
 use crate::render::shadows::ShadowSampling;
@@ -30,22 +33,58 @@ pub fn shadow_unshadowed(light: &Light, p: Vec3, ns: Vec3) -> Vec3 {
     light.emission.xyz() * (r2 / d2 * cos_c.max(0.0))
 }
 
-/// The pixel centre's first hit through the lens centre, when it is a receiver: the surface,
-/// the hit distance and the object.
-pub fn receiver(s: &SceneArrays, x: u32, y: u32, rays: &mut u32) -> Option<(Surface, f32, f32)> {
+/// The object a hit belongs to (kernels/render/shadows.cl `hit_object`).
+pub fn hit_object(s: &SceneArrays, hit: &Hit) -> f32 {
+    match hit.prim {
+        Prim::Triangle(k) => s.tri_shading[k as usize].object as f32,
+        Prim::Sphere(i) => -1.0 - i as f32,
+    }
+}
+
+/// A receiver (kernels/render/shadows.cl `ShadowReceiver`).
+pub struct Receiver {
+    pub sf: Surface,
+    pub albedo: Vec3,
+    pub t: f32,
+    pub object: f32,
+}
+
+/// The first hit through the point (x + jx, y + jy) of the image from the lens centre, when
+/// it is a receiver.
+pub fn receiver(
+    s: &SceneArrays,
+    x: u32,
+    y: u32,
+    jx: f32,
+    jy: f32,
+    rays: &mut u32,
+) -> Option<Receiver> {
     let o = s.params.camera_origin.xyz();
-    let d = pinhole_direction(&s.params, x, y, 0.5, 0.5);
+    let d = pinhole_direction(&s.params, x, y, jx, jy);
     *rays += 1;
     let hit = intersect_closest(s, o, d, f32::INFINITY)?;
     let sf = surface_at(s, &hit, o, d);
     if s.materials[sf.material as usize].kind != MATERIAL_DIFFUSE {
         return None;
     }
-    let object = match hit.prim {
-        Prim::Triangle(k) => s.tri_shading[k as usize].object as f32,
-        Prim::Sphere(i) => -1.0 - i as f32,
-    };
-    Some((sf, hit.t, object))
+    Some(Receiver {
+        albedo: surface_albedo(s, &sf),
+        sf,
+        t: hit.t,
+        object: hit_object(s, &hit),
+    })
+}
+
+/// d1 of a receiver (kernels/render/shadows.cl `shadow_light_distance`).
+fn light_distance(s: &SceneArrays, light: &Light, sf: &Surface) -> f32 {
+    let p = offset_ray_origin(sf.p, sf.ng, s.params.scene_size);
+    let to_c = light.p0.xyz() - p;
+    let d2 = to_c.dot(to_c);
+    if d2 <= light.p0.0[3] * light.p0.0[3] {
+        0.0
+    } else {
+        d2.sqrt()
+    }
 }
 
 /// Running sums of one pixel's light samples.
@@ -56,59 +95,87 @@ struct Sums {
     occluded: f32,
     s1: f32,
     s2: f32,
+    unshadowed: Vec3,
 }
 
-/// k × k stratified light samples (kernels/render/shadows.cl `shadow_samples`); returns d1.
-fn samples(
+/// One light sample (kernels/render/shadows.cl `shadow_sample`).
+fn sample(
     s: &SceneArrays,
     light: &Light,
-    sf: &Surface,
-    key: u32,
-    k: u32,
+    r: &Receiver,
+    u: f32,
+    v: f32,
     acc: &mut Sums,
     rays: &mut u32,
-) -> f32 {
+) {
+    let sf = &r.sf;
     let p = offset_ray_origin(sf.p, sf.ng, s.params.scene_size);
+    acc.unshadowed += r.albedo * shadow_unshadowed(light, p, sf.ns);
     let c = light.p0.xyz();
     let radius = light.p0.0[3];
     let to_c = c - p;
     let d2 = to_c.dot(to_c);
     let r2 = radius * radius;
     if d2 <= r2 {
-        return 0.0;
+        return;
     }
     let dc = d2.sqrt();
     let sin2_max = r2 / d2;
     let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
     let one_minus_cos_max = sin2_max / (1.0 + cos_max);
-    let axis = to_c / dc;
+    let dir = sample_cone(u, v, to_c / dc, one_minus_cos_max);
+    let cos_s = sf.ns.dot(dir);
+    if cos_s <= 0.0 || sf.ng.dot(dir) <= 0.0 {
+        return;
+    }
+    let dist = ray_sphere(p, dir, c, radius, 0.0, f32::INFINITY)
+        .filter(|&t| t > 0.0)
+        .unwrap_or(dc);
+    acc.weight += cos_s;
+    *rays += 1;
+    match occluder_range(s, p, dir, dist * SHADOW_RAY_SHORTEN) {
+        Some((near, far)) => {
+            acc.occluded += 1.0;
+            acc.s2 = acc.s2.min(dc / (dc - near) - 1.0);
+            acc.s1 = acc.s1.max(dc / (dc - far) - 1.0);
+        }
+        None => acc.visible += cos_s,
+    }
+}
+
+/// k × k light samples of pixel (x, y) on the receiver `object`
+/// (kernels/render/shadows.cl `shadow_samples`).
+#[allow(clippy::too_many_arguments)]
+fn samples(
+    s: &SceneArrays,
+    light: &Light,
+    x: u32,
+    y: u32,
+    object: f32,
+    key: u32,
+    k: u32,
+    acc: &mut Sums,
+    rays: &mut u32,
+) {
     let inv_k = 1.0 / k as f32;
     for i in 0..k {
         for j in 0..k {
             let n = i * k + j;
-            let u = (i as f32 + rng_uniform(key, n, DIM_LIGHT_U)) * inv_k;
-            let v = (j as f32 + rng_uniform(key, n, DIM_LIGHT_V)) * inv_k;
-            let dir = sample_cone(u, v, axis, one_minus_cos_max);
-            let cos_s = sf.ns.dot(dir);
-            if cos_s <= 0.0 || sf.ng.dot(dir) <= 0.0 {
+            let (jx, jy) = (
+                rng_uniform(key, n, DIM_PIXEL_X),
+                rng_uniform(key, n, DIM_PIXEL_Y),
+            );
+            let Some(q) = receiver(s, x, y, jx, jy, rays) else {
+                continue;
+            };
+            if q.object != object {
                 continue;
             }
-            let dist = ray_sphere(p, dir, c, radius, 0.0, f32::INFINITY)
-                .filter(|&t| t > 0.0)
-                .unwrap_or(dc);
-            acc.weight += cos_s;
-            *rays += 1;
-            match occluder_range(s, p, dir, dist * SHADOW_RAY_SHORTEN) {
-                Some((near, far)) => {
-                    acc.occluded += 1.0;
-                    acc.s2 = acc.s2.min(dc / (dc - near) - 1.0);
-                    acc.s1 = acc.s1.max(dc / (dc - far) - 1.0);
-                }
-                None => acc.visible += cos_s,
-            }
+            let u = (i as f32 + rng_uniform(key, n, DIM_LIGHT_U)) * inv_k;
+            let v = (j as f32 + rng_uniform(key, n, DIM_LIGHT_V)) * inv_k;
+            sample(s, light, &q, u, v, acc, rays);
         }
     }
-    dc
 }
 
 /// Pass 1 for every pixel: the shadow pixels and the rays traced.
@@ -124,19 +191,22 @@ pub fn sparse(s: &SceneArrays, light: u32, sqrt_spp: u32) -> (Vec<ShadowPixel>, 
             if light >= s.params.light_count {
                 return (px, rays);
             }
-            let Some((sf, t, object)) = receiver(s, x, y, &mut rays) else {
+            let Some(centre) = receiver(s, x, y, 0.5, 0.5, &mut rays) else {
                 return (px, rays);
             };
+            let (sf, t, object) = (&centre.sf, centre.t, centre.object);
             let mut acc = Sums {
                 visible: 0.0,
                 weight: 0.0,
                 occluded: 0.0,
                 s1: 0.0,
                 s2: f32::INFINITY,
+                unshadowed: Vec3::ZERO,
             };
             let key = rng_sample_key(s.params.seed, pixel as u32, SHADOW_SAMPLE_BASE);
             let l = &s.lights[light as usize];
-            let d1 = samples(s, l, &sf, key, sqrt_spp, &mut acc, &mut rays);
+            samples(s, l, x, y, object, key, sqrt_spp, &mut acc, &mut rays);
+            let d1 = light_distance(s, l, sf);
             let slopes = acc.occluded > 0.0;
             px.visible = acc.visible;
             px.weight = acc.weight;
@@ -155,6 +225,7 @@ pub fn sparse(s: &SceneArrays, light: u32, sqrt_spp: u32) -> (Vec<ShadowPixel>, 
             px.object = object;
             px.position = sf.p.to_array();
             px.normal = sf.ns.to_array();
+            px.unshadowed = acc.unshadowed.to_array();
             (px, rays)
         })
         .collect();
@@ -237,24 +308,23 @@ pub fn adaptive(
             }
             let (x, y) = (pixel as u32 % w, pixel as u32 / w);
             let mut rays = 0u32;
-            let Some((sf, _, _)) = receiver(s, x, y, &mut rays) else {
-                return rays as u64;
-            };
             let mut acc = Sums {
                 visible: px.visible,
                 weight: px.weight,
                 occluded: px.occluded,
                 s1: px.slope_max,
                 s2: px.slope_min,
+                unshadowed: Vec3::from(px.unshadowed),
             };
             let key = rng_sample_key(s.params.seed, pixel as u32, SHADOW_SAMPLE_BASE + 1);
-            samples(s, l, &sf, key, k, &mut acc, &mut rays);
+            samples(s, l, x, y, px.object, key, k, &mut acc, &mut rays);
             px.visible = acc.visible;
             px.weight = acc.weight;
             px.occluded = acc.occluded;
             px.samples += (k * k) as f32;
             px.slope_max = acc.s1;
             px.slope_min = acc.s2;
+            px.unshadowed = acc.unshadowed.to_array();
             if acc.occluded > 0.0 {
                 px.slope_source = 1.0;
             }
@@ -280,4 +350,42 @@ pub fn passes(s: &SceneArrays, sampling: &ShadowSampling) -> (Vec<ShadowPixel>, 
         sampling.max_spp,
     );
     (pixels, rays)
+}
+
+/// The shadow terms (ShadowTerms lanes: the replaced light, pad) of samples
+/// [sample_base, sample_base + count) of every pixel for light `shadow_light`, whose shadow
+/// pixels (the passes' output: the centre's receiver) are `pixels`, folded as
+/// kernels/render/film.cl folds them (eq. 6.5), into `terms`.
+pub fn render_shadow_terms(
+    s: &SceneArrays,
+    opt: ReferenceOptions,
+    shadow_light: u32,
+    pixels: &[ShadowPixel],
+    terms: &mut [[f32; 4]],
+    sample_base: u32,
+    count: u32,
+) {
+    let w = s.params.image_width;
+    terms.par_iter_mut().enumerate().for_each(|(pixel, t)| {
+        let (x, y) = (pixel as u32 % w, pixel as u32 / w);
+        let centre = &pixels[pixel];
+        let target = ShadowTarget {
+            light: shadow_light,
+            object: if centre.weight > 0.0 {
+                centre.object
+            } else {
+                f32::NAN
+            },
+        };
+        let mut rays = 0u32;
+        for k in 0..count {
+            let sample = sample_base + k;
+            let key = rng_sample_key(s.params.seed, pixel as u32, sample);
+            let ps = trace_path(s, opt, x, y, key, &mut rays, target);
+            let n = (sample + 1) as f32;
+            for (c, v) in t.iter_mut().take(3).enumerate() {
+                *v += (ps.shadow_direct[c] - *v) / n;
+            }
+        }
+    });
 }

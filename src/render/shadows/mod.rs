@@ -2,16 +2,20 @@
 //! output ([`crate::layout::outputs::Output::Shadows`]) of one sphere light, gathered when a
 //! filter asks for it (src/filters/aaf_shadows).
 //!
-//! The estimator, per pixel. The megakernel folds into `ShadowTerms`, per path sample, r(x)
-//! (eq. 3.1: albedo · L sin²α cos θ_c at a diffuse first hit, the light's unshadowed direct
-//! term from its centre) and the light this path brought to its first surface straight from the
-//! filtered light (its next-event estimate, or the light's emission found by the first bounce
-//! when light sampling is off). The passes here trace, for the pixel centre's hit x,
-//! stratified directions uniform in the light's cone and weight each by l = cos θ at x:
-//! h_n(x) = Σ f·l / Σ l (eq. 3.2) is the cos-weighted visible fraction of the light, so
-//! r · h_n is the light's shadowed direct term (exactly, while the cone lies above the
-//! horizon). The filter's output is F − (the replaced light) + r · filtered h_n: everything but
-//! that one term stays as the path tracer rendered it.
+//! The estimator, per pixel. The pixel's receiver is the hit of the ray through its centre
+//! (a diffuse surface; its position, normal, object and pixel size d are what the filter's
+//! weights use). The passes here trace light samples, each from its own random point x_k of
+//! the pixel that lies on the receiver's object, in directions stratified over the light's cone
+//! (uniform in solid angle, as the path tracer samples it), each weighted by l = cos θ at x_k:
+//! h_n = Σ f·l / Σ l (eq. 3.2) is the cos-weighted visible fraction of the light, and
+//! r = Σ_k r(x_k) / n, with r(x) = albedo · L sin²α cos θ_c (eq. 3.1: the light's unshadowed
+//! direct term from its centre, exact while the cone lies above the horizon), so that r · h_n
+//! is the light's shadowed direct term over the part of the pixel the receiver covers. The
+//! megakernel folds into `ShadowTerms` the light its path samples brought straight from this
+//! light to their first surface when that is the receiver's object (the next-event estimate,
+//! or the light's emission found by the first bounce without light sampling). The filter
+//! writes F − that + r · filtered h_n: everything else, including the rest of a pixel at a
+//! silhouette, stays as the path tracer rendered it.
 //!
 //! The passes run once, before the first path samples ([`super::Renderer::render_samples`]):
 //! 1. `shadow_sparse`: sparse_spp = k² samples (one per stratum) per pixel, with the nearest and
