@@ -36,7 +36,7 @@ fn kernels_match_the_reference_on_a_rendered_frame() {
     let cpu = reference(&frame, &s, light0(&frame)).unwrap();
     let diff = max_rel_diff(&device, &cpu);
     eprintln!("kernel against reference: {diff:e}");
-    // Measured 2.4e-7 (exp and normalize of two libraries); bound 1e-6.
+    // Measured 2.3e-7 (exp and normalize of two libraries); bound 1e-6.
     assert!(diff < 1e-6, "{diff}");
     assert_finite(&device, "grids");
 }
@@ -201,8 +201,8 @@ fn constant_images_pass_through_and_scaled_weights_change_nothing() {
         worst = worst.max((o[0] - want).abs());
     }
     eprintln!("constant 0.37: off by {worst:e} at most");
-    // Measured 6e-8 (one rounding of the normalised mean); bound 2e-7.
-    assert!(worst <= 2e-7, "{worst}");
+    // Measured 1.2e-7 (a few ulps of 0.37, the normalised mean's rounding); bound 3e-7.
+    assert!(worst <= 3e-7, "{worst}");
     // Random visibilities; the sums Σ f·l and Σ l multiplied by 1000 (the weights' scale):
     // the same image.
     for p in &mut px {
@@ -216,7 +216,7 @@ fn constant_images_pass_through_and_scaled_weights_change_nothing() {
     let b = filtered(&rebuild(&px), &s);
     let diff = max_rel_diff(&a, &b);
     eprintln!("sums x1000: {diff:e}");
-    // Measured 2.4e-7 (the ratio's rounding); bound 1e-6.
+    // Measured 2.2e-7 (the ratio's rounding); bound 1e-6.
     assert!(diff <= 1e-6, "{diff}");
 }
 
@@ -280,9 +280,10 @@ fn the_filter_is_scale_invariant() {
             st.average_spp,
             stats.average_spp
         );
-        // Rounding moves a few shadow rays that graze a bar. Measured: 0 and 2 pixels apart,
-        // spp within 0.01; bounds 1% of the pixels and 1%.
-        assert!(apart * 100 <= one.pixels.len(), "{apart}");
-        assert!((st.average_spp / stats.average_spp - 1.0).abs() < 0.01);
+        // Rounding moves a few shadow rays that graze a bar (and with them slopes and sample
+        // counts). Measured: 8 and 10 pixels of 1728 apart by more than 1e-3, average spp
+        // 51.452 against 51.546 (0.18%) at both scales; bounds 20 pixels and 0.5%.
+        assert!(apart <= 20, "{apart}");
+        assert!((st.average_spp / stats.average_spp - 1.0).abs() < 5e-3);
     }
 }
