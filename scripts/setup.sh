@@ -50,3 +50,17 @@ fi
 if ! command -v cc >/dev/null 2>&1; then
     apt_install build-essential
 fi
+
+# The tests (scripts/test.sh sets NOISEFREE_SETUP_TESTS=1) also drive the viewer under a
+# virtual X server (tests/view.rs): Xvfb, and the X libraries the viewer's window (minifb)
+# loads at run time, libX11 and libXcursor.
+if [ "${NOISEFREE_SETUP_TESTS:-0}" = 1 ]; then
+    missing=()
+    command -v Xvfb >/dev/null 2>&1 || missing+=(xvfb)
+    ldconfig -p 2>/dev/null | grep -q 'libX11\.so\.6' || missing+=(libx11-6)
+    ldconfig -p 2>/dev/null | grep -q 'libXcursor\.so\.1' || missing+=(libxcursor1)
+    if [ "${#missing[@]}" -gt 0 ]; then
+        echo "setup: installing ${missing[*]} for the viewer's tests (apt)" >&2
+        apt_install "${missing[@]}"
+    fi
+fi

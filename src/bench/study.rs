@@ -24,19 +24,22 @@ pub struct Sizes {
 }
 
 pub fn sizes(ctx: &Context) -> Sizes {
-    if ctx.quick {
+    sizes_for(ctx.quick, ctx.reference_spp)
+}
+
+/// The image sizes of a run (`--quick`) and its references' spp (`--reference-spp`).
+pub fn sizes_for(quick: bool, reference_spp: Option<u32>) -> Sizes {
+    if quick {
         Sizes {
             width: 64,
             height: 64,
-            reference_spp: ctx.reference_spp.unwrap_or(256),
+            reference_spp: reference_spp.unwrap_or(256),
         }
     } else {
         Sizes {
             width: 512,
             height: 512,
-            reference_spp: ctx
-                .reference_spp
-                .unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
+            reference_spp: reference_spp.unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
         }
     }
 }
@@ -155,14 +158,19 @@ fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
     o
 }
 
-pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
-    let req = ReferenceRequest {
+/// The ground truth the studies compare a scene's images with.
+pub fn reference_request(path: &Path, s: &Sizes) -> ReferenceRequest {
+    ReferenceRequest {
         scene: path.to_path_buf(),
         width: s.width,
         height: s.height,
         spp: s.reference_spp,
         seed: ground_truth::REFERENCE_SEED,
-    };
+    }
+}
+
+pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
+    let req = reference_request(path, s);
     ctx.say(&format!(
         "reference: {} ({} spp)",
         path.display(),

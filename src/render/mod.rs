@@ -2,22 +2,26 @@
 //! to the outputs asked for, and adds samples progressively to the per-pixel outputs (thesis
 //! §4.2.3, §4.3). Which buffers exist, and how they are bound to the kernel, comes from the
 //! output table of src/layout/outputs.rs; what the renderer leaves is read through a
-//! [`Frame`].
+//! [`Frame`]. A renderer may cover a range of the samples and a [`Tile`] of the image: such
+//! partial renders merge into the whole (src/stats/merge/).
 
+pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
 pub mod progressive;
 pub mod shadows;
+pub mod split;
+pub mod tile;
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use anyhow::{Context as _, Result, bail};
+use anyhow::{Context as _, Result};
 use ocl::{Buffer, Kernel};
 
 pub use crate::arrays::{FrameSettings, SceneArrays};
-use crate::gpu::{Gpu, enqueue, event_duration, round_up};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, fnv1a, round_up};
 use crate::layout::outputs::{BUFFERS, BufferId, Output, OutputSet};
 use crate::layout::{
     BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
@@ -28,6 +32,8 @@ pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 pub use progressive::{Budget, progress_bar, render_progressively};
 pub use shadows::{ShadowSampling, ShadowStats};
+pub use split::{SplitFrame, SplitRenderer};
+pub use tile::Tile;
 
 /// How to render, besides the scene itself.
 #[derive(Clone, Debug)]
@@ -45,6 +51,11 @@ pub struct RenderOptions {
     pub debug_counters: bool,
     /// How the shadow output is sampled (with [`Output::Shadows`]).
     pub shadows: ShadowSampling,
+    /// The render's first sample: it renders the samples from here on (`render --samples
+    /// A..B`), counted from here in its statistics. 0 for a whole render.
+    pub first_sample: u32,
+    /// The part of the image rendered; None: all of it.
+    pub tile: Option<Tile>,
 }
 
 impl RenderOptions {
@@ -57,7 +68,15 @@ impl RenderOptions {
             local_size: None,
             debug_counters: false,
             shadows: ShadowSampling::default(),
+            first_sample: 0,
+            tile: None,
         }
+    }
+
+    /// The rectangle rendered: the tile, or the whole image.
+    pub fn tile(&self) -> Tile {
+        self.tile
+            .unwrap_or_else(|| Tile::whole(self.frame.width, self.frame.height))
     }
 }
 
@@ -138,13 +157,23 @@ pub struct Renderer {
     pub scene_info: SceneInfo,
     outputs: OutputSet,
     sample_capacity: u32,
+    all_features: bool,
+    debug: bool,
+    local_size: Option<[usize; 2]>,
+    tile: Tile,
+    first_sample: u32,
     /// One buffer per entry of the output table: allocated when its output is on, a
     /// one-element stand-in otherwise.
     buffers: Vec<(BufferId, Buffer<u8>)>,
     ray_counts: Buffer<u32>,
     debug_counters: Buffer<u32>,
-    kernel: Kernel,
+    /// Always Some after construction (built once the buffers exist).
+    kernel: Option<Kernel>,
+    /// The sphere light of the shadow output (with [`Output::Shadows`]), and how it is sampled.
+    shadow_light: Option<u32>,
+    shadow_sampling: ShadowSampling,
     /// The AAF shadow passes, with the shadow output; run before the first path samples.
+    /// Built with the render kernel, from its program.
     shadow_passes: Option<shadows::ShadowPasses>,
     shadow_stats: Option<ShadowStats>,
     _scene: DeviceScene,
@@ -169,7 +198,7 @@ impl Renderer {
         options: &RenderOptions,
     ) -> Result<Renderer> {
         check_size(&gpu, options)?;
-        let frame = &options.frame;
+        let tile = options.tile();
         let outputs = options.outputs.closed();
         let capacity = if outputs.contains(Output::Samples) {
             options.sample_capacity.max(1)
@@ -181,33 +210,19 @@ impl Renderer {
         } else {
             FeatureSet::for_scene(scene, outputs)
         };
-        let mut defines = features.defines();
-        defines.push((
-            "DEBUG_COUNTERS".into(),
-            (options.debug_counters as u32).to_string(),
-        ));
-        // The shadow output samples one sphere light (they lead the light list).
         let shadow_light = if outputs.contains(Output::Shadows) {
-            options.shadows.check()?;
-            let spheres = arrays
-                .lights
-                .iter()
-                .take_while(|l| l.kind == crate::layout::LIGHT_SPHERE)
-                .count() as u32;
-            if options.shadows.light >= spheres {
-                bail!(
-                    "the shadow output samples sphere light {} (counting from 0), but the scene \
-                     has {spheres} sphere light(s)",
-                    options.shadows.light
-                );
-            }
-            Some(options.shadows.light)
+            Some(shadows::shadow_light(
+                &arrays,
+                &options.shadows,
+                tile,
+                &options.frame,
+            )?)
         } else {
             None
         };
-        let program = gpu.program("render/pathtrace.cl", &defines, "")?;
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
-        let (w, h) = (frame.width, frame.height);
+        let scene_info = SceneInfo::new(scene, &arrays);
+        let (w, h) = (tile.width, tile.height);
         // Only what is asked for is allocated: the others are one-element stand-ins.
         let buffers = BUFFERS
             .iter()
@@ -223,77 +238,91 @@ impl Renderer {
         let pixels = w as usize * h as usize;
         let debug_counters = gpu.zeroed::<u32>(DEBUG_COUNTERS.len(), "debug counter")?;
         let ray_counts = gpu.zeroed::<u32>(pixels, "ray count")?;
-
-        let mut builder = Kernel::builder();
-        builder
-            .program(&program)
-            .name("render")
-            .queue(gpu.queue.clone());
-        let (wu, hu) = (w as usize, h as usize);
-        match options.local_size {
-            Some(l) => {
-                builder
-                    .global_work_size([round_up(wu, l[0]), round_up(hu, l[1])])
-                    .local_work_size(l);
-            }
-            None => {
-                builder.global_work_size([wu, hu]);
-            }
-        }
-        // Every argument by name, in the kernel's order (checked against the kernel's own
-        // argument names by tests/layout.rs).
-        device_scene.bind(&mut builder);
-        for (id, b) in &buffers {
-            builder.arg_named(id.decl().name, b);
-        }
-        builder
-            .arg_named("ray_counts", &ray_counts)
-            .arg_named("debug_counters", &debug_counters)
-            .arg_named("sample_capacity", capacity)
-            .arg_named("sample_base", 0u32)
-            .arg_named("sample_count", 0u32)
-            .arg_named("shadow_light", shadow_light.unwrap_or(u32::MAX));
-        let kernel = builder.build().context("creating the render kernel")?;
-        let scene_info = SceneInfo::new(scene, &arrays);
-        let shadow_passes = match shadow_light {
-            Some(_) => {
-                let pixels = &buffers
-                    .iter()
-                    .find(|(id, _)| *id == BufferId::ShadowPixels)
-                    .expect("every buffer is allocated")
-                    .1;
-                Some(shadows::ShadowPasses::new(
-                    &gpu,
-                    &program,
-                    [wu, hu],
-                    options.shadows,
-                    &device_scene,
-                    &debug_counters,
-                    pixels,
-                )?)
-            }
-            None => None,
-        };
-        Ok(Renderer {
+        let mut r = Renderer {
             gpu,
             arrays,
             features,
             scene_info,
             outputs,
             sample_capacity: capacity,
+            all_features: options.all_features,
+            debug: options.debug_counters,
+            local_size: options.local_size,
+            tile,
+            first_sample: options.first_sample,
             buffers,
             ray_counts,
             debug_counters,
-            kernel,
-            shadow_passes,
+            kernel: None,
+            shadow_light,
+            shadow_sampling: options.shadows,
+            shadow_passes: None,
             shadow_stats: None,
             _scene: device_scene,
             samples_done: 0,
             rays_total: 0,
             kernel_time_total: Duration::ZERO,
-        })
+        };
+        let (kernel, shadow_passes) = r.build_kernels()?;
+        (r.kernel, r.shadow_passes) = (Some(kernel), shadow_passes);
+        Ok(r)
     }
 
+    /// The megakernel specialised to `self.features`, every argument bound, and the shadow
+    /// passes from its program (with the shadow output).
+    fn build_kernels(&self) -> Result<(Kernel, Option<shadows::ShadowPasses>)> {
+        let mut defines = self.features.defines();
+        defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
+        let program = self.gpu.program("render/pathtrace.cl", &defines, "")?;
+        let mut builder = Kernel::builder();
+        builder
+            .program(&program)
+            .name("render")
+            .queue(self.gpu.queue.clone());
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        match self.local_size {
+            Some(l) => {
+                builder
+                    .global_work_size([round_up(w, l[0]), round_up(h, l[1])])
+                    .local_work_size(l);
+            }
+            None => {
+                builder.global_work_size([w, h]);
+            }
+        }
+        // Every argument by name, in the kernel's order (checked against the kernel's own
+        // argument names by tests/layout.rs).
+        self._scene.bind(&mut builder);
+        for (id, b) in &self.buffers {
+            builder.arg_named(id.decl().name, b);
+        }
+        builder
+            .arg_named("ray_counts", &self.ray_counts)
+            .arg_named("debug_counters", &self.debug_counters)
+            .arg_named("sample_capacity", self.sample_capacity)
+            .arg_named("tile_x", self.tile.x)
+            .arg_named("tile_y", self.tile.y)
+            .arg_named("tile_width", self.tile.width)
+            .arg_named("tile_height", self.tile.height)
+            .arg_named("range_first", self.first_sample)
+            .arg_named("sample_base", self.first_sample)
+            .arg_named("sample_count", 0u32)
+            .arg_named("shadow_light", self.shadow_light.unwrap_or(u32::MAX));
+        let kernel = builder.build().context("creating the render kernel")?;
+        let shadow_passes = match self.shadow_light {
+            Some(_) => Some(shadows::ShadowPasses::new(
+                &self.gpu,
+                &program,
+                [self.width() as usize, self.height() as usize],
+                self.shadow_sampling,
+                &self._scene,
+                &self.debug_counters,
+                self.buffer(BufferId::ShadowPixels),
+            )?),
+            None => None,
+        };
+        Ok((kernel, shadow_passes))
+    }
     /// The names of the render kernel's arguments in the order they are bound.
     pub fn argument_names() -> Vec<&'static str> {
         let mut v = vec![
@@ -313,6 +342,11 @@ impl Renderer {
             "ray_counts",
             "debug_counters",
             "sample_capacity",
+            "tile_x",
+            "tile_y",
+            "tile_width",
+            "tile_height",
+            "range_first",
             "sample_base",
             "sample_count",
             "shadow_light",
@@ -320,12 +354,24 @@ impl Renderer {
         v
     }
 
+    /// Width of what this renderer's buffers hold: the tile's (the image's for a whole render).
     pub fn width(&self) -> u32 {
-        self.arrays.params.image_width
+        self.tile.width
     }
 
     pub fn height(&self) -> u32 {
-        self.arrays.params.image_height
+        self.tile.height
+    }
+
+    /// The part of the image rendered.
+    pub fn tile(&self) -> Tile {
+        self.tile
+    }
+
+    /// The first sample of the render's range: it has rendered samples
+    /// `first_sample()..first_sample() + samples_done()`.
+    pub fn first_sample(&self) -> u32 {
+        self.first_sample
     }
 
     /// The outputs this renderer gathers.
@@ -333,41 +379,128 @@ impl Renderer {
         self.outputs
     }
 
-    /// Samples per pixel accumulated so far.
+    /// Samples per pixel accumulated so far (from [`Renderer::first_sample`] on).
     pub fn samples_done(&self) -> u32 {
         self.samples_done
     }
 
     /// Adds `count` samples per pixel in one launch and waits for it.
     pub fn render_samples(&mut self, count: u32) -> Result<LaunchStats> {
+        self.render_rows(count, 0..self.height())
+    }
+
+    /// Band boundaries must fall on multiples of this many rows: the work-group height, so
+    /// that no work-group of a band reaches into the next band (whose pixels another device
+    /// renders).
+    pub fn row_granularity(&self) -> u32 {
+        self.local_size.map_or(1, |l| l[1] as u32)
+    }
+
+    /// Adds `count` samples per pixel to the pixels of `rows` only (one band of a frame split
+    /// across devices, §4.2), in one launch, and waits for it. The film counts `count` more
+    /// samples per pixel either way: the caller renders the other rows elsewhere. A band must
+    /// start on a multiple of [`Renderer::row_granularity`].
+    pub fn render_rows(&mut self, count: u32, rows: std::ops::Range<u32>) -> Result<LaunchStats> {
         if count == 0 {
             return Ok(LaunchStats::default());
         }
-        let (mut rays, mut kernel_time) = (0u64, Duration::ZERO);
         if self.samples_done == 0
             && let Some(passes) = &self.shadow_passes
         {
-            (rays, kernel_time) = passes.run()?;
+            // Over the whole image, whatever the rows: a device of a split frame computes
+            // every pixel's receiver and slopes (they depend on the pixel alone), so its
+            // film holds the same shadow pixels as one device's would.
+            let (rays, time) = passes.run()?;
             let frame = self.frame();
             let pixels = frame.host_slice::<crate::layout::ShadowPixel>(BufferId::ShadowPixels)?;
-            self.shadow_stats = Some(shadows::shadow_stats(pixels, rays, kernel_time));
+            self.shadow_stats = Some(shadows::shadow_stats(pixels, rays, time));
+            self.rays_total += rays;
+            self.kernel_time_total += time;
         }
-        self.kernel.set_arg("sample_base", self.samples_done)?;
-        self.kernel.set_arg("sample_count", count)?;
-        // SAFETY: every buffer argument is alive (owned by self) and sized for the global range.
-        let event = unsafe { enqueue(&self.kernel, "the render kernel")? };
-        kernel_time += event_duration(&event)?;
-        let mut counts = vec![0u32; self.ray_counts.len()];
-        self.ray_counts.read(&mut counts).enq()?;
-        rays += counts.iter().map(|&c| c as u64).sum::<u64>();
+        let rows = rows.start.min(self.height())..rows.end.min(self.height());
+        let stats = if rows.is_empty() {
+            LaunchStats {
+                samples: count,
+                ..Default::default()
+            }
+        } else {
+            self.launch(count, rows)?
+        };
         self.samples_done += count;
-        self.rays_total += rays;
-        self.kernel_time_total += kernel_time;
+        self.rays_total += stats.rays;
+        self.kernel_time_total += stats.kernel_time;
+        Ok(stats)
+    }
+
+    fn launch(&mut self, count: u32, rows: std::ops::Range<u32>) -> Result<LaunchStats> {
+        let kernel = self.kernel.as_ref().expect("built in with_arrays");
+        kernel.set_arg("sample_base", self.first_sample + self.samples_done)?;
+        kernel.set_arg("sample_count", count)?;
+        let w = self.width() as usize;
+        // SAFETY: every buffer argument is alive (owned by self) and sized for the whole
+        // image; the kernel skips work-items beyond the image.
+        let event = unsafe {
+            enqueue_rows(
+                kernel,
+                self.width(),
+                self.height(),
+                rows.clone(),
+                "the render kernel",
+            )?
+        };
+        let kernel_time = event_duration(&event)?;
+        let first = rows.start as usize * w;
+        let mut counts = vec![0u32; rows.len() * w];
+        self.ray_counts
+            .read(&mut counts)
+            .offset(first)
+            .enq()
+            .context("reading the ray counts")?;
         Ok(LaunchStats {
             samples: count,
             kernel_time,
-            rays,
+            rays: counts.iter().map(|&c| c as u64).sum(),
         })
+    }
+
+    /// Empties the film (thesis §4.2.2 "Film": the buffers are emptied when the camera
+    /// updates): every output buffer to zero, no samples.
+    pub fn reset(&mut self) -> Result<()> {
+        for (id, b) in &self.buffers {
+            if self.outputs.contains(id.owner()) {
+                b.cmd()
+                    .fill(0u8, None)
+                    .enq()
+                    .with_context(|| format!("emptying the {} buffer", id.decl().name))?;
+            }
+        }
+        self.samples_done = 0;
+        Ok(())
+    }
+
+    /// Moves the camera to `scene.camera` (the scene this renderer was built from, camera
+    /// changed) and empties the film; the kernel is rebuilt when the camera changes which
+    /// effects it needs (a lens: `HAS_DOF`). Renders then give exactly the bytes of a
+    /// renderer built for `scene`.
+    pub fn set_camera(&mut self, scene: &Scene) -> Result<()> {
+        self.arrays.set_camera(scene);
+        let features = if self.all_features {
+            FeatureSet::all_features(scene, self.outputs)
+        } else {
+            FeatureSet::for_scene(scene, self.outputs)
+        };
+        self._scene
+            .params
+            .write(std::slice::from_ref(&self.arrays.params))
+            .enq()
+            .context("uploading the camera")?;
+        if features != self.features {
+            self.features = features;
+            let (kernel, shadow_passes) = self.build_kernels()?;
+            (self.kernel, self.shadow_passes) = (Some(kernel), shadow_passes);
+        }
+        self.scene_info = SceneInfo::new(scene, &self.arrays);
+        self.reset()
     }
 
     /// The outputs as they are now, for filters, AOV files and images. Cheap: it shares the
@@ -399,6 +532,16 @@ impl Renderer {
         Some((self.shadow_passes.as_ref()?.sampling(), self.shadow_stats?))
     }
 
+    /// One of the output buffers (a one-element stand-in when not gathered).
+    fn buffer(&self, id: BufferId) -> &Buffer<u8> {
+        &self
+            .buffers
+            .iter()
+            .find(|(i, _)| *i == id)
+            .expect("every buffer is allocated")
+            .1
+    }
+
     /// The debug counters (all zero unless built with `debug_counters`), named by
     /// [`DEBUG_COUNTERS`].
     pub fn read_debug_counters(&self) -> Result<Vec<u32>> {
@@ -413,7 +556,9 @@ impl Renderer {
 
 /// Refuses sizes the device cannot hold, before anything is built.
 fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
-    let (w, h) = (options.frame.width, options.frame.height);
+    let tile = options.tile();
+    tile.check_within(options.frame.width, options.frame.height)?;
+    let (w, h) = (tile.width, tile.height);
     let outputs = options.outputs.closed();
     let capacity = options.sample_capacity.max(1);
     for b in outputs.buffers() {
@@ -423,4 +568,55 @@ fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
         outputs.bytes(w, h, capacity) + 4 * w as u64 * h as u64,
         &format!("the per-pixel outputs ({})", outputs.names().join(", ")),
     )
+}
+
+fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
+    // SAFETY: the shared layout types are plain f32/u32/i32 with explicit padding fields
+    // (src/layout/mod.rs), so every byte is initialised.
+    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
+}
+
+/// A hash of the scene as uploaded: geometry, materials, textures, lights, camera, resolution
+/// and seed. With [`kernel_hash`] it decides every pixel of a render.
+pub fn scene_hash(arrays: &SceneArrays) -> u64 {
+    fnv1a(&scene_bytes(arrays))
+}
+
+fn scene_bytes(arrays: &SceneArrays) -> [&[u8]; 10] {
+    [
+        bytes_of(std::slice::from_ref(&arrays.params)),
+        bytes_of(&arrays.nodes),
+        bytes_of(&arrays.tri_geom),
+        bytes_of(&arrays.tri_shading),
+        bytes_of(&arrays.spheres),
+        bytes_of(&arrays.materials),
+        bytes_of(&arrays.textures),
+        bytes_of(&arrays.texels),
+        bytes_of(&arrays.lights),
+        bytes_of(&arrays.light_cdf),
+    ]
+}
+
+fn kernel_sources() -> String {
+    crate::kernels::SOURCES.iter().map(|(_, s)| *s).collect()
+}
+
+/// A hash of the kernels' sources (this build's megakernel).
+pub fn kernel_hash() -> u64 {
+    fnv1a(&[kernel_sources().as_bytes()])
+}
+
+/// A hash of everything that decides a render's pixels: the scene as uploaded and the
+/// megakernel's sources (the key of the reference cache, src/bench/ground_truth.rs).
+pub fn render_hash(arrays: &SceneArrays) -> u64 {
+    render_hash_with(arrays, &arrays.params)
+}
+
+/// [`render_hash`] with `params` in place of the arrays' own (another seed or camera).
+pub fn render_hash_with(arrays: &SceneArrays, params: &SceneParams) -> u64 {
+    let kernels = kernel_sources();
+    let mut parts = scene_bytes(arrays).to_vec();
+    parts[0] = bytes_of(std::slice::from_ref(params));
+    parts.push(kernels.as_bytes());
+    fnv1a(&parts)
 }

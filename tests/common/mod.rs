@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod aaf;
+pub mod merge;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

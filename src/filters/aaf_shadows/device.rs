@@ -1,6 +1,7 @@
 //! The AAF soft-shadow filter on the device (kernels/filters/aaf_shadows.cl): prepare, the
 //! pass along rows, the pass along columns, compose.
 
+use std::ops::Range;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -9,7 +10,7 @@ use ocl::{Buffer, Kernel};
 
 use super::AafShadowSettings;
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AafShadowParams, Float4};
 use crate::render::Frame;
@@ -33,6 +34,8 @@ pub struct AafShadowKernel {
     passes: Option<Passes>,
     width: u32,
     height: u32,
+    /// Half width of eq. 3.7's 1-D passes, pixels: the rows a band's pixels read beyond it.
+    radius: u32,
 }
 
 impl AafShadowKernel {
@@ -57,17 +60,36 @@ impl AafShadowKernel {
             passes,
             width,
             height,
+            radius: settings.radius,
         })
     }
 
     /// Filters `frame` (width × height, with the shadow output unless there is no light) and
     /// reads the image back; the kernel time sums the four launches.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter_rows(frame, 0..self.height)
+    }
+
+    /// Filters the pixels of `rows` only (one band of a frame split across devices): the
+    /// prepare pass and the pass along rows run on the band widened by `radius` rows, which
+    /// the pass along columns reads, so the band's pixels get the bytes that filtering the
+    /// whole frame gives them. The image's other rows are black.
+    pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
+        let h = self.height;
+        let rows = rows.start.min(h)..rows.end.min(h);
+        let widened = rows.start.saturating_sub(self.radius)..(rows.end + self.radius).min(h);
         frame.check_size(self.width, self.height, "the aaf-shadows filter")?;
         let Some(p) = &mut self.passes else {
+            let mut image = frame.beauty()?;
+            let w = self.width as usize;
+            for (y, row) in image.pixels.chunks_mut(w).enumerate() {
+                if !rows.contains(&(y as u32)) {
+                    row.fill([0.0; 3]);
+                }
+            }
             return Ok(FilterRun {
-                image: frame.beauty()?,
+                image,
                 wall_time: start.elapsed(),
                 kernel_time: Some(Duration::ZERO),
             });
@@ -85,19 +107,19 @@ impl AafShadowKernel {
         p.compose.set_arg("fv", fv)?;
         p.compose.set_arg("terms", terms)?;
         let mut kernel_time = Duration::ZERO;
-        for (k, what) in [
-            (&p.prepare, "the AAF prepare pass"),
-            (&p.rows, "the AAF pass along rows"),
-            (&p.columns, "the AAF pass along columns"),
-            (&p.compose, "the AAF compose pass"),
+        for (k, band, what) in [
+            (&p.prepare, &widened, "the AAF prepare pass"),
+            (&p.rows, &widened, "the AAF pass along rows"),
+            (&p.columns, &rows, "the AAF pass along columns"),
+            (&p.compose, &rows, "the AAF compose pass"),
         ] {
             // SAFETY: every buffer is owned by self or the frame, both alive until the event
             // completes (we wait on it here), and sized for width x height pixels.
-            let event = unsafe { enqueue(k, what)? };
+            let event = unsafe { enqueue_rows(k, self.width, h, band.clone(), what)? };
             kernel_time += event_duration(&event)?;
         }
         Ok(FilterRun {
-            image: read_rgb(&p.image, self.width, self.height)?,
+            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
             wall_time: start.elapsed(),
             kernel_time: Some(kernel_time),
         })
@@ -179,5 +201,13 @@ impl Passes {
 impl PreparedFilter for AafShadowKernel {
     fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
         self.filter(frame)
+    }
+
+    fn reach(&self) -> Option<u32> {
+        Some(self.radius)
+    }
+
+    fn run_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
+        self.filter_rows(frame, rows)
     }
 }

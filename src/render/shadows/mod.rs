@@ -93,6 +93,40 @@ impl ShadowSampling {
     }
 }
 
+/// The light the shadow output samples, checked against the scene (sphere lights lead the
+/// light list) and the render: the passes work on the whole image (the slope fill reaches
+/// `fill_radius` pixels across), so a tile is refused rather than filtered differently from
+/// the whole render. Sample ranges are fine: the passes depend on the pixel alone, so every
+/// range's part holds the same shadow pixels ([`crate::layout::outputs::Merge::Identical`]).
+pub(super) fn shadow_light(
+    arrays: &crate::arrays::SceneArrays,
+    sampling: &ShadowSampling,
+    tile: super::Tile,
+    frame: &crate::arrays::FrameSettings,
+) -> Result<u32> {
+    sampling.check()?;
+    if tile != super::Tile::whole(frame.width, frame.height) {
+        bail!(
+            "the shadow output (the aaf-shadows filter) needs the whole image, not a tile: its \
+             slope fill reaches across tile borders; render sample ranges (--samples A..B) \
+             instead of tiles"
+        );
+    }
+    let spheres = arrays
+        .lights
+        .iter()
+        .take_while(|l| l.kind == crate::layout::LIGHT_SPHERE)
+        .count() as u32;
+    if sampling.light >= spheres {
+        bail!(
+            "the shadow output samples sphere light {} (counting from 0), but the scene has \
+             {spheres} sphere light(s)",
+            sampling.light
+        );
+    }
+    Ok(sampling.light)
+}
+
 /// What the shadow passes spent.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ShadowStats {
