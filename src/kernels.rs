@@ -43,6 +43,14 @@ pub const SOURCES: &[(&str, &str)] = &[
     ),
     ("render/film.cl", include_str!("../kernels/render/film.cl")),
     (
+        "render/bandlimit.cl",
+        include_str!("../kernels/render/bandlimit.cl"),
+    ),
+    (
+        "render/shadows.cl",
+        include_str!("../kernels/render/shadows.cl"),
+    ),
+    (
         "render/pathtrace.cl",
         include_str!("../kernels/render/pathtrace.cl"),
     ),
@@ -50,6 +58,10 @@ pub const SOURCES: &[(&str, &str)] = &[
     (
         "filters/atrous.cl",
         include_str!("../kernels/filters/atrous.cl"),
+    ),
+    (
+        "filters/aaf_shadows.cl",
+        include_str!("../kernels/filters/aaf_shadows.cl"),
     ),
     ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];

@@ -19,7 +19,7 @@ use anyhow::Result;
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
 use crate::layout::outputs::OutputSet;
-use crate::render::{Frame, FrameInfo, SceneInfo};
+use crate::render::{Frame, FrameInfo, RenderOptions, SceneInfo};
 pub use placement::{DeviceFilter, MultiDeviceArgs, Placement};
 pub use registry::{Configured, FilterRequest, Registry};
 pub use settings::{Auto, DeclaredSettings, FieldDoc};
@@ -41,6 +41,7 @@ builtin_filters! {
     ddf::Ddf,       // the data-driven filter (thesis ch. 6)
     rpf::Rpf,       // Random Parameter Filtering (thesis ch. 5)
     atrous::Atrous, // the edge-avoiding à-trous wavelet filter (Dammertz et al. 2010)
+    aaf_shadows::AafShadows, // axis-aligned filtering of soft shadows (Wang 2013 ch. 3)
 }
 
 /// A filter, as its module declares it. Implement this; the registry sees it as a [`Filter`].
@@ -65,6 +66,10 @@ pub trait FilterKind: Send + Sync + 'static {
 
     /// The outputs the renderer must gather for these settings.
     fn needs(settings: &Self::Settings) -> OutputSet;
+
+    /// How the renderer gathers them, where that is the filter's choice (AAF's sample
+    /// counts); most filters leave the options as they are.
+    fn render_options(_settings: &Self::Settings, _options: &mut RenderOptions) {}
 
     /// Builds the filter for frames like `frame` (size, scene) on `gpu`.
     fn prepare(
