@@ -23,6 +23,8 @@
 //! - `balance` (only when asked, with `--devices`): several devices sharing each frame
 //!   (thesis §4.2): each device's share and idle time per frame, with and without
 //!   re-balancing, and where the filter runs.
+//! - `aaf-shadows` (only when asked): AAF soft shadows against Monte Carlo on Grids, error
+//!   against light samples and against time (Wang 2013 Fig. 3.6), the spp map (`aaf`).
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -30,6 +32,7 @@
 //! confused with `render::cpu`, the CPU mirror of the kernels); `table` the resumable CSV
 //! tables and `plot` the charts and contact sheets.
 
+pub mod aaf;
 pub mod accuracy_time;
 pub mod balance;
 pub mod curves;
@@ -62,6 +65,9 @@ pub enum Study {
     Sweep,
     /// Several devices per frame (needs --devices with two or more; not in the default set).
     Balance,
+    /// AAF soft shadows against Monte Carlo on Grids, Wang 2013 Fig. 3.6 (not in the default
+    /// set).
+    AafShadows,
 }
 
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -203,7 +209,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
     let needs_bundled = args.scene.is_empty()
         || studies
             .iter()
-            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep));
+            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep | Study::AafShadows));
     if scenes_dir.is_none() && needs_bundled {
         return Err(no_scenes_dir());
     }
@@ -235,6 +241,10 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
                 for name in sweep::sweep_scenes(args.quick) {
                     paths.push(dir.join(format!("{name}.toml")));
                 }
+            }
+            Study::AafShadows => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                paths.push(dir.join("grids.toml"));
             }
             Study::RenderSpeed | Study::Statistics | Study::FilterSpeed | Study::Balance => {}
         }
@@ -419,6 +429,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
+            Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;

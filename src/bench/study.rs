@@ -150,7 +150,7 @@ pub fn methods_markdown() -> String {
     md
 }
 
-fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
+pub(super) fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
     let mut o = RenderOptions::for_scene(scene);
     o.frame.width = s.width;
     o.frame.height = s.height;
