@@ -38,6 +38,7 @@
 //! largest neighbourhood (≈ 29 · 4 · 2 · M bytes); allocations that fail are errors, not
 //! aborts.
 
+pub mod cpu;
 pub mod mi;
 pub mod preprocess;
 pub mod weights;
