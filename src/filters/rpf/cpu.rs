@@ -15,7 +15,8 @@ pub enum Level {
     Generic,
     /// x86-64 with `popcnt`.
     Popcnt,
-    /// x86-64 with AVX-512 F, BW and VPOPCNTDQ.
+    /// x86-64 with AVX-512 F, BW, DQ, VL and VPOPCNTDQ (and AVX2, FMA, which every such CPU
+    /// has).
     Avx512,
 }
 
@@ -59,6 +60,10 @@ impl Level {
     fn best() -> Level {
         if std::arch::is_x86_feature_detected!("avx512f")
             && std::arch::is_x86_feature_detected!("avx512bw")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma")
             && std::arch::is_x86_feature_detected!("avx512vpopcntdq")
             && std::arch::is_x86_feature_detected!("popcnt")
         {
@@ -74,4 +79,17 @@ impl Level {
     fn best() -> Level {
         Level::Generic
     }
+}
+
+/// Asks the CPU to bring the cache line holding `p` closer (a hint: it cannot fault, and does
+/// nothing where the architecture has no such instruction here).
+#[inline(always)]
+pub fn prefetch<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of x86-64; a prefetch reads nothing and cannot fault.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p as *const i8)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
 }

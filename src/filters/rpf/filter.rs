@@ -21,8 +21,12 @@
 //!   colours cannot overflow. Weights are computed in f32; `exp(−d)` for d ≥ 105 is 0 in f32
 //!   and is not evaluated.
 
+use super::kernel;
 use super::mi::MiWorkspace;
-use super::preprocess::{self, OffsetTable, PixelRng, Selection};
+use super::cpu::{self, Level};
+use crate::layout::SampleVector;
+use super::preprocess::{self, OffsetTable, PixelRng};
+use super::select::{self, FeatureLine, SelectScratch, Selection};
 use super::samples::{FLOATS_PER_SAMPLE, SampleSet, to_floats};
 use super::weights::{self, COLORS, Dependencies, FEATURES, POSITIONS, RANDOMS, Weights};
 use super::{RangeColors, RpfSettings};
@@ -37,12 +41,15 @@ const CUR0: usize = FLOATS_PER_SAMPLE;
 const ROWS: usize = FLOATS_PER_SAMPLE + COLORS;
 /// Dimensions of the weight of eq. 5.2: 3 colours + 15 features.
 const DIMS: usize = COLORS + FEATURES;
-/// exp(−d) is 0 in f32 from here on.
-const EXP_CUTOFF: f32 = 105.0;
+const _: () = assert!(DIMS == kernel::MAX_DIMS);
 
 /// Per-iteration constants shared by all pixels.
 pub(super) struct Iteration<'a> {
     pub set: &'a SampleSet,
+    /// [`FeatureLine::of`] every sample.
+    pub lines: &'a [FeatureLine],
+    /// The instruction-set level of the inner loops.
+    pub level: Level,
     /// Colours of the previous iteration (the originals in the first), one per sample.
     pub current: &'a [[f32; 3]],
     pub settings: &'a RpfSettings,
@@ -58,6 +65,8 @@ pub(super) struct Iteration<'a> {
 impl<'a> Iteration<'a> {
     pub fn new(
         set: &'a SampleSet,
+        lines: &'a [FeatureLine],
+        level: Level,
         current: &'a [[f32; 3]],
         settings: &'a RpfSettings,
         t: u32,
@@ -65,6 +74,8 @@ impl<'a> Iteration<'a> {
     ) -> Self {
         Iteration {
             set,
+            lines,
+            level,
             current,
             settings,
             t,
@@ -90,7 +101,7 @@ pub(super) fn max_neighbours(box_size: u32, spp: u32, fraction: f32) -> usize {
 
 /// Reusable per-thread buffers (no allocation per pixel once grown).
 pub(super) struct Scratch {
-    visited: Vec<u64>,
+    select: SelectScratch,
     indices: Vec<u32>,
     /// `ROWS` rows of `cap` values: the 26 elements, then the current colours.
     rows: Vec<f32>,
@@ -103,16 +114,16 @@ pub(super) struct Scratch {
 }
 
 impl Scratch {
-    pub fn new(buckets: usize) -> Scratch {
+    pub fn new(buckets: usize, level: Level) -> Scratch {
         Scratch {
-            visited: Vec::new(),
+            select: SelectScratch::default(),
             indices: Vec::new(),
             rows: Vec::new(),
             cap: 0,
             current: Vec::new(),
             dims: Vec::new(),
             dist: Vec::new(),
-            mi: MiWorkspace::new(buckets),
+            mi: MiWorkspace::with_level(buckets, level),
         }
     }
 
@@ -123,7 +134,6 @@ impl Scratch {
             let cap = n.max(self.cap * 3 / 2).next_multiple_of(16) + 16;
             self.rows.resize(ROWS * cap, 0.0);
             self.dims.resize(DIMS * cap, 0.0);
-            self.dist.resize(cap, 0.0);
             self.cap = cap;
         }
     }
@@ -146,6 +156,7 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
     let mut rng = PixelRng::new(s.seed, pixel, it.t);
     let sel = Selection {
         samples: &set.samples,
+        lines: it.lines,
         width: set.width,
         height: set.height,
         spp: set.spp,
@@ -155,12 +166,13 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
         kappa_other: s.feature_tolerance as f64,
         floor: s.tolerance_floor as f64,
     };
-    preprocess::select(
+    select::select(
         &sel,
+        it.level,
         x,
         y,
         &mut rng,
-        &mut scratch.visited,
+        &mut scratch.select,
         &mut scratch.indices,
     );
     let n = scratch.indices.len();
@@ -168,7 +180,18 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
     let cap = scratch.cap;
     // Gather N into rows (structure of arrays).
     scratch.current.clear();
+    // The samples are scattered over the box: ask for them a few ahead (a 104-byte vector
+    // spans up to three cache lines).
+    const AHEAD: usize = 8;
     for (j, &index) in scratch.indices.iter().enumerate() {
+        if let Some(&next) = scratch.indices.get(j + AHEAD) {
+            let p = &set.samples[next as usize] as *const SampleVector as *const u8;
+            let size = std::mem::size_of::<SampleVector>();
+            for offset in [0, 64, size - 1] {
+                cpu::prefetch(p.wrapping_add(offset));
+            }
+            cpu::prefetch(&it.current[next as usize]);
+        }
         let v = to_floats(&set.samples[index as usize]);
         for (e, &value) in v.iter().enumerate() {
             scratch.rows[e * cap + j] = value;
@@ -180,9 +203,7 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
         scratch.current.push(c);
     }
     // Alg. 6 lines 15-18: standardise every element over N.
-    for r in 0..ROWS {
-        preprocess::standardize(&mut scratch.rows[r * cap..r * cap + n]);
-    }
+    preprocess::standardize_rows(it.level, &mut scratch.rows, cap, ROWS, n);
     // Alg. 7 on the 26 original elements.
     let mi = &mut scratch.mi;
     mi.load(&scratch.rows, FLOATS_PER_SAMPLE, cap, n);
@@ -248,41 +269,18 @@ pub(super) fn filter_pixel(
         active += 1;
     }
     let spp = it.set.spp as usize;
-    for (i, o) in out.iter_mut().enumerate().take(spp) {
-        let dist = &mut scratch.dist[..n];
-        dist.fill(0.0);
-        for a in 0..active {
-            let row = &scratch.dims[a * cap..a * cap + n];
-            let centre = row[i];
-            for (d, &v) in dist.iter_mut().zip(row) {
-                let t = v - centre;
-                *d += t * t;
-            }
-        }
-        let ci = scratch.current[i];
-        let mut sum_w = 0.0f64;
-        let mut acc = [0.0f64; 3];
-        for (d, cj) in dist.iter().zip(&scratch.current) {
-            if *d >= EXP_CUTOFF {
-                continue;
-            }
-            let wij = (-*d).exp() as f64;
-            sum_w += wij;
-            for k in 0..3 {
-                acc[k] += wij * (cj[k] as f64 - ci[k] as f64);
-            }
-        }
-        // sum_w ≥ 1: sample i is in N with distance 0.
-        *o = std::array::from_fn(|k| {
-            let v = ci[k] as f64 + acc[k] / sum_w;
-            v.clamp(-(f32::MAX as f64), f32::MAX as f64) as f32
-        });
-    }
+    let nb = kernel::Neighbourhood {
+        dims: &scratch.dims,
+        cap,
+        active,
+        current: &scratch.current[..n],
+    };
+    kernel::weigh(it.level, &nb, &mut out[..spp], &mut scratch.dist);
     info
 }
 
 /// The neighbourhood size and weights of one pixel (no filtering).
 pub(super) fn analyze_pixel(it: &Iteration<'_>, x: u32, y: u32) -> PixelInfo {
-    let mut scratch = Scratch::new(it.settings.mi_buckets);
+    let mut scratch = Scratch::new(it.settings.mi_buckets, it.level);
     analyze(it, x, y, &mut scratch)
 }

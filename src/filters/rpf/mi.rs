@@ -17,6 +17,7 @@
 //! The histogram estimate can come out a rounding error below zero for independent variables;
 //! it is clamped to 0 (mutual information is never negative).
 
+use super::bitsets::JointInput;
 use super::cpu::Level;
 
 /// Most buckets per variable ([`super::RpfSettings::mi_buckets`] is checked against it).
@@ -206,14 +207,21 @@ impl MiWorkspace {
             self.xlogx.push(c * c.log2());
         }
         for v in 0..vars {
-            let populated = quantize(&values[v * stride..v * stride + n], b, &mut self.codes);
+            let values = &values[v * stride..v * stride + n];
             let masks = &mut self.masks[v * b * words..(v + 1) * b * words];
-            self.level.bitsets(&self.codes, b, words, masks);
             let counts = &mut self.counts[v * b..(v + 1) * b];
-            counts.fill(0);
-            for &c in &self.codes {
-                counts[c as usize] += 1;
-            }
+            let populated = match self.level.quantize_bitsets(values, b, words, masks, counts) {
+                Some(populated) => populated,
+                None => {
+                    let populated = quantize(values, b, &mut self.codes);
+                    self.level.bitsets(&self.codes, b, words, masks);
+                    counts.fill(0);
+                    for &c in &self.codes {
+                        counts[c as usize] += 1;
+                    }
+                    populated
+                }
+            };
             self.varies[v] = populated > 1;
             self.entropy[v] = if populated > 1 {
                 entropy_from(&self.xlogx, counts, n)
@@ -263,175 +271,6 @@ fn entropy_from(xlogx: &[f64], counts: &[u32], n: usize) -> f64 {
     let s: f64 = counts.iter().map(|&c| xlogx[c as usize]).sum();
     let n = n as f64;
     (n.log2() - s / n).max(0.0)
-}
-
-/// Two variables' bitsets and bucket counts.
-struct JointInput<'a> {
-    mx: &'a [u64],
-    my: &'a [u64],
-    cx: &'a [u32],
-    cy: &'a [u32],
-    buckets: usize,
-    words: usize,
-}
-
-impl Level {
-    /// Bitsets of `codes` (one per bucket, `words` words each) into `masks`.
-    fn bitsets(self, codes: &[u8], buckets: usize, words: usize, masks: &mut [u64]) {
-        #[cfg(target_arch = "x86_64")]
-        if self == Level::Avx512 {
-            // SAFETY: the CPU has AVX-512 F and BW (`Level::detect`).
-            return unsafe { bitsets_avx512(codes, buckets, words, masks) };
-        }
-        bitsets_sse2_or_scalar(codes, buckets, words, masks)
-    }
-
-    /// The `B × B` joint counts of two variables into `out`.
-    fn joint_counts(self, input: JointInput<'_>, out: &mut [u32]) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            #[target_feature(enable = "popcnt")]
-            fn popcnt(input: JointInput<'_>, out: &mut [u32]) {
-                joint_counts(input, out)
-            }
-            #[target_feature(enable = "popcnt,avx512f,avx512vpopcntdq")]
-            fn avx512(input: JointInput<'_>, out: &mut [u32]) {
-                joint_counts(input, out)
-            }
-            match self {
-                // SAFETY: `Level::detect` only returns a level whose features the CPU has.
-                Level::Avx512 => return unsafe { avx512(input, out) },
-                Level::Popcnt => return unsafe { popcnt(input, out) },
-                Level::Generic => {}
-            }
-        }
-        joint_counts(input, out)
-    }
-}
-
-/// Population count of `a & b`, summed over the words.
-#[inline(always)]
-fn and_count(a: &[u64], b: &[u64]) -> u32 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x & y).count_ones())
-        .sum()
-}
-
-/// The joint counts of two variables from their bitsets: the bucket pairs both populated, by
-/// population count, except the last populated bucket of each variable, whose counts are what
-/// the marginal counts leave. Unpopulated pairs are 0.
-#[inline(always)]
-fn joint_counts(input: JointInput<'_>, out: &mut [u32]) {
-    let JointInput {
-        mx,
-        my,
-        cx,
-        cy,
-        buckets: b,
-        words,
-    } = input;
-    out.fill(0);
-    let populated = |c: &[u32]| {
-        let mut list = [0u8; MAX_BUCKETS];
-        let mut k = 0;
-        for (i, &n) in c.iter().enumerate() {
-            if n > 0 {
-                list[k] = i as u8;
-                k += 1;
-            }
-        }
-        (list, k)
-    };
-    let (px, nx) = populated(cx);
-    let (py, ny) = populated(cy);
-    let (px, py) = (&px[..nx], &py[..ny]);
-    let Some((&last_a, rows)) = px.split_last() else {
-        return;
-    };
-    let Some((&last_b, cols)) = py.split_last() else {
-        return;
-    };
-    for &a in rows {
-        let a = a as usize;
-        let ra = &mx[a * words..(a + 1) * words];
-        let mut rest = cx[a];
-        for &c in cols {
-            let c = c as usize;
-            let n = and_count(ra, &my[c * words..(c + 1) * words]);
-            out[a * b + c] = n;
-            rest -= n;
-        }
-        out[a * b + last_b as usize] = rest;
-    }
-    let last_a = last_a as usize;
-    for &c in py {
-        let c = c as usize;
-        let above: u32 = rows.iter().map(|&a| out[a as usize * b + c]).sum();
-        out[last_a * b + c] = cy[c] - above;
-    }
-}
-
-/// [`Level::bitsets`] with SSE2 byte compares (x86-64) or one bit at a time.
-fn bitsets_sse2_or_scalar(codes: &[u8], buckets: usize, words: usize, masks: &mut [u64]) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: SSE2 is part of x86-64.
-    unsafe {
-        bitsets_sse2(codes, buckets, words, masks)
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    for (w, chunk) in codes.chunks(64).enumerate() {
-        for b in 0..buckets {
-            masks[b * words + w] = chunk
-                .iter()
-                .enumerate()
-                .fold(0u64, |m, (i, &c)| m | ((c as usize == b) as u64) << i);
-        }
-    }
-}
-
-/// [`Level::bitsets`] with SSE2 compares of 16 bytes into a 16-bit mask.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "sse2")]
-fn bitsets_sse2(codes: &[u8], buckets: usize, words: usize, masks: &mut [u64]) {
-    use std::arch::x86_64::*;
-    for (w, chunk) in codes.chunks(64).enumerate() {
-        let full = chunk.len() / 16 * 16;
-        for b in 0..buckets {
-            let key = _mm_set1_epi8(b as i8);
-            let mut m = 0u64;
-            for (k, sixteen) in chunk[..full].chunks_exact(16).enumerate() {
-                // SAFETY: `sixteen` holds 16 bytes; the load is unaligned.
-                let v = unsafe { _mm_loadu_si128(sixteen.as_ptr() as *const __m128i) };
-                let bits = _mm_movemask_epi8(_mm_cmpeq_epi8(v, key)) as u16;
-                m |= (bits as u64) << (16 * k);
-            }
-            for (i, &c) in chunk.iter().enumerate().skip(full) {
-                m |= ((c as usize == b) as u64) << i;
-            }
-            masks[b * words + w] = m;
-        }
-    }
-}
-
-/// [`Level::bitsets`] with AVX-512 BW compares of 64 bytes into a 64-bit mask.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bw")]
-fn bitsets_avx512(codes: &[u8], buckets: usize, words: usize, masks: &mut [u64]) {
-    use std::arch::x86_64::*;
-    for (w, chunk) in codes.chunks(64).enumerate() {
-        // A partial last chunk is read with a mask (the other bytes are 0 and their bits cleared).
-        let valid = if chunk.len() == 64 {
-            u64::MAX
-        } else {
-            (1u64 << chunk.len()) - 1
-        };
-        // SAFETY: the mask only reads the `chunk.len()` bytes that exist.
-        let v = unsafe { _mm512_maskz_loadu_epi8(valid, chunk.as_ptr() as *const i8) };
-        for b in 0..buckets {
-            masks[b * words + w] = _mm512_cmpeq_epi8_mask(v, _mm512_set1_epi8(b as i8)) & valid;
-        }
-    }
 }
 
 #[cfg(test)]

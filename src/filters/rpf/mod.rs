@@ -34,13 +34,17 @@
 //!
 //! The sample vectors need 26 · 4 · spp · W · H bytes ([`samples::memory_bytes`];
 //! [`samples::check_memory`] says before allocating whether they fit and how many spp or rows
-//! would). The filter adds two colours per sample (24 bytes) and, per thread, scratch for the
+//! would). The filter adds two colours and the 15 features again per sample (24 + 64 bytes,
+//! [`select::FeatureLine`]) and, per thread, scratch for the
 //! largest neighbourhood (≈ 29 · 4 · 2 · M bytes); allocations that fail are errors, not
 //! aborts.
 
+mod bitsets;
 pub mod cpu;
+pub mod kernel;
 pub mod mi;
 pub mod preprocess;
+pub mod select;
 pub mod weights;
 
 mod filter;
@@ -250,6 +254,17 @@ pub fn filter_with_progress(
     settings: &RpfSettings,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<RpfOutput> {
+    filter_at_level(set, settings, cpu::Level::detect(), progress)
+}
+
+/// [`filter_with_progress`] on instruction-set level `level` (one of
+/// [`cpu::Level::available`]); every level gives the same bytes (tests/rpf.rs).
+pub fn filter_at_level(
+    set: &SampleSet,
+    settings: &RpfSettings,
+    level: cpu::Level,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<RpfOutput> {
     settings.validate()?;
     set.validate().context("RPF input")?;
     let need = working_memory_bytes(set.width, set.height, set.spp, settings);
@@ -268,6 +283,7 @@ pub fn filter_with_progress(
     }
     let (w, h, spp) = (set.width as usize, set.height as usize, set.spp as usize);
     let count = set.samples.len();
+    let lines = feature_lines(set)?;
     let mut current = try_vec(count, "the RPF sample colours")?;
     current.extend(set.samples.iter().map(|s| s.color));
     let mut next = try_vec(count, "the RPF filtered colours")?;
@@ -276,11 +292,11 @@ pub fn filter_with_progress(
     let mut stats = Vec::with_capacity(iterations);
     for (t, &b) in settings.box_sizes.iter().enumerate() {
         let start = Instant::now();
-        let it = filter::Iteration::new(set, &current, settings, t as u32, b);
+        let it = filter::Iteration::new(set, &lines, level, &current, settings, t as u32, b);
         let rows_done = AtomicU32::new(0);
         let neighbours = AtomicU64::new(0);
         next.par_chunks_mut(w * spp).enumerate().for_each_init(
-            || filter::Scratch::new(settings.mi_buckets),
+            || filter::Scratch::new(settings.mi_buckets, level),
             |scratch, (y, row)| {
                 let mut sum = 0u64;
                 for x in 0..w {
@@ -360,12 +376,14 @@ pub fn analyze_pixel(
         );
     }
     let current: Vec<[f32; 3]> = set.samples.iter().map(|s| s.color).collect();
-    let it = filter::Iteration::new(set, &current, settings, iteration as u32, b);
+    let lines = feature_lines(set)?;
+    let level = cpu::Level::detect();
+    let it = filter::Iteration::new(set, &lines, level, &current, settings, iteration as u32, b);
     Ok(filter::analyze_pixel(&it, x, y))
 }
 
-/// Bytes RPF allocates besides the sample vectors: two colours per sample plus per-thread
-/// scratch for the largest neighbourhood.
+/// Bytes RPF allocates besides the sample vectors: two colours and a feature line per sample
+/// plus per-thread scratch for the largest neighbourhood.
 pub fn working_memory_bytes(width: u32, height: u32, spp: u32, settings: &RpfSettings) -> u64 {
     let samples = width as u64 * height as u64 * spp as u64;
     let n = settings
@@ -378,7 +396,21 @@ pub fn working_memory_bytes(width: u32, height: u32, spp: u32, settings: &RpfSet
     // codes, a current colour and an index per neighbour.
     let n = n + n / 2 + 32;
     let per_thread = n * (4 * (26 + 3 + 18 + 1) + 26 + 12 + 4);
-    samples * 24 + per_thread * rayon::current_num_threads() as u64
+    samples * (24 + std::mem::size_of::<select::FeatureLine>() as u64)
+        + per_thread * rayon::current_num_threads() as u64
+}
+
+/// The features of every sample, one cache line each ([`select`]).
+fn feature_lines(set: &SampleSet) -> Result<Vec<select::FeatureLine>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(set.samples.len()).map_err(|_| {
+        anyhow::anyhow!(
+            "cannot allocate {} for the RPF feature lines",
+            samples::human_bytes(set.samples.len() as u64 * 64)
+        )
+    })?;
+    v.par_extend(set.samples.par_iter().map(select::FeatureLine::of));
+    Ok(v)
 }
 
 fn try_vec(n: usize, what: &str) -> Result<Vec<[f32; 3]>> {
