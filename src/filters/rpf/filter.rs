@@ -23,22 +23,49 @@
 
 use super::kernel;
 use super::mi::MiWorkspace;
-use super::cpu::{self, Level};
-use crate::layout::SampleVector;
+use super::cpu::Level;
 use super::preprocess::{self, OffsetTable, PixelRng};
 use super::select::{self, FeatureLine, SelectScratch, Selection};
-use super::samples::{FLOATS_PER_SAMPLE, SampleSet, to_floats};
+use super::gather::{self, RestLine, ROWS};
+use super::samples::{FLOATS_PER_SAMPLE, SampleSet};
 use super::weights::{self, COLORS, Dependencies, FEATURES, POSITIONS, RANDOMS, Weights};
 use super::{RangeColors, RpfSettings};
 
-/// Offsets of the element groups in the 26 floats of a sample vector (Table 5.1).
+/// Numbers of the mutual-information variables (the 26 elements of Table 5.1): screen
+/// position, random parameters, features, colour.
 const P0: usize = 0;
 const R0: usize = P0 + POSITIONS;
 const F0: usize = R0 + RANDOMS;
 const C0: usize = F0 + FEATURES;
-/// The current colours follow the 26 elements in the scratch rows.
-const CUR0: usize = FLOATS_PER_SAMPLE;
-const ROWS: usize = FLOATS_PER_SAMPLE + COLORS;
+/// The gathered row of each variable.
+const MI_ROWS: [usize; FLOATS_PER_SAMPLE] = {
+    let mut rows = [0; FLOATS_PER_SAMPLE];
+    let mut v = 0;
+    while v < FLOATS_PER_SAMPLE {
+        rows[v] = match v {
+            _ if v < R0 => gather::P_ROW + v - P0,
+            _ if v < F0 => gather::R_ROW + v - R0,
+            _ if v < C0 => gather::F_ROW + v - F0,
+            _ => gather::C_ROW + v - C0,
+        };
+        v += 1;
+    }
+    rows
+};
+/// The rows standardised over N: the 26 elements and the current colours.
+const STANDARDIZED: [usize; FLOATS_PER_SAMPLE + COLORS] = {
+    let mut rows = [0; FLOATS_PER_SAMPLE + COLORS];
+    let mut k = 0;
+    while k < FLOATS_PER_SAMPLE {
+        rows[k] = MI_ROWS[k];
+        k += 1;
+    }
+    while k < FLOATS_PER_SAMPLE + COLORS {
+        rows[k] = gather::CUR_ROW + k - FLOATS_PER_SAMPLE;
+        k += 1;
+    }
+    rows
+};
 /// Dimensions of the weight of eq. 5.2: 3 colours + 15 features.
 const DIMS: usize = COLORS + FEATURES;
 const _: () = assert!(DIMS == kernel::MAX_DIMS);
@@ -48,10 +75,10 @@ pub(super) struct Iteration<'a> {
     pub set: &'a SampleSet,
     /// [`FeatureLine::of`] every sample.
     pub lines: &'a [FeatureLine],
+    /// [`RestLine::of`] every sample, with the current colours of this iteration.
+    pub rest: &'a [RestLine],
     /// The instruction-set level of the inner loops.
     pub level: Level,
-    /// Colours of the previous iteration (the originals in the first), one per sample.
-    pub current: &'a [[f32; 3]],
     pub settings: &'a RpfSettings,
     /// 0-based iteration index (t of eqs. 5.9 and 5.14).
     pub t: u32,
@@ -66,8 +93,8 @@ impl<'a> Iteration<'a> {
     pub fn new(
         set: &'a SampleSet,
         lines: &'a [FeatureLine],
+        rest: &'a [RestLine],
         level: Level,
-        current: &'a [[f32; 3]],
         settings: &'a RpfSettings,
         t: u32,
         box_size: u32,
@@ -75,8 +102,8 @@ impl<'a> Iteration<'a> {
         Iteration {
             set,
             lines,
+            rest,
             level,
-            current,
             settings,
             t,
             table: OffsetTable::new(box_size),
@@ -103,7 +130,7 @@ pub(super) fn max_neighbours(box_size: u32, spp: u32, fraction: f32) -> usize {
 pub(super) struct Scratch {
     select: SelectScratch,
     indices: Vec<u32>,
-    /// `ROWS` rows of `cap` values: the 26 elements, then the current colours.
+    /// `ROWS` rows of `cap` values: the elements of the rest and feature lines ([`gather`]).
     rows: Vec<f32>,
     cap: usize,
     current: Vec<[f32; 3]>,
@@ -178,35 +205,19 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
     let n = scratch.indices.len();
     scratch.ensure(n);
     let cap = scratch.cap;
-    // Gather N into rows (structure of arrays).
-    scratch.current.clear();
-    // The samples are scattered over the box: ask for them a few ahead (a 104-byte vector
-    // spans up to three cache lines).
-    const AHEAD: usize = 8;
-    for (j, &index) in scratch.indices.iter().enumerate() {
-        if let Some(&next) = scratch.indices.get(j + AHEAD) {
-            let p = &set.samples[next as usize] as *const SampleVector as *const u8;
-            let size = std::mem::size_of::<SampleVector>();
-            for offset in [0, 64, size - 1] {
-                cpu::prefetch(p.wrapping_add(offset));
-            }
-            cpu::prefetch(&it.current[next as usize]);
-        }
-        let v = to_floats(&set.samples[index as usize]);
-        for (e, &value) in v.iter().enumerate() {
-            scratch.rows[e * cap + j] = value;
-        }
-        let c = it.current[index as usize];
-        for (k, &value) in c.iter().enumerate() {
-            scratch.rows[(CUR0 + k) * cap + j] = value;
-        }
-        scratch.current.push(c);
-    }
+    gather::gather(
+        it.level,
+        &scratch.indices,
+        (it.lines, it.rest),
+        &mut scratch.rows,
+        cap,
+        &mut scratch.current,
+    );
     // Alg. 6 lines 15-18: standardise every element over N.
-    preprocess::standardize_rows(it.level, &mut scratch.rows, cap, ROWS, n);
+    preprocess::standardize_rows(it.level, &mut scratch.rows, cap, &STANDARDIZED, n);
     // Alg. 7 on the 26 original elements.
     let mi = &mut scratch.mi;
-    mi.load(&scratch.rows, FLOATS_PER_SAMPLE, cap, n);
+    mi.load(&scratch.rows, &MI_ROWS, cap, n);
     let mut d = Dependencies::default();
     for k in 0..COLORS {
         for l in 0..RANDOMS {
@@ -250,21 +261,22 @@ pub(super) fn filter_pixel(
     // Fold α, β and 1/(2σ²) into the coordinates: the exponent of eq. 5.2 becomes a squared
     // distance. Dimensions with a zero factor are left out.
     let color_row = match it.settings.range_colors {
-        RangeColors::Current => CUR0,
-        RangeColors::Original => C0,
+        RangeColors::Current => gather::CUR_ROW,
+        RangeColors::Original => gather::C_ROW,
     };
     let mut active = 0;
     let factors = (0..COLORS)
         .map(|k| (color_row + k, w.alpha[k] as f64))
-        .chain((0..FEATURES).map(|k| (F0 + k, w.beta[k] as f64)));
+        .chain((0..FEATURES).map(|k| (gather::F_ROW + k, w.beta[k] as f64)));
     for (row, factor) in factors {
         let scale = (factor * inv).sqrt() as f32;
         if !(scale > 0.0 && scale.is_finite()) {
             continue;
         }
-        let (src, dst) = (row * cap, active * cap);
-        for j in 0..n {
-            scratch.dims[dst + j] = scale * scratch.rows[src + j];
+        let src = &scratch.rows[row * cap..row * cap + n];
+        let dst = &mut scratch.dims[active * cap..active * cap + n];
+        for (d, &r) in dst.iter_mut().zip(src) {
+            *d = scale * r;
         }
         active += 1;
     }

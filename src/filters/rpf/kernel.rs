@@ -202,35 +202,46 @@ fn weigh_avx512(nb: &Neighbourhood<'_>, out: &mut [[f32; 3]]) {
         });
         let mut sum_w = _mm512_setzero_pd();
         let mut acc = [_mm512_setzero_pd(); 3];
-        for j in 0..n {
-            let mut d = _mm256_setzero_ps();
+        // Four neighbours at a time: their distance sums are independent chains (each in the
+        // reference's order over the dimensions); the weights then go into the sums one
+        // neighbour after another, as in the reference.
+        let mut j = 0;
+        while j < n {
+            let block = (n - j).min(4);
+            let mut d = [_mm256_setzero_ps(); 4];
             for (a, &centre) in centres.iter().enumerate() {
-                let v = _mm256_set1_ps(nb.dims[a * cap + j]);
-                let t = _mm256_sub_ps(v, centre);
-                d = _mm256_add_ps(d, _mm256_mul_ps(t, t));
+                let row = &nb.dims[a * cap + j..a * cap + j + block];
+                for (du, &v) in d.iter_mut().zip(row) {
+                    let t = _mm256_sub_ps(_mm256_set1_ps(v), centre);
+                    *du = _mm256_add_ps(*du, _mm256_mul_ps(t, t));
+                }
             }
-            // The reference skips d ≥ 105 (a NaN is not skipped).
-            let near = _mm256_cmp_ps_mask::<_CMP_NGE_UQ>(d, _mm256_set1_ps(EXP_CUTOFF)) & valid;
-            if near == 0 {
-                continue;
+            for (u, &d) in d[..block].iter().enumerate() {
+                // The reference skips d ≥ 105 (a NaN is not skipped).
+                let near =
+                    _mm256_cmp_ps_mask::<_CMP_NGE_UQ>(d, _mm256_set1_ps(EXP_CUTOFF)) & valid;
+                if near == 0 {
+                    continue;
+                }
+                let w = if _mm256_cmp_ps_mask::<_CMP_UNORD_Q>(d, d) & near != 0 {
+                    // A NaN distance: the library's exp, lane by lane.
+                    let mut lanes_d = [0.0f32; 8];
+                    // SAFETY: 8 floats.
+                    unsafe { _mm256_storeu_ps(lanes_d.as_mut_ptr(), d) };
+                    let e = lanes_d.map(|d| (-d).exp() as f64);
+                    // SAFETY: 8 doubles.
+                    unsafe { _mm512_loadu_pd(e.as_ptr()) }
+                } else {
+                    expf8(_mm256_sub_ps(_mm256_setzero_ps(), d))
+                };
+                sum_w = _mm512_mask_add_pd(sum_w, near, sum_w, w);
+                let cj = nb.current[j + u];
+                for k in 0..3 {
+                    let diff = _mm512_sub_pd(_mm512_set1_pd(cj[k] as f64), ci[k]);
+                    acc[k] = _mm512_mask_add_pd(acc[k], near, acc[k], _mm512_mul_pd(w, diff));
+                }
             }
-            let w = if _mm256_cmp_ps_mask::<_CMP_UNORD_Q>(d, d) & near != 0 {
-                // A NaN distance: the library's exp, lane by lane.
-                let mut lanes_d = [0.0f32; 8];
-                // SAFETY: 8 floats.
-                unsafe { _mm256_storeu_ps(lanes_d.as_mut_ptr(), d) };
-                let e = lanes_d.map(|d| (-d).exp() as f64);
-                // SAFETY: 8 doubles.
-                unsafe { _mm512_loadu_pd(e.as_ptr()) }
-            } else {
-                expf8(_mm256_sub_ps(_mm256_setzero_ps(), d))
-            };
-            sum_w = _mm512_mask_add_pd(sum_w, near, sum_w, w);
-            let cj = nb.current[j];
-            for k in 0..3 {
-                let diff = _mm512_sub_pd(_mm512_set1_pd(cj[k] as f64), ci[k]);
-                acc[k] = _mm512_mask_add_pd(acc[k], near, acc[k], _mm512_mul_pd(w, diff));
-            }
+            j += block;
         }
         let mut sums = [0.0f64; 8];
         let mut accs = [[0.0f64; 8]; 3];

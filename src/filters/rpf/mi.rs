@@ -189,9 +189,11 @@ impl MiWorkspace {
         }
     }
 
-    /// Quantises `vars` variables of `n` samples each, `values[v * stride .. v * stride + n]`.
-    pub fn load(&mut self, values: &[f32], vars: usize, stride: usize, n: usize) {
-        assert!(n <= stride && values.len() >= vars * stride);
+    /// Quantises `rows.len()` variables of `n` samples each: variable v is
+    /// `values[rows[v] * stride..][..n]`.
+    pub fn load(&mut self, values: &[f32], rows: &[usize], stride: usize, n: usize) {
+        let vars = rows.len();
+        assert!(n <= stride && rows.iter().all(|&r| values.len() >= (r + 1) * stride));
         let b = self.buckets;
         let words = n.div_ceil(64);
         self.vars = vars;
@@ -207,7 +209,7 @@ impl MiWorkspace {
             self.xlogx.push(c * c.log2());
         }
         for v in 0..vars {
-            let values = &values[v * stride..v * stride + n];
+            let values = &values[rows[v] * stride..rows[v] * stride + n];
             let masks = &mut self.masks[v * b * words..(v + 1) * b * words];
             let counts = &mut self.counts[v * b..(v + 1) * b];
             let populated = match self.level.quantize_bitsets(values, b, words, masks, counts) {
@@ -296,7 +298,7 @@ mod tests {
             values[2048 + j] = 3.0; // constant
         }
         let mut ws = MiWorkspace::new(5);
-        ws.load(&values, 3, 1024, n);
+        ws.load(&values, &[0, 1, 2], 1024, n);
         let x = &values[..n];
         let y = &values[1024..1024 + n];
         let z = &values[2048..2048 + n];
@@ -330,7 +332,7 @@ mod tests {
                     .iter()
                     .map(|&level| {
                         let mut ws = MiWorkspace::with_level(buckets, level);
-                        ws.load(&values, vars, n, n);
+                        ws.load(&values, &[0, 1, 2, 3, 4], n, n);
                         let mut bits = Vec::new();
                         for x in 0..vars {
                             bits.push(ws.entropy(x).to_bits());
@@ -345,7 +347,7 @@ mod tests {
                     assert_eq!(bits, &all[0], "{level:?}, n {n}, {buckets} buckets");
                 }
                 let mut ws = MiWorkspace::new(buckets);
-                ws.load(&values, vars, n, n);
+                ws.load(&values, &[0, 1, 2, 3, 4], n, n);
                 let plain = mutual_information(&values[..n], &values[n..2 * n], buckets);
                 assert!((ws.mi(0, 1) - plain).abs() < 1e-9, "n {n}, {buckets} buckets");
             }

@@ -34,13 +34,15 @@
 //!
 //! The sample vectors need 26 · 4 · spp · W · H bytes ([`samples::memory_bytes`];
 //! [`samples::check_memory`] says before allocating whether they fit and how many spp or rows
-//! would). The filter adds two colours and the 15 features again per sample (24 + 64 bytes,
-//! [`select::FeatureLine`]) and, per thread, scratch for the
+//! would). The filter adds two colours and two 64-byte lines per sample (24 + 128 bytes:
+//! [`select::FeatureLine`], [`gather::RestLine`]) and, per thread, scratch for the
 //! largest neighbourhood (≈ 29 · 4 · 2 · M bytes); allocations that fail are errors, not
 //! aborts.
 
 mod bitsets;
 pub mod cpu;
+mod draws;
+pub mod gather;
 pub mod kernel;
 pub mod mi;
 pub mod preprocess;
@@ -284,6 +286,7 @@ pub fn filter_at_level(
     let (w, h, spp) = (set.width as usize, set.height as usize, set.spp as usize);
     let count = set.samples.len();
     let lines = feature_lines(set)?;
+    let mut rest = rest_lines(set)?;
     let mut current = try_vec(count, "the RPF sample colours")?;
     current.extend(set.samples.iter().map(|s| s.color));
     let mut next = try_vec(count, "the RPF filtered colours")?;
@@ -292,7 +295,12 @@ pub fn filter_at_level(
     let mut stats = Vec::with_capacity(iterations);
     for (t, &b) in settings.box_sizes.iter().enumerate() {
         let start = Instant::now();
-        let it = filter::Iteration::new(set, &lines, level, &current, settings, t as u32, b);
+        if t > 0 {
+            rest.par_iter_mut()
+                .zip(&current)
+                .for_each(|(line, &c)| line.set_current(c));
+        }
+        let it = filter::Iteration::new(set, &lines, &rest, level, settings, t as u32, b);
         let rows_done = AtomicU32::new(0);
         let neighbours = AtomicU64::new(0);
         next.par_chunks_mut(w * spp).enumerate().for_each_init(
@@ -375,14 +383,14 @@ pub fn analyze_pixel(
             set.height
         );
     }
-    let current: Vec<[f32; 3]> = set.samples.iter().map(|s| s.color).collect();
     let lines = feature_lines(set)?;
+    let rest = rest_lines(set)?;
     let level = cpu::Level::detect();
-    let it = filter::Iteration::new(set, &lines, level, &current, settings, iteration as u32, b);
+    let it = filter::Iteration::new(set, &lines, &rest, level, settings, iteration as u32, b);
     Ok(filter::analyze_pixel(&it, x, y))
 }
 
-/// Bytes RPF allocates besides the sample vectors: two colours and a feature line per sample
+/// Bytes RPF allocates besides the sample vectors: two colours and two lines per sample
 /// plus per-thread scratch for the largest neighbourhood.
 pub fn working_memory_bytes(width: u32, height: u32, spp: u32, settings: &RpfSettings) -> u64 {
     let samples = width as u64 * height as u64 * spp as u64;
@@ -392,24 +400,40 @@ pub fn working_memory_bytes(width: u32, height: u32, spp: u32, settings: &RpfSet
         .map(|&b| filter::max_neighbours(b, spp, settings.sample_fraction))
         .max()
         .unwrap_or(0) as u64;
-    // Scratch rows grow by half again (filter.rs): rows of 29 + 18 + 1 floats, 26 bucket
-    // codes, a current colour and an index per neighbour.
+    // Scratch rows grow by half again (filter.rs): per neighbour, rows of 32 + 18 + 1 floats,
+    // 26 variables' bucket bits (up to 16 buckets: 2 bytes each), a bucket code, a current
+    // colour, its index and a candidate index.
     let n = n + n / 2 + 32;
-    let per_thread = n * (4 * (26 + 3 + 18 + 1) + 26 + 12 + 4);
-    samples * (24 + std::mem::size_of::<select::FeatureLine>() as u64)
+    let per_thread = n * (4 * (gather::ROWS as u64 + 18 + 1) + 26 * 2 + 1 + 12 + 8);
+    let lines = std::mem::size_of::<select::FeatureLine>() + std::mem::size_of::<gather::RestLine>();
+    samples * (24 + lines as u64)
         + per_thread * rayon::current_num_threads() as u64
 }
 
 /// The features of every sample, one cache line each ([`select`]).
 fn feature_lines(set: &SampleSet) -> Result<Vec<select::FeatureLine>> {
+    lines_of(set, "feature", select::FeatureLine::of)
+}
+
+/// The other elements and the current colour of every sample, one cache line each
+/// ([`gather`]).
+fn rest_lines(set: &SampleSet) -> Result<Vec<gather::RestLine>> {
+    lines_of(set, "sample", gather::RestLine::of)
+}
+
+fn lines_of<T: Send>(
+    set: &SampleSet,
+    what: &str,
+    of: impl Fn(&crate::layout::SampleVector) -> T + Sync + Send,
+) -> Result<Vec<T>> {
     let mut v = Vec::new();
     v.try_reserve_exact(set.samples.len()).map_err(|_| {
         anyhow::anyhow!(
-            "cannot allocate {} for the RPF feature lines",
-            samples::human_bytes(set.samples.len() as u64 * 64)
+            "cannot allocate {} for the RPF {what} lines",
+            samples::human_bytes(set.samples.len() as u64 * std::mem::size_of::<T>() as u64)
         )
     })?;
-    v.par_extend(set.samples.par_iter().map(select::FeatureLine::of));
+    v.par_extend(set.samples.par_iter().map(of));
     Ok(v)
 }
 

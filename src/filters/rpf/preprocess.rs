@@ -68,8 +68,9 @@ pub fn is_world_position(k: usize) -> bool {
 #[derive(Clone, Debug)]
 pub struct PixelRng(u64);
 
+/// SplitMix64's output function.
 #[inline]
-fn mix64(mut z: u64) -> u64 {
+pub(super) fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)
@@ -120,6 +121,10 @@ pub struct OffsetTable {
     /// gives `alias[k]`.
     keep: Vec<u64>,
     alias: Vec<u32>,
+    /// The table in u32 for at most 64 offsets (boxes up to 63): keep clamped to u32::MAX,
+    /// which changes nothing because a column that keeps itself always (2^32) is its own
+    /// alias.
+    small: Option<([u32; 64], [u32; 64])>,
 }
 
 impl OffsetTable {
@@ -157,10 +162,21 @@ impl OffsetTable {
                 small.push(l);
             }
         }
+        let small = (n <= 64).then(|| {
+            let mut k32 = [0u32; 64];
+            let mut a32 = [0u32; 64];
+            for k in 0..n {
+                debug_assert!(keep[k] < 1 << 32 || alias[k] == k as u32);
+                k32[k] = keep[k].min(u32::MAX as u64) as u32;
+                a32[k] = alias[k];
+            }
+            (k32, a32)
+        });
         OffsetTable {
             half,
             sigma,
             mass,
+            small,
             keep,
             alias,
         }
@@ -169,6 +185,11 @@ impl OffsetTable {
     /// The alias table: `(keep, alias)` of [`Self::sample`].
     pub(super) fn alias_table(&self) -> (&[u64], &[u32]) {
         (&self.keep, &self.alias)
+    }
+
+    /// [`Self::alias_table`] in u32 for at most 64 offsets.
+    pub(super) fn small_table(&self) -> Option<&([u32; 64], [u32; 64])> {
+        self.small.as_ref()
     }
 
     /// Mass of offset `d` (normalised over the box).
@@ -285,26 +306,26 @@ pub fn standardize(values: &mut [f32]) -> (f64, f64) {
     (mean, sigma)
 }
 
-/// [`standardize`] for `count` rows of `n` values, `rows[r * cap..][..n]`. On AVX-512 the rows
-/// go four at a time: each row's sums keep [`sum_f64`]'s four lanes and order (so the bytes are
-/// the same), and the four rows' chains run side by side instead of one waiting on the next
-/// addition.
-pub fn standardize_rows(level: Level, rows: &mut [f32], cap: usize, count: usize, n: usize) {
-    assert!(n <= cap && rows.len() >= count * cap);
+/// [`standardize`] for the rows `which` of `n` values, `rows[r * cap..][..n]`. On AVX-512 the
+/// rows go four at a time: each row's sums keep [`sum_f64`]'s four lanes and order (so the
+/// bytes are the same), and the four rows' chains run side by side instead of one waiting on
+/// the next addition.
+pub fn standardize_rows(level: Level, rows: &mut [f32], cap: usize, which: &[usize], n: usize) {
+    assert!(n <= cap && which.iter().all(|&r| rows.len() >= (r + 1) * cap));
     #[cfg(target_arch = "x86_64")]
     if level == Level::Avx512 {
         // SAFETY: the CPU has AVX-512 F (`Level::detect`).
-        return unsafe { standardize_rows_avx512(rows, cap, count, n) };
+        return unsafe { standardize_rows_avx512(rows, cap, which, n) };
     }
     let _ = level;
-    for r in 0..count {
+    for &r in which {
         standardize(&mut rows[r * cap..r * cap + n]);
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn standardize_rows_avx512(rows: &mut [f32], cap: usize, count: usize, n: usize) {
+fn standardize_rows_avx512(rows: &mut [f32], cap: usize, which: &[usize], n: usize) {
     use std::arch::x86_64::*;
     if n == 0 {
         return;
@@ -338,9 +359,10 @@ fn standardize_rows_avx512(rows: &mut [f32], cap: usize, count: usize, n: usize)
             (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
         })
     };
+    let count = which.len();
     for first in (0..count).step_by(4) {
         // A last group of fewer than 4 rows repeats its last row (computed, not stored twice).
-        let group: [usize; 4] = std::array::from_fn(|k| (first + k).min(count - 1));
+        let group: [usize; 4] = std::array::from_fn(|k| which[(first + k).min(count - 1)]);
         let mean = sums(rows, group, [0.0; 4], false).map(|s| s / nf);
         let var = sums(rows, group, mean, true).map(|s| s / nf);
         for k in 0..(count - first).min(4) {

@@ -22,6 +22,7 @@
 //!   takes them in the same order.
 
 use super::cpu::Level;
+use super::draws;
 use super::preprocess::{FEATURES, FeatureGate, OffsetTable, PixelRng, features};
 use crate::layout::SampleVector;
 
@@ -239,41 +240,11 @@ pub fn select(
     let visited = &mut scratch.visited;
     visited.clear();
     visited.resize((side * side * spp).div_ceil(64), 0);
-    let accept = |dx: i32, dy: i32| {
-        (xlo..=xhi).contains(&dx) && (ylo..=yhi).contains(&dy) && (dx != 0 || dy != 0)
+    let clip = draws::Clip {
+        x: (xlo, xhi),
+        y: (ylo, yhi),
     };
-    let mut mark = |dx: i32, dy: i32, s: u32| {
-        let key = ((dy + half) as usize * side + (dx + half) as usize) * spp + s as usize;
-        visited[key / 64] |= 1u64 << (key % 64);
-    };
-    match level {
-        #[cfg(target_arch = "x86_64")]
-        Level::Avx512 => {
-            let mut stream = Stream::new(rng);
-            for _ in 0..sel.draws {
-                let (dx, dy) = loop {
-                    let dx = stream.next(sel.table, sel.spp).0;
-                    let dy = stream.next(sel.table, sel.spp).0;
-                    if accept(dx, dy) {
-                        break (dx, dy);
-                    }
-                };
-                mark(dx, dy, stream.next(sel.table, sel.spp).1);
-            }
-        }
-        _ => {
-            for _ in 0..sel.draws {
-                let (dx, dy) = loop {
-                    let dx = sel.table.sample(rng.next_u64());
-                    let dy = sel.table.sample(rng.next_u64());
-                    if accept(dx, dy) {
-                        break (dx, dy);
-                    }
-                };
-                mark(dx, dy, rng.below(sel.spp));
-            }
-        }
-    }
+    draws::draw(level, sel.table, sel.spp, sel.draws, clip, rng, visited);
     // The drawn samples in key order, which is memory order: key = (row · side + column) ·
     // spp + s, so the sample index is key + row · (w − side) · spp + the box's first sample.
     let candidates = &mut scratch.candidates;
@@ -324,7 +295,7 @@ fn test_candidates(
 }
 
 /// How far ahead the candidates' feature lines are prefetched.
-const PREFETCH: usize = 12;
+const PREFETCH: usize = 32;
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
@@ -351,94 +322,6 @@ fn test_avx512(lines: &[FeatureLine], gate: &Gate, candidates: &[u32], out: &mut
         if out_of == 0 {
             out.push(i);
         }
-    }
-}
-
-/// The random numbers of a pixel, hashed and mapped 64 at a time (AVX-512): value k of the
-/// stream is the same as the k-th `rng.next_u64()`, seen as an offset ([`OffsetTable::sample`])
-/// and as a sample number (`PixelRng::below(spp)`).
-#[cfg(target_arch = "x86_64")]
-struct Stream<'r> {
-    rng: &'r mut PixelRng,
-    offset: [i32; BATCH],
-    sample: [u32; BATCH],
-    at: usize,
-}
-
-#[cfg(target_arch = "x86_64")]
-const BATCH: usize = 64;
-
-#[cfg(target_arch = "x86_64")]
-impl<'r> Stream<'r> {
-    fn new(rng: &'r mut PixelRng) -> Self {
-        Stream {
-            rng,
-            offset: [0; BATCH],
-            sample: [0; BATCH],
-            at: BATCH,
-        }
-    }
-
-    #[inline(always)]
-    fn next(&mut self, table: &OffsetTable, spp: u32) -> (i32, u32) {
-        if self.at == BATCH {
-            // SAFETY: only constructed on the AVX-512 path (`Level::detect`).
-            unsafe { self.refill(table, spp) };
-            self.at = 0;
-        }
-        let k = self.at;
-        self.at += 1;
-        (self.offset[k], self.sample[k])
-    }
-
-    #[target_feature(enable = "avx512f,avx512dq,avx512vl")]
-    fn refill(&mut self, table: &OffsetTable, spp: u32) {
-        use std::arch::x86_64::*;
-        let (keep, alias) = table.alias_table();
-        let state = self.rng.raw();
-        const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
-        let lanes = _mm512_set_epi64(8, 7, 6, 5, 4, 3, 2, 1);
-        let mut counter = _mm512_add_epi64(
-            _mm512_set1_epi64(*state as i64),
-            _mm512_mullo_epi64(lanes, _mm512_set1_epi64(GOLDEN as i64)),
-        );
-        let stride = _mm512_set1_epi64(GOLDEN.wrapping_mul(8) as i64);
-        let n = _mm512_set1_epi64(keep.len() as i64);
-        let spp = _mm512_set1_epi64(spp as i64);
-        let half = _mm256_set1_epi32(table.half);
-        let low32 = _mm512_set1_epi64(0xffff_ffff);
-        for chunk in 0..BATCH / 8 {
-            // mix64 of preprocess.rs, eight lanes.
-            let mut z = counter;
-            z = _mm512_xor_si512(z, _mm512_srli_epi64::<30>(z));
-            z = _mm512_mullo_epi64(z, _mm512_set1_epi64(0xbf58_476d_1ce4_e5b9_u64 as i64));
-            z = _mm512_xor_si512(z, _mm512_srli_epi64::<27>(z));
-            z = _mm512_mullo_epi64(z, _mm512_set1_epi64(0x94d0_49bb_1331_11eb_u64 as i64));
-            z = _mm512_xor_si512(z, _mm512_srli_epi64::<31>(z));
-            counter = _mm512_add_epi64(counter, stride);
-            // OffsetTable::sample: column = ((bits >> 32) · n) >> 32, kept when the low 32
-            // bits are below keep[column], else alias[column].
-            let top = _mm512_srli_epi64::<32>(z);
-            let column = _mm512_srli_epi64::<32>(_mm512_mul_epu32(top, n));
-            // SAFETY: column < keep.len() = alias.len().
-            let (kept, other) = unsafe {
-                (
-                    _mm512_i64gather_epi64::<8>(column, keep.as_ptr() as *const i64),
-                    _mm512_i64gather_epi32::<4>(column, alias.as_ptr() as *const i32),
-                )
-            };
-            let stay = _mm512_cmplt_epu64_mask(_mm512_and_si512(z, low32), kept);
-            let k = _mm256_mask_blend_epi32(stay, other, _mm512_cvtepi64_epi32(column));
-            let offset = _mm256_sub_epi32(k, half);
-            // PixelRng::below(spp).
-            let s = _mm512_cvtepi64_epi32(_mm512_srli_epi64::<32>(_mm512_mul_epu32(top, spp)));
-            // SAFETY: 8 lanes at 8 · chunk < BATCH.
-            unsafe {
-                _mm256_storeu_si256(self.offset.as_mut_ptr().add(8 * chunk) as *mut __m256i, offset);
-                _mm256_storeu_si256(self.sample.as_mut_ptr().add(8 * chunk) as *mut __m256i, s);
-            }
-        }
-        *state = state.wrapping_add(GOLDEN.wrapping_mul(BATCH as u64));
     }
 }
 
