@@ -25,3 +25,4 @@ pub mod metrics;
 pub mod render;
 pub mod scene;
 pub mod stats;
+pub mod view;

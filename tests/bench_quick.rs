@@ -59,6 +59,35 @@ fn quick_benchmark_completes_with_well_formed_results() {
             "no {f} row in quality.csv: {methods:?}"
         );
     }
+    // OIDN beside them when its environment is set up (scripts/test.sh sets it up and requires
+    // it), its three quality modes better than the unfiltered image.
+    let oidn = noisefree::bench::oidn::Oidn::find().is_some();
+    assert!(
+        oidn || std::env::var_os("NOISEFREE_REQUIRE_OIDN").is_none(),
+        "{}",
+        noisefree::bench::oidn::NOT_SET_UP
+    );
+    if oidn {
+        let rel_mse = |method: &str| -> f64 {
+            let header: Vec<&str> = quality.lines().next().unwrap().split(',').collect();
+            let col = header.iter().position(|c| *c == "rel_mse").unwrap();
+            let row = quality
+                .lines()
+                .map(|l| l.split(',').collect::<Vec<_>>())
+                .find(|r| r[1] == method && r[0] == "cornell_diffuse")
+                .unwrap_or_else(|| panic!("no {method} row in quality.csv"));
+            row[col].parse().unwrap()
+        };
+        let unfiltered = rel_mse("unfiltered");
+        for q in noisefree::bench::oidn::Quality::ALL {
+            let e = rel_mse(&q.label());
+            assert!(
+                e < unfiltered,
+                "{}: {e} vs unfiltered {unfiltered}",
+                q.label()
+            );
+        }
+    }
     for png in [
         "filter-speed-cornell_diffuse.png",
         "quality-cornell_diffuse-small.png",

@@ -125,9 +125,14 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
     return ps;
 }
 
-// One work-item per pixel adds `sample_count` samples, numbered from `sample_base`, to the
-// pixel's outputs. The host binds every argument by name (src/render/mod.rs), the output
-// buffers in the order of the generated RENDER_OUTPUT_PARAMS.
+// One work-item per pixel of a tile of the image adds `sample_count` samples, numbered from
+// `sample_base`, to the pixel's outputs. The samples of one render are those from
+// `range_first` on: a render of the range A..B (`render --samples A..B`) counts its samples from
+// A, so its outputs are those of exactly the samples A..B-1, which `noisefree merge` combines
+// with the other ranges (src/stats/merge.rs). The random numbers hash the pixel's place in the
+// whole image and the absolute sample number, so a sample is the same whichever render, tile
+// or launch draws it. The host binds every argument by name (src/render/mod.rs), the output
+// buffers in the order of the generated RENDER_OUTPUT_PARAMS; they hold the tile's pixels.
 __kernel void render(__constant const SceneParams* params,
                      __global const BvhNode* nodes,
                      __global const TriangleGeom* tri_geom,
@@ -142,27 +147,35 @@ __kernel void render(__constant const SceneParams* params,
                      __global uint* ray_counts,
                      __global uint* debug_counters,     // DEBUG_COUNTERS builds only
                      uint sample_capacity,              // samples per pixel sample_vectors holds
+                     uint tile_x,                       // the tile's top-left pixel in the image
+                     uint tile_y,
+                     uint tile_width,
+                     uint tile_height,
+                     uint range_first,
                      uint sample_base,
                      uint sample_count) {
-    uint x = get_global_id(0), y = get_global_id(1);
-    if (x >= params->image_width || y >= params->image_height) return;
-    uint pixel = y * params->image_width + x;
+    uint tx = get_global_id(0), ty = get_global_id(1);
+    if (tx >= tile_width || ty >= tile_height) return;
+    uint x = tile_x + tx, y = tile_y + ty;
+    uint pixel = y * params->image_width + x;           // in the image: its random numbers
+    uint slot = ty * tile_width + tx;                   // in this render's buffers
     SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
                    textures, texels, lights, light_cdf, debug_counters};
     PixelStats stats;
-    pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, pixel);
+    pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, slot);
     uint rays = 0u;
     for (uint k = 0u; k < sample_count; ++k) {
         uint sample = sample_base + k;
         uint key = rng_sample_key(params->seed, pixel, sample);
         PathSample ps = trace_path(&s, x, y, key, &rays);
-        film_accumulate(&stats, &ps, sample + 1u);
+        uint index = sample - range_first;              // 0 for the render's first sample
+        film_accumulate(&stats, &ps, index + 1u);
 #if OUTPUT_SAMPLES
-        if (sample < sample_capacity)
-            write_sample_vector(sample_vectors, pixel * sample_capacity + sample, x, y, key, &ps,
+        if (index < sample_capacity)
+            write_sample_vector(sample_vectors, slot * sample_capacity + index, x, y, key, &ps,
                                 HAS_DOF && params->lens_radius > 0.0f);
 #endif
     }
-    pixel_stats_store(&stats, RENDER_OUTPUT_ARGS, pixel);
-    ray_counts[pixel] = rays;
+    pixel_stats_store(&stats, RENDER_OUTPUT_ARGS, slot);
+    ray_counts[slot] = rays;
 }

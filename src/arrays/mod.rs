@@ -262,6 +262,14 @@ impl SceneArrays {
         }
     }
 
+    /// Moves the camera to `scene.camera` (the rest of `scene` must be what the arrays were
+    /// built from): the thesis's camera update (§4.2.2 "Camera"), without rebuilding the BVH.
+    /// The parameters are then exactly those [`SceneArrays::build`] gives for `scene`.
+    pub fn set_camera(&mut self, scene: &Scene) {
+        set_camera_params(&mut self.params, &scene.camera);
+        self.focus(scene);
+    }
+
     /// Autofocus (§4.2.2 "Camera"): the focal distance is the distance to the first hit along
     /// the view direction. When that ray hits nothing, the explicit focal_distance is kept if
     /// there is one, else the camera focuses on the centre of the scene's bounds.
@@ -325,18 +333,22 @@ pub fn scene_bounds(scene: &Scene) -> (Vec3, Vec3) {
     (lo, hi)
 }
 
+/// Writes the camera of `camera` into the megakernel's parameters (before autofocus).
+fn set_camera_params(p: &mut SceneParams, camera: &crate::scene::Camera) {
+    let cam = crate::scene::CameraBasis::new(camera);
+    p.camera_origin = f4(cam.origin, 0.0);
+    p.camera_forward = f4(cam.forward, 0.0);
+    p.camera_right = f4(cam.right, 0.0);
+    p.camera_up = f4(cam.up, 0.0);
+    p.tan_half_fov = cam.tan_half_fov;
+    p.lens_radius = cam.lens_radius;
+    p.focal_distance = cam.focal_distance;
+}
+
 fn scene_params(scene: &Scene, frame: &FrameSettings, a: &SceneArrays) -> Result<SceneParams> {
-    let cam = crate::scene::CameraBasis::new(&scene.camera);
     let mut p = SceneParams {
-        camera_origin: f4(cam.origin, 0.0),
-        camera_forward: f4(cam.forward, 0.0),
-        camera_right: f4(cam.right, 0.0),
-        camera_up: f4(cam.up, 0.0),
         image_width: frame.width,
         image_height: frame.height,
-        tan_half_fov: cam.tan_half_fov,
-        lens_radius: cam.lens_radius,
-        focal_distance: cam.focal_distance,
         node_count: a.nodes.len() as u32,
         sphere_count: a.spheres.len() as u32,
         light_count: a.lights.len() as u32,
@@ -357,6 +369,7 @@ fn scene_params(scene: &Scene, frame: &FrameSettings, a: &SceneArrays) -> Result
         env_uv: Float4::new(1.0, 1.0, 0.0, 0.0),
         ..Default::default()
     };
+    set_camera_params(&mut p, &scene.camera);
     if let Some(env) = &scene.environment {
         p.env_radiance = f4(env.radiance, 0.0);
         p.env_texture = env.texture.map_or(-1, |t| t as i32);

@@ -7,11 +7,9 @@ use anyhow::Result;
 
 use super::curves::{loglog_at, loglog_where};
 use super::plot::{Chart, Series, line_chart};
-use super::study::{STUDY_SEED, StudyScene, reads_every_sample, reference_image, sizes};
+use super::study::{Candidate, STUDY_SEED, StudyScene, reference_image, sizes};
 use super::table::{ResultTable, distinct, num};
 use super::{Context, bar};
-use crate::filters::Configured;
-use crate::layout::outputs::OutputSet;
 use crate::metrics;
 
 /// One point of an error-versus-time curve.
@@ -30,15 +28,19 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
     let columns = ["scene", "method", "spp", "seconds", "mse_luv", "rel_mse"];
     let mut t = ctx.table("accuracy-time", &columns, 3, fresh)?;
     let unfiltered_max = if ctx.quick { 32 } else { 1024 };
-    let filtered_max = |m: &Configured| -> u32 {
-        // RPF's cost grows with every stored sample (about five minutes per 512x512 frame at
-        // 8 spp on a 2-core CPU); such curves stop at 8 spp, the spp of the headline.
-        if ctx.quick || reads_every_sample(m) {
-            8
-        } else {
-            64
+    // RPF's cost grows with every stored sample (minutes per 512x512 frame at 8 spp on a
+    // 2-core CPU); such curves stop at 8 spp, the spp of the headline.
+    let max_spp = |c: &Candidate| -> u32 {
+        match c {
+            Candidate::Unfiltered => unfiltered_max,
+            _ if ctx.quick || c.reads_every_sample() => 8,
+            _ => 64,
         }
     };
+    let oidn = super::oidn::Oidn::find();
+    if oidn.is_none() {
+        ctx.say(super::oidn::NOT_SET_UP);
+    }
     let pb = bar(ctx, ctx.scenes.len() as u64, "accuracy against time");
     for path in &ctx.scenes {
         let study = StudyScene::load(path, &s, STUDY_SEED)?;
@@ -46,10 +48,9 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         pb.set_message(format!("accuracy against time: {name}"));
         let reference = reference_image(ctx, path, &s)?;
         let methods = study.methods()?;
-        let mut entries: Vec<(Option<&Configured>, u32)> = vec![(None, unfiltered_max)];
-        entries.extend(methods.iter().map(|m| (Some(m), filtered_max(m))));
-        for (method, max_spp) in entries {
-            let label = method.map_or("unfiltered", |m| m.name()).to_string();
+        for candidate in Candidate::all(&methods, &[], oidn.as_ref()) {
+            let max_spp = max_spp(&candidate);
+            let label = candidate.label();
             let checkpoints: Vec<u32> = (0..)
                 .map(|i| 1u32 << i)
                 .take_while(|&n| n <= max_spp)
@@ -61,31 +62,19 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                 ctx.say(&format!(
                     "accuracy-time: {name} {label} up to {max_spp} spp"
                 ));
-                let outputs = method.map_or(OutputSet::colour(), |m| m.needs());
+                let outputs = candidate.needs();
                 let mut r = study.renderer(ctx, &s, outputs, max_spp)?;
-                let mut prepared = match method {
-                    Some(m) => Some(m.prepare(r.frame().info(), &ctx.gpu)?),
-                    None => None,
-                };
+                let mut prepared = candidate.prepare(ctx, r.frame().info())?;
                 // Warm-up: one frame builds and loads everything, then the render restarts.
                 r.render_samples(1)?;
-                if let Some(f) = prepared.as_mut() {
-                    f.run(&r.frame())?;
-                }
+                prepared.run(&r.frame())?;
                 let mut r2 = study.renderer(ctx, &s, outputs, max_spp)?;
                 let mut render_time = Duration::ZERO;
                 for &spp in &checkpoints {
                     let start = Instant::now();
                     r2.render_samples(spp - r2.samples_done())?;
                     render_time += start.elapsed();
-                    let frame = r2.frame();
-                    let (img, filter_time) = match prepared.as_mut() {
-                        Some(f) => {
-                            let run = f.run(&frame)?;
-                            (run.image, run.wall_time)
-                        }
-                        None => (frame.beauty()?, Duration::ZERO),
-                    };
+                    let (img, filter_time) = prepared.run(&r2.frame())?;
                     let key = vec![name.clone(), label.clone(), spp.to_string()];
                     if !t.has(&key) {
                         let m = metrics::compare(&img, &reference)?;

@@ -20,6 +20,9 @@
 //!   figures (equal-quality sample reduction, equal-time error ratio).
 //! - `sweep`: Table 7.1's one-parameter-at-a-time sweep and hypotheses 1-3 (§7.3), plus the
 //!   variance scales s_f the thesis leaves open.
+//! - `balance` (only when asked, with `--devices`): several devices sharing each frame
+//!   (thesis §4.2): each device's share and idle time per frame, with and without
+//!   re-balancing, and where the filter runs.
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -28,9 +31,11 @@
 //! tables and `plot` the charts and contact sheets.
 
 pub mod accuracy_time;
+pub mod balance;
 pub mod curves;
 pub mod filter_speed;
 pub mod ground_truth;
+pub mod oidn;
 pub mod plot;
 pub mod quality;
 pub mod speed;
@@ -55,9 +60,11 @@ pub enum Study {
     Quality,
     AccuracyTime,
     Sweep,
+    /// Several devices per frame (needs --devices with two or more; not in the default set).
+    Balance,
 }
 
-#[derive(Args, Debug, Clone)]
+#[derive(Args, Debug, Clone, PartialEq)]
 pub struct BenchArgs {
     /// Studies to run (repeatable) [default: all].
     #[arg(long, value_enum)]
@@ -89,7 +96,13 @@ pub struct BenchArgs {
     /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
     #[arg(long)]
     pub device: Option<usize>,
-    /// Scenes to use (repeatable) [default: every scene of the bundled scenes folder].
+    /// Several devices (`--devices 1,0`): the balance study shares frames among them; the
+    /// other studies run on the first.
+    #[command(flatten)]
+    pub multi: crate::filters::MultiDeviceArgs,
+    /// Scenes to use (repeatable) [default: every scene of the bundled scenes folder]; the
+    /// sweep runs those of its plan named here (by file name), and writes its report from every
+    /// row of its table.
     #[arg(long)]
     pub scene: Vec<PathBuf>,
     /// The bundled scenes folder (the sweep and filter-speed read their scenes from it too)
@@ -98,11 +111,149 @@ pub struct BenchArgs {
     pub scenes: Option<PathBuf>,
     #[arg(long, short)]
     pub quiet: bool,
+    /// Run it on a Slurm cluster: the references the studies need as job arrays of N sample
+    /// ranges each, merged into the cache, then the benchmark itself as one job (its timings
+    /// must come from one device): write the job folder and submit it.
+    #[arg(long, value_name = "N")]
+    pub slurm: Option<u32>,
+    /// With --slurm: print the job instead of writing and submitting it.
+    #[arg(long, requires = "slurm")]
+    pub dry_run: bool,
+    /// With --slurm: the job folder [default: slurm/bench or slurm/bench-quick].
+    #[arg(long, value_name = "DIR", requires = "slurm")]
+    pub job_dir: Option<PathBuf>,
+}
+
+impl BenchArgs {
+    /// The `noisefree bench` arguments that run these studies again, without the Slurm flags
+    /// (what the job runs after the references are merged).
+    pub fn to_args(&self) -> Vec<String> {
+        let mut v = vec!["bench".to_string()];
+        let path = |p: &PathBuf| p.display().to_string();
+        for s in &self.study {
+            let name = s.to_possible_value().expect("no skipped studies");
+            v.extend(["--study".into(), name.get_name().to_string()]);
+        }
+        for (on, flag) in [
+            (self.specialisation, "--specialisation"),
+            (self.statistics, "--statistics"),
+            (self.quick, "--quick"),
+            (self.fresh, "--fresh"),
+            (self.quiet, "--quiet"),
+        ] {
+            if on {
+                v.push(flag.into());
+            }
+        }
+        for (value, flag) in [
+            (&self.out, "--out"),
+            (&self.cache, "--cache"),
+            (&self.scenes, "--scenes"),
+        ] {
+            if let Some(p) = value {
+                v.extend([flag.into(), path(p)]);
+            }
+        }
+        if let Some(n) = self.reference_spp {
+            v.extend(["--reference-spp".into(), n.to_string()]);
+        }
+        if let Some(d) = self.device {
+            v.extend(["--device".into(), d.to_string()]);
+        }
+        v.extend(self.multi.to_args());
+        for s in &self.scene {
+            v.extend(["--scene".into(), path(s)]);
+        }
+        v
+    }
+}
+
+/// The studies, scenes and bundled scenes folder a run of `args` uses.
+struct Selection {
+    studies: Vec<Study>,
+    scenes: Vec<PathBuf>,
+    scenes_dir: Option<PathBuf>,
+}
+
+fn select(args: &BenchArgs) -> Result<Selection> {
+    if args.reference_spp == Some(0) {
+        bail!("--reference-spp must be at least 1");
+    }
+    let mut studies = args.study.clone();
+    if args.specialisation {
+        studies.push(Study::RenderSpeed);
+    }
+    if args.statistics {
+        studies.push(Study::Statistics);
+    }
+    if studies.is_empty() {
+        studies = vec![
+            Study::FilterSpeed,
+            Study::Quality,
+            Study::AccuracyTime,
+            Study::Sweep,
+            Study::RenderSpeed,
+            Study::Statistics,
+        ];
+    }
+    studies.dedup();
+    // The bundled scenes are needed unless --scene names every scene and no study reads a
+    // bundled scene by name (filter-speed and the sweep do): fail before measuring anything.
+    let scenes_dir = scenes_dir(args.scenes.as_deref())?;
+    let needs_bundled = args.scene.is_empty()
+        || studies
+            .iter()
+            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep));
+    if scenes_dir.is_none() && needs_bundled {
+        return Err(no_scenes_dir());
+    }
+    let mut scenes = match &scenes_dir {
+        Some(dir) if args.scene.is_empty() => bundled_scenes(dir)?,
+        _ => args.scene.clone(),
+    };
+    if args.quick && args.scene.is_empty() {
+        scenes.retain(|p| p.ends_with("cornell_diffuse.toml"));
+    }
+    Ok(Selection {
+        studies,
+        scenes,
+        scenes_dir,
+    })
+}
+
+/// The ground-truth images the studies of `args` compare with, each once: what `bench
+/// --slurm` renders on the cluster before the benchmark runs.
+pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::ReferenceRequest>> {
+    let sel = select(args)?;
+    let sizes = study::sizes_for(args.quick, args.reference_spp);
+    let mut paths: Vec<PathBuf> = Vec::new();
+    for s in &sel.studies {
+        match s {
+            Study::Quality | Study::AccuracyTime => paths.extend(sel.scenes.iter().cloned()),
+            Study::Sweep => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                for name in sweep::sweep_scenes(args.quick) {
+                    paths.push(dir.join(format!("{name}.toml")));
+                }
+            }
+            Study::RenderSpeed | Study::Statistics | Study::FilterSpeed | Study::Balance => {}
+        }
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    paths.retain(|p| seen.insert(p.clone()));
+    Ok(paths
+        .iter()
+        .map(|p| study::reference_request(p, &sizes))
+        .collect())
 }
 
 /// Everything a study needs.
 pub struct Context {
     pub gpu: Arc<Gpu>,
+    /// Every device of --devices (the first is `gpu`); `gpu` alone without it.
+    pub gpus: Vec<Arc<Gpu>>,
+    /// --filter-placement and --no-rebalance, for the balance study.
+    pub multi: crate::filters::MultiDeviceArgs,
     pub out: PathBuf,
     pub quick: bool,
     pub quiet: bool,
@@ -220,42 +371,13 @@ pub fn bundled_scenes(dir: &Path) -> Result<Vec<PathBuf>> {
 }
 
 pub fn run(args: &BenchArgs) -> Result<()> {
-    if args.reference_spp == Some(0) {
-        bail!("--reference-spp must be at least 1");
-    }
-    let mut studies = args.study.clone();
-    if args.specialisation {
-        studies.push(Study::RenderSpeed);
-    }
-    if args.statistics {
-        studies.push(Study::Statistics);
-    }
-    if studies.is_empty() {
-        studies = vec![
-            Study::FilterSpeed,
-            Study::Quality,
-            Study::AccuracyTime,
-            Study::Sweep,
-            Study::RenderSpeed,
-            Study::Statistics,
-        ];
-    }
-    studies.dedup();
-    // The bundled scenes are needed unless --scene names every scene and no study reads a
-    // bundled scene by name (filter-speed and the sweep do): fail before measuring anything.
-    let scenes_dir = scenes_dir(args.scenes.as_deref())?;
-    let needs_bundled = args.scene.is_empty()
-        || studies
-            .iter()
-            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep));
-    if scenes_dir.is_none() && needs_bundled {
-        return Err(no_scenes_dir());
-    }
-    let mut scenes = match &scenes_dir {
-        Some(dir) if args.scene.is_empty() => bundled_scenes(dir)?,
-        _ => args.scene.clone(),
-    };
-    let gpu = Gpu::open(args.device)?;
+    let Selection {
+        studies,
+        scenes,
+        scenes_dir,
+    } = select(args)?;
+    let gpus = args.multi.open(args.device)?;
+    let gpu = gpus[0].clone();
     // Outputs go under the current folder unless --out (and --cache) say otherwise.
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results").join(if args.quick {
@@ -265,11 +387,10 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         })
     });
     std::fs::create_dir_all(&out)?;
-    if args.quick && args.scene.is_empty() {
-        scenes.retain(|p| p.ends_with("cornell_diffuse.toml"));
-    }
     let ctx = Context {
         gpu,
+        gpus,
+        multi: args.multi.clone(),
         out,
         quick: args.quick,
         quiet: args.quiet,
@@ -297,6 +418,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::Quality => quality::quality(&ctx, args.fresh)?,
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
+            Study::Balance => balance::balance(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;
@@ -317,9 +439,16 @@ fn write_device_info(ctx: &Context) -> Result<()> {
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
         .unwrap_or_else(|| "unknown".into());
     let text = format!(
-        "# Device\n\n| | |\n|---|---|\n| device | {} ({}) |\n| platform | {} |\n| OpenCL | {} |\n| driver | {} |\n| compute units | {} |\n| max clock | {} MHz |\n| global memory | {} |\n| local memory | {} |\n| host CPUs | {} |\n| commit | {} |\n| command | `noisefree bench{}` |\n",
+        "# Device\n\n| | |\n|---|---|\n| device | {} ({}){} |\n| platform | {} |\n| OpenCL | {} |\n| driver | {} |\n| compute units | {} |\n| max clock | {} MHz |\n| global memory | {} |\n| local memory | {} |\n| host CPUs | {} |\n| commit | {} |\n| command | `noisefree bench{}` |\n",
         s.name,
         s.kind,
+        ctx.gpus[1..]
+            .iter()
+            .map(|g| format!(
+                ", then {} ({} compute units)",
+                g.summary.name, g.summary.compute_units
+            ))
+            .collect::<String>(),
         s.platform,
         s.version,
         s.driver,

@@ -5,14 +5,13 @@ use anyhow::Result;
 
 use super::plot::{contact_sheet, half_size};
 use super::study::{
-    STUDY_SEED, StudyScene, methods_markdown, metric_cells, reference_image, sizes,
+    Candidate, STUDY_SEED, StudyScene, methods_markdown, metric_cells, reference_image, sizes,
 };
 use super::table::{distinct, num};
 use super::{Context, bar};
 use crate::filters::FilterKind;
 use crate::filters::ddf::Ddf;
 use crate::imaging::{RgbImage, write_exr, write_png};
-use crate::layout::outputs::OutputSet;
 
 /// Study 2 (thesis §7.3, Fig. 7.18): every scene, unfiltered and filtered, against the
 /// reference; a contact sheet per scene.
@@ -25,6 +24,10 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
     let images = ctx.out.join("images");
     std::fs::create_dir_all(&images)?;
     let ddf_spp: &[u32] = if ctx.quick { &[8] } else { &[8, 16, 32] };
+    let oidn = super::oidn::Oidn::find();
+    if oidn.is_none() {
+        ctx.say(super::oidn::NOT_SET_UP);
+    }
     let pb = bar(ctx, ctx.scenes.len() as u64, "quality");
     for path in &ctx.scenes {
         let study = StudyScene::load(path, &s, STUDY_SEED)?;
@@ -35,22 +38,22 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
             format!("reference {} spp", s.reference_spp),
             reference.clone(),
         )];
-        // (method, spp) cells: unfiltered at 8, the thesis's filter at 8/16/32, the others at 8.
+        // (candidate, spp) cells: unfiltered at 8, the thesis's filter at 8/16/32, the others
+        // at 8: every registered filter, the thesis's filter with holes and without the sky
+        // case, and OIDN's qualities when it is set up.
         let methods = study.methods()?;
-        let mut cells: Vec<(Option<&crate::filters::Configured>, u32)> = vec![(None, 8)];
-        for m in &methods {
-            let spps: Vec<u32> = if m.name() == Ddf::NAME {
-                ddf_spp.to_vec()
-            } else {
-                vec![8]
-            };
-            for spp in spps {
-                cells.push((Some(m), spp));
+        let variants = study.thesis_variants()?;
+        let mut cells: Vec<(Candidate, u32)> = Vec::new();
+        for c in Candidate::all(&methods, &variants, oidn.as_ref()) {
+            let thesis = matches!(&c, Candidate::Filter { label, .. } if label == Ddf::NAME);
+            let spps: &[u32] = if thesis { ddf_spp } else { &[8] };
+            for &spp in spps {
+                cells.push((c.clone(), spp));
             }
         }
-        for (method, spp) in cells {
-            let label = method.as_ref().map_or("unfiltered", |m| m.name());
-            let key = vec![name.clone(), label.to_string(), spp.to_string()];
+        for (candidate, spp) in cells {
+            let label = candidate.label();
+            let key = vec![name.clone(), label.clone(), spp.to_string()];
             let png = images.join(format!("{name}-{label}-{spp}spp.png"));
             let exr = png.with_extension("exr");
             if t.has(&key) && exr.exists() {
@@ -61,19 +64,13 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
                 continue;
             }
             ctx.say(&format!("quality: {name} {label} {spp} spp"));
-            let outputs = method.map_or(OutputSet::colour(), |m| m.needs());
-            let mut r = study.renderer(ctx, &s, outputs, spp)?;
+            let mut r = study.renderer(ctx, &s, candidate.needs(), spp)?;
             r.render_samples(spp)?;
             let frame = r.frame();
-            let (img, secs) = match method {
-                None => (frame.beauty()?, 0.0),
-                Some(m) => {
-                    let mut f = m.prepare(frame.info(), &ctx.gpu)?;
-                    f.show_progress(!ctx.quiet);
-                    let run = f.run(&frame)?;
-                    (run.image, run.wall_time.as_secs_f64())
-                }
-            };
+            let mut prepared = candidate.prepare(ctx, frame.info())?;
+            prepared.warm_up(&frame)?;
+            let (img, time) = prepared.run(&frame)?;
+            let secs = time.as_secs_f64();
             write_png(&png, &img, 0.0)?;
             write_exr(&exr, &img)?;
             if !t.has(&key) {

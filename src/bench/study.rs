@@ -24,19 +24,22 @@ pub struct Sizes {
 }
 
 pub fn sizes(ctx: &Context) -> Sizes {
-    if ctx.quick {
+    sizes_for(ctx.quick, ctx.reference_spp)
+}
+
+/// The image sizes of a run (`--quick`) and its references' spp (`--reference-spp`).
+pub fn sizes_for(quick: bool, reference_spp: Option<u32>) -> Sizes {
+    if quick {
         Sizes {
             width: 64,
             height: 64,
-            reference_spp: ctx.reference_spp.unwrap_or(256),
+            reference_spp: reference_spp.unwrap_or(256),
         }
     } else {
         Sizes {
             width: 512,
             height: 512,
-            reference_spp: ctx
-                .reference_spp
-                .unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
+            reference_spp: reference_spp.unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
         }
     }
 }
@@ -147,12 +150,6 @@ pub fn methods_markdown() -> String {
     md
 }
 
-/// Filters that read every stored sample (RPF) cost time and memory in proportion to the
-/// samples; their curves stop at 8 spp, the spp of the headline.
-pub fn reads_every_sample(c: &Configured) -> bool {
-    c.needs().contains(Output::Samples)
-}
-
 fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
     let mut o = RenderOptions::for_scene(scene);
     o.frame.width = s.width;
@@ -161,14 +158,19 @@ fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
     o
 }
 
-pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
-    let req = ReferenceRequest {
+/// The ground truth the studies compare a scene's images with.
+pub fn reference_request(path: &Path, s: &Sizes) -> ReferenceRequest {
+    ReferenceRequest {
         scene: path.to_path_buf(),
         width: s.width,
         height: s.height,
         spp: s.reference_spp,
         seed: ground_truth::REFERENCE_SEED,
-    };
+    }
+}
+
+pub(super) fn reference_image(ctx: &Context, path: &Path, s: &Sizes) -> Result<RgbImage> {
+    let req = reference_request(path, s);
     ctx.say(&format!(
         "reference: {} ({} spp)",
         path.display(),
@@ -190,3 +192,112 @@ pub(super) fn metric_cells(img: &RgbImage, reference: &RgbImage) -> Result<Vec<S
 
 /// The seed of a study's noisy renders (the reference uses another).
 pub(super) const STUDY_SEED: u32 = 7;
+
+/// What a study compares: the unfiltered image, a registered filter (or one of the thesis's
+/// variants of its own), or OIDN beside them.
+#[derive(Clone)]
+pub enum Candidate<'a> {
+    Unfiltered,
+    Filter {
+        label: String,
+        configured: &'a Configured,
+    },
+    Oidn(&'a super::oidn::Oidn, super::oidn::Quality),
+}
+
+/// A candidate ready for frames of one size.
+pub enum Prepared<'a> {
+    Unfiltered,
+    Filter(Box<dyn crate::filters::PreparedFilter>),
+    Oidn(&'a super::oidn::Oidn, super::oidn::Quality),
+}
+
+impl<'a> Candidate<'a> {
+    /// The registered filters (and `extra`, e.g. the thesis's variants), then OIDN's qualities
+    /// when it is set up; the unfiltered image first.
+    pub fn all(
+        methods: &'a [Configured],
+        extra: &'a [(String, Configured)],
+        oidn: Option<&'a super::oidn::Oidn>,
+    ) -> Vec<Candidate<'a>> {
+        let mut v = vec![Candidate::Unfiltered];
+        v.extend(methods.iter().map(|c| Candidate::Filter {
+            label: c.name().to_string(),
+            configured: c,
+        }));
+        v.extend(extra.iter().map(|(label, c)| Candidate::Filter {
+            label: label.clone(),
+            configured: c,
+        }));
+        if let Some(o) = oidn {
+            v.extend(super::oidn::Quality::ALL.map(|q| Candidate::Oidn(o, q)));
+        }
+        v
+    }
+
+    pub fn label(&self) -> String {
+        match self {
+            Candidate::Unfiltered => "unfiltered".into(),
+            Candidate::Filter { label, .. } => label.clone(),
+            Candidate::Oidn(_, q) => q.label(),
+        }
+    }
+
+    /// The outputs the render must gather.
+    pub fn needs(&self) -> OutputSet {
+        match self {
+            Candidate::Unfiltered => OutputSet::colour(),
+            Candidate::Filter { configured, .. } => configured.needs(),
+            Candidate::Oidn(..) => OutputSet::of(&[Output::Colour, Output::Features]),
+        }
+    }
+
+    /// Filters that read every stored sample (RPF) cost time and memory in proportion to the
+    /// samples; their curves stop at 8 spp, the spp of the headline.
+    pub fn reads_every_sample(&self) -> bool {
+        self.needs().contains(Output::Samples)
+    }
+
+    pub fn prepare(&self, ctx: &Context, frame: &crate::render::FrameInfo) -> Result<Prepared<'a>> {
+        Ok(match self {
+            Candidate::Unfiltered => Prepared::Unfiltered,
+            Candidate::Filter { configured, .. } => {
+                let mut f = configured.prepare(frame, &ctx.gpu)?;
+                f.show_progress(!ctx.quiet);
+                Prepared::Filter(f)
+            }
+            Candidate::Oidn(o, q) => Prepared::Oidn(o, *q),
+        })
+    }
+}
+
+impl Prepared<'_> {
+    /// Runs a device filter once untimed: drivers such as PoCL finish compiling a kernel at its
+    /// first launch, which is not the filter's cost per frame. (Host filters and OIDN warm up
+    /// on their own or need not.)
+    pub fn warm_up(&mut self, frame: &crate::render::Frame) -> Result<()> {
+        if let Prepared::Filter(f) = self
+            && f.interactive()
+        {
+            f.run(frame)?;
+        }
+        Ok(())
+    }
+
+    /// The image and the time of the filter alone (wall-clock for our filters, OIDN's own
+    /// median time with prefiltering for OIDN; 0 unfiltered).
+    pub fn run(&mut self, frame: &crate::render::Frame) -> Result<(RgbImage, std::time::Duration)> {
+        Ok(match self {
+            Prepared::Unfiltered => (frame.beauty()?, std::time::Duration::ZERO),
+            Prepared::Filter(f) => {
+                let run = f.run(frame)?;
+                (run.image, run.wall_time)
+            }
+            Prepared::Oidn(o, q) => {
+                let run = o.denoise(frame, *q, 3)?;
+                let t = run.median_total();
+                (run.image, std::time::Duration::from_secs_f64(t))
+            }
+        })
+    }
+}

@@ -178,6 +178,11 @@ fn plan(quick: bool) -> Vec<PlanEntry> {
     ]
 }
 
+/// The bundled scenes the sweep renders (and compares with their references).
+pub fn sweep_scenes(quick: bool) -> Vec<&'static str> {
+    plan(quick).into_iter().map(|e| e.scene).collect()
+}
+
 /// The kernel widths of the Table 7.1 sweep (Appendix B: 11 × 11, 15 × 15, 21 × 21).
 pub(super) const SWEEP_WIDTHS: &[u32] = &[11, 15, 21];
 /// The kernel widths of hypothesis 3 (Fig. 7.17).
@@ -190,7 +195,14 @@ pub fn sweep(ctx: &Context, fresh: bool) -> Result<()> {
     let columns = ["scene", "kw", "parameter", "value", "mse_luv", "rel_mse"];
     let mut t = ctx.table("sweep", &columns, 4, fresh)?;
     let widths: &[u32] = if ctx.quick { &[21] } else { SWEEP_WIDTHS };
-    for entry in plan(ctx.quick) {
+    // `--scene` narrows the plan to the named scenes (by file name); by default every scene of
+    // the plan is a bundled one, so nothing is left out.
+    let chosen = |name: &str| {
+        ctx.scenes
+            .iter()
+            .any(|p| p.file_stem().is_some_and(|s| s == name))
+    };
+    for entry in plan(ctx.quick).into_iter().filter(|e| chosen(e.scene)) {
         let mut runs: Vec<(u32, String, String, DdfSettings)> = Vec::new();
         if entry.rows != Rows::None {
             for &kw in widths {

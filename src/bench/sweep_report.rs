@@ -35,6 +35,11 @@ fn mse(r: &Record) -> f64 {
 
 /// MSE summed over the scenes that swept `param` at the derivation width, per value (in the
 /// order the values appear). Scenes missing a value are left out of every value's sum.
+/// Whether a table's value cell (written by `num`, e.g. "1.000", "0.5000") is `x`.
+fn is(cell: &str, x: f64) -> bool {
+    cell.parse::<f64>() == Ok(x)
+}
+
 fn sums(records: &[Record], param: &str) -> Vec<(String, f64)> {
     let rows: Vec<&Record> = records
         .iter()
@@ -75,7 +80,7 @@ pub fn derive(records: &[Record]) -> Option<Derived> {
         let param = format!("scale_{name}");
         let s = sums(records, &param);
         let (best, best_sum) = s.iter().min_by(|a, b| a.1.total_cmp(&b.1)).cloned()?;
-        let neutral = s.iter().find(|(v, _)| v == "1")?.1;
+        let neutral = s.iter().find(|(v, _)| is(v, 1.0))?.1;
         let choice = if neutral <= best_sum * (1.0 + TIE) {
             "1".to_string()
         } else {
@@ -108,7 +113,7 @@ pub fn derive(records: &[Record]) -> Option<Derived> {
         .map(|(p, d, label)| {
             let s = sums(records, p);
             s.iter()
-                .find(|(v, _)| v == "0.5")
+                .find(|(v, _)| is(v, 0.5))
                 .map(|(_, m)| (*d, *label, *m))
         })
         .collect::<Option<_>>()?;
@@ -334,10 +339,11 @@ mod tests {
             } else {
                 ("7.0", "7.05")
             };
+            // Values as the sweep writes them (`num`).
             for s in ["a", "b"] {
                 r.push(rec(s, p, "0", zero));
-                r.push(rec(s, p, "1", one));
-                r.push(rec(s, p, "10", "9"));
+                r.push(rec(s, p, "1.000", one));
+                r.push(rec(s, p, "10.00", "9"));
             }
         }
         for (p, m) in [
@@ -345,14 +351,14 @@ mod tests {
             ("sigma_direction@neighbour", "4.0"),
             ("sigma_direction@difference", "4.99"),
         ] {
-            r.push(rec("a", p, "0.5", m));
+            r.push(rec("a", p, "0.5000", m));
         }
         let d = derive(&r).unwrap();
         assert_eq!(d.variance_scale, [0.0, 1.0, 1.0, 1.0, 1.0]);
         assert_eq!(d.direction, DirectionTerm::Neighbour);
         // The printed form within 1 % of the best keeps the printed form.
         let last = r.len() - 3;
-        r[last] = rec("a", "sigma_direction", "0.5", "4.03");
+        r[last] = rec("a", "sigma_direction", "0.5000", "4.03");
         assert_eq!(derive(&r).unwrap().direction, DirectionTerm::Thesis);
     }
 

@@ -90,36 +90,19 @@ pub fn run(args: &FilterCommandArgs, registry: &Registry) -> Result<()> {
             .map(|f| f.name().to_string())
             .with_context(|| format!("{input}: no filter can run on what this file holds"))?,
     };
-    let (image, timings) = if name == "none" {
-        (frame.beauty()?, Vec::new())
-    } else {
-        let filter = registry.get(&name)?;
-        let request = FilterRequest {
-            recorded: record.settings.clone(),
-            flags: args.settings.clone(),
-            ..Default::default()
-        };
-        let configured = registry.configure(filter, &request, &frame.info().scene)?;
-        frame
-            .require(configured.needs(), &format!("the {name} filter"))
-            .with_context(|| {
-                format!(
-                    "{input}: re-render with `noisefree render SCENE --filter {name} --aovs \
-                     FILE.exr` (or --save-samples FILE.bin for filters that read every sample)"
-                )
-            })?;
-        let gpu = Gpu::open(args.device)?;
-        let mut prepared = configured.prepare(frame.info(), &gpu)?;
-        prepared.show_progress(!args.quiet);
-        let mut times = Vec::new();
-        let mut image = None;
-        for _ in 0..args.repeat.max(1) {
-            let out = prepared.run(&frame).context("filtering")?;
-            times.push(out.time());
-            image = Some(out.image);
-        }
-        (image.expect("at least one run"), times)
-    };
+    let (image, timings) = filter_frame(
+        &frame,
+        &record,
+        &FilterChoice {
+            name: &name,
+            flags: &args.settings,
+            device: args.device,
+            quiet: args.quiet,
+            repeat: args.repeat,
+        },
+        registry,
+    )
+    .with_context(|| input.clone())?;
     super::print_timings(&format!("{name} filter time"), &timings);
     if let Some(p) = &args.out {
         imaging::write_png(p, &image, args.exposure)?;
@@ -134,4 +117,58 @@ pub fn run(args: &FilterCommandArgs, registry: &Registry) -> Result<()> {
         frame.info().spp
     );
     Ok(())
+}
+
+/// Which filter runs on a frame read from a file, and how.
+pub struct FilterChoice<'a> {
+    /// A registered filter, or "none" for the unfiltered image.
+    pub name: &'a str,
+    /// Settings given on the command line (they win over the recorded ones).
+    pub flags: &'a BTreeMap<String, toml::Table>,
+    pub device: Option<usize>,
+    pub quiet: bool,
+    /// Runs, for timings.
+    pub repeat: u32,
+}
+
+/// The image of a frame read from a file (AOV, samples or merged partial renders) filtered as
+/// `choice` says, with the settings the render recorded where the command line gives none;
+/// and the filter's times.
+pub fn filter_frame(
+    frame: &Frame,
+    record: &RenderRecord,
+    choice: &FilterChoice,
+    registry: &Registry,
+) -> Result<(imaging::RgbImage, Vec<std::time::Duration>)> {
+    let name = choice.name;
+    if name == "none" {
+        return Ok((frame.beauty()?, Vec::new()));
+    }
+    let filter = registry.get(name)?;
+    let request = FilterRequest {
+        recorded: record.settings.clone(),
+        flags: choice.flags.clone(),
+        ..Default::default()
+    };
+    let configured = registry.configure(filter, &request, &frame.info().scene)?;
+    frame
+        .require(configured.needs(), &format!("the {name} filter"))
+        .with_context(|| {
+            format!(
+                "re-render with `noisefree render SCENE --filter {name} --aovs FILE.exr` (or \
+                 --save-samples FILE.bin for filters that read every sample; for partial \
+                 renders, --filter {name} or --gather)"
+            )
+        })?;
+    let gpu = Gpu::open(choice.device)?;
+    let mut prepared = configured.prepare(frame.info(), &gpu)?;
+    prepared.show_progress(!choice.quiet);
+    let mut times = Vec::new();
+    let mut image = None;
+    for _ in 0..choice.repeat.max(1) {
+        let out = prepared.run(frame).context("filtering")?;
+        times.push(out.time());
+        image = Some(out.image);
+    }
+    Ok((image.expect("at least one run"), times))
 }

@@ -1,7 +1,12 @@
-//! The command line: `noisefree devices | render | filter | compare | reference | bench | cache`.
+//! The command line: `noisefree devices | render | view | filter | merge | compare | reference |
+//! bench | cache`.
 
 mod filter_cmd;
+mod interrupt;
+mod merge_cmd;
+mod partial_render;
 mod render_cmd;
+mod slurm;
 mod tools;
 
 use anyhow::Result;
@@ -29,8 +34,14 @@ pub enum Command {
     Devices,
     /// Render a scene file to a PNG (and a linear EXR), optionally filtered.
     Render(RenderArgs),
+    /// Look around a scene in a window: progressive rendering filtered every frame, camera on
+    /// the keyboard and mouse (keys: README "Viewer keys"; F1 in the window).
+    View(crate::view::ViewArgs),
     /// Filter the per-pixel buffers of an AOV file (written by `render --aovs`) offline.
     Filter(FilterCommandArgs),
+    /// Merge partial renders (`render --samples A..B --partial part.nfp`) into the render of
+    /// all their samples, exactly; write its image, EXR and AOVs, filtered as the render chose.
+    Merge(merge_cmd::MergeArgs),
     /// Compare an image with a reference: MSE in CIELUV, MSE and relMSE in RGB, PSNR, SSIM.
     Compare(tools::CompareArgs),
     /// Render a scene's ground truth into the reference cache (reused when current).
@@ -47,7 +58,9 @@ pub fn command(registry: &Registry) -> clap::Command {
     let args = registry.clap_args();
     Cli::command()
         .mut_subcommand("render", |c| c.args(args.clone()))
+        .mut_subcommand("view", |c| c.args(args.clone()))
         .mut_subcommand("filter", |c| c.args(args.clone()))
+        .mut_subcommand("merge", |c| c.args(args.clone()))
 }
 
 /// Runs the command line with the built-in filters; returns the process exit code.
@@ -91,7 +104,7 @@ pub fn main_with(registry: &Registry) -> i32 {
     }
     match result {
         Ok(()) => 0,
-        Err(e) if e.is::<render_cmd::Interrupted>() => {
+        Err(e) if e.is::<interrupt::Interrupted>() => {
             eprintln!("{e}");
             130
         }
@@ -119,7 +132,9 @@ fn parse(registry: &Registry, matches: &clap::ArgMatches) -> Result<Cli, clap::E
         let settings = registry.flag_tables(sub);
         match &mut cli.command {
             Command::Render(a) => a.settings = settings,
+            Command::View(a) => a.settings = settings,
             Command::Filter(a) => a.settings = settings,
+            Command::Merge(a) => a.settings = settings,
             _ => {}
         }
     }
@@ -130,10 +145,15 @@ fn execute(cli: Cli, registry: &Registry) -> Result<()> {
     match cli.command {
         Command::Devices => devices(),
         Command::Render(args) => render(&args, registry).map(|_| ()),
+        Command::View(args) => crate::view::run(&args, registry),
         Command::Filter(args) => filter_cmd::run(&args, registry),
+        Command::Merge(args) => merge_cmd::run(&args, registry),
         Command::Compare(args) => tools::compare(&args),
         Command::Reference(args) => tools::reference(&args),
-        Command::Bench(args) => crate::bench::run(&args),
+        Command::Bench(args) => match args.slurm {
+            Some(n) => tools::bench_on_slurm(&args, n),
+            None => crate::bench::run(&args),
+        },
         Command::Cache(args) => tools::cache(&args),
     }
 }

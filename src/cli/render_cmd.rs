@@ -1,23 +1,26 @@
 //! `noisefree render`: progressive rendering with a progress bar, optional filtering after
-//! each frame, images and AOVs out.
+//! each frame, images and AOVs out; or, with `--partial`, a range of the samples (and a tile)
+//! of a render into a partial file for `noisefree merge`.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
-use crate::filters::{Configured, FilterRequest, Registry};
-use crate::gpu::Gpu;
+use super::interrupt::{Interrupted, catch_ctrl_c, interrupted};
+use super::partial_render::{check_partial_flags, parse_output, parse_range, write_part};
+
+use crate::filters::{Configured, DeviceFilter, FilterRequest, MultiDeviceArgs, Registry};
 use crate::imaging;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{
-    Budget, RenderOptions, Renderer, SceneArrays, SceneInfo, progress_bar, render_progressively,
+    Budget, RenderOptions, SceneArrays, SceneInfo, Tile, progress_bar, render_progressively,
 };
 use crate::scene;
 use crate::stats::RenderRecord;
+use crate::stats::partial::{PieceInfo, RenderIdentity};
 use crate::stats::samples::SampleSet;
 
 #[derive(Args, Debug, Clone)]
@@ -61,6 +64,8 @@ pub struct RenderArgs {
     /// OpenCL device number from `noisefree devices` (or NOISEFREE_DEVICE).
     #[arg(long)]
     pub device: Option<usize>,
+    #[command(flatten)]
+    pub multi: MultiDeviceArgs,
     /// PNG exposure in stops (the image is multiplied by 2^EV before tone mapping).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -98,6 +103,22 @@ pub struct RenderArgs {
     /// registry adds, src/cli/mod.rs).
     #[arg(skip)]
     pub settings: BTreeMap<String, toml::Table>,
+    /// Render only samples A to B-1 of the --spp samples per pixel (with --partial): the
+    /// parts of a render made of such ranges merge exactly into the whole (`noisefree merge`).
+    #[arg(long, value_name = "A..B", value_parser = parse_range)]
+    pub samples: Option<std::ops::Range<u32>>,
+    /// Render only this rectangle of the image, WxH+X+Y (with --partial): for images whose
+    /// outputs do not fit one device; the tiles merge like sample ranges.
+    #[arg(long, value_name = "WxH+X+Y", value_parser = Tile::parse)]
+    pub tile: Option<Tile>,
+    /// Write the render's outputs (every accumulator, not an image) to a partial file for
+    /// `noisefree merge`, instead of images.
+    #[arg(long, value_name = "FILE.nfp")]
+    pub partial: Option<PathBuf>,
+    /// Also gather these outputs (comma-separated: features, variance, position, samples),
+    /// e.g. so that a partial render's merge can write AOVs or run any filter.
+    #[arg(long, value_name = "OUTPUTS", value_delimiter = ',', value_parser = parse_output)]
+    pub gather: Vec<Output>,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
@@ -164,37 +185,6 @@ fn default_output(scene: &Path, ext: &str) -> PathBuf {
     PathBuf::from("out").join(format!("{stem}.{ext}"))
 }
 
-/// Set by the Ctrl-C handler; the render loop stops after the launch in flight.
-static INTERRUPTED: AtomicBool = AtomicBool::new(false);
-
-/// The error of a render stopped by Ctrl-C without --save-partial (exit status 130).
-#[derive(Debug)]
-pub struct Interrupted;
-
-impl std::fmt::Display for Interrupted {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "interrupted: nothing was written (use --save-partial to keep what was rendered)"
-        )
-    }
-}
-
-impl std::error::Error for Interrupted {}
-
-/// Installs the Ctrl-C handler once per process.
-fn catch_ctrl_c() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        // If another handler is already installed, Ctrl-C keeps its default meaning.
-        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst));
-    });
-}
-
-pub fn interrupted() -> bool {
-    INTERRUPTED.load(Ordering::SeqCst)
-}
-
 /// The filter `render` runs: the flag, else the scene's `[filter] method`; "none" or neither:
 /// no filter.
 fn chosen_filter<'a>(
@@ -234,6 +224,7 @@ fn chosen_filter<'a>(
 
 pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     let start = Instant::now();
+    check_partial_flags(args)?;
     let scene = scene::load_scene(&args.scene)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
@@ -255,6 +246,20 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     if spp == 0 {
         bail!("--spp must be at least 1");
     }
+    let range = args.samples.clone().unwrap_or(0..spp);
+    if range.end > spp {
+        bail!(
+            "--samples {}..{} runs past the render's {spp} samples per pixel (--spp)",
+            range.start,
+            range.end
+        );
+    }
+    if let Some(t) = args.tile {
+        t.check_within(options.frame.width, options.frame.height)
+            .context("--tile")?;
+    }
+    options.first_sample = range.start;
+    options.tile = args.tile;
     if let Some(t) = args.time_limit
         && !(t > 0.0 && t.is_finite())
     {
@@ -286,7 +291,8 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         (args.out.is_some(), Some(&png_path)),
         (args.exr.is_some() || args.out.is_some(), exr_path.as_ref()),
     ] {
-        if let Some(path) = path {
+        // A partial render writes no image (check_partial_flags).
+        if let Some(path) = path.filter(|_| args.partial.is_none()) {
             if !given && let Some(dir) = path.parent() {
                 std::fs::create_dir_all(dir)
                     .with_context(|| format!("creating {}", dir.display()))?;
@@ -294,14 +300,19 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
             imaging::check_output_path(path)?;
         }
     }
-    for p in [&args.aovs, &args.exr_unfiltered, &args.save_samples]
-        .into_iter()
-        .flatten()
+    for p in [
+        &args.aovs,
+        &args.exr_unfiltered,
+        &args.save_samples,
+        &args.partial,
+    ]
+    .into_iter()
+    .flatten()
     {
         imaging::check_output_path(p)?;
     }
 
-    let gpu = Gpu::open(args.device)?;
+    let gpus = args.multi.open(args.device)?;
     // The scene arrays first: the filters specialise to what they say (effects, camera, size).
     let arrays = SceneArrays::build(&scene, &options.frame)?;
     let info = SceneInfo::new(&scene, &arrays);
@@ -337,41 +348,52 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     if args.save_samples.is_some() {
         outputs = outputs.with(Output::Samples);
     }
+    outputs = outputs.union(OutputSet::of(&args.gather));
     options.outputs = outputs;
+    let count = range.end - range.start;
     if outputs.contains(Output::Samples) {
-        options.sample_capacity = spp;
+        options.sample_capacity = count;
         let budget = crate::memory::available_memory_bytes().unwrap_or(u64::MAX);
-        crate::stats::samples::check_memory(
-            options.frame.width,
-            options.frame.height,
-            spp,
-            budget,
-        )?;
+        let tile = options.tile();
+        crate::stats::samples::check_memory(tile.width, tile.height, count, budget)?;
     }
+    let identity = args.partial.as_ref().map(|_| RenderIdentity {
+        scene: args.scene.display().to_string(),
+        scene_hash: crate::render::scene_hash(&arrays),
+        kernel_hash: crate::render::kernel_hash(),
+        width: options.frame.width,
+        height: options.frame.height,
+        seed: options.frame.seed,
+        spp,
+        outputs: outputs.closed(),
+        record: RenderRecord::default(),
+    });
 
     let compile_start = Instant::now();
-    let mut renderer = Renderer::with_arrays(gpu.clone(), &scene, arrays, &options)?;
-    let mut filter = match chosen {
+    let mut film = args.multi.film(&gpus, &scene, arrays, &options)?;
+    let mut filter = match chosen.filter(|_| args.partial.is_none()) {
         Some(c) => {
-            let mut f = c.prepare(renderer.frame().info(), &gpu)?;
+            let mut f = DeviceFilter::prepare(c, &mut film, args.multi.filter_placement)?;
             f.show_progress(!args.quiet);
             Some(f)
         }
         None => None,
     };
+    let renderer = film.primary();
     if !args.quiet {
         eprintln!(
             "device: {} | {} triangles, {} BVH nodes (built in {:.2} s), {} spheres, {} lights",
-            gpu.summary.name,
+            film.describe(),
             renderer.arrays.tri_geom.len(),
             renderer.arrays.nodes.len(),
             renderer.arrays.bvh_stats.build_time.as_secs_f64(),
             renderer.arrays.spheres.len(),
             renderer.arrays.lights.len(),
         );
+        let builds: Vec<_> = gpus.iter().flat_map(|g| g.builds()).collect();
         eprintln!(
             "compiling kernels: {} (ready in {:.2} s)",
-            describe_builds(&gpu.builds()),
+            describe_builds(&builds),
             compile_start.elapsed().as_secs_f64()
         );
     }
@@ -397,39 +419,71 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     let mut filter_times = Vec::new();
     let mut last_filtered = None;
     catch_ctrl_c();
-    let bar = progress_bar(spp, args.quiet);
+    let bar = progress_bar(count, args.quiet);
     let budget = Budget {
-        spp,
+        spp: count,
         time_limit: args.time_limit,
     };
-    render_progressively(&mut renderer, budget, &bar, &interrupted, |r| {
+    render_progressively(&mut film, budget, &bar, &interrupted, |r| {
         if args.timings
             && let Some(f) = filter.as_mut()
             && f.interactive()
         {
-            let out = f.run(&r.frame())?;
+            let out = f.run(r)?;
             filter_times.push(out.time());
             last_filtered = Some(out.image);
         }
         Ok(())
     })?;
     if interrupted() {
-        if !args.save_partial || renderer.samples_done() == 0 {
+        if !args.save_partial || film.samples_done() == 0 {
             return Err(Interrupted.into());
         }
         eprintln!(
             "interrupted after {} spp: writing what was rendered (--save-partial)",
-            renderer.samples_done()
+            film.samples_done()
         );
         last_filtered = None; // filter the final state below
     }
-    let frame = renderer.frame();
+    let record = RenderRecord {
+        scene: Some(film.scene_info().clone()),
+        filter: chosen.map(|c| c.name().to_string()),
+        settings: configured
+            .iter()
+            .map(|c| (c.name().to_string(), c.requested().clone()))
+            .collect(),
+        extra: BTreeMap::from([
+            ("scene".to_string(), args.scene.display().to_string()),
+            ("spp".to_string(), film.samples_done().to_string()),
+        ]),
+    };
+    let frame = film.frame()?;
+    let summary = RenderSummary {
+        width: film.width(),
+        height: film.height(),
+        spp: film.samples_done(),
+        seconds: start.elapsed().as_secs_f64(),
+        kernel_seconds: film.kernel_time_total.as_secs_f64(),
+        rays: film.rays_total,
+        filter_times: Vec::new(),
+    };
+    if let (Some(path), Some(identity)) = (&args.partial, identity) {
+        let info = PieceInfo {
+            tile: film.primary().tile(),
+            samples: range,
+            rays: film.rays_total,
+            seconds: summary.kernel_seconds,
+            device: film.describe(),
+        };
+        write_part(path, identity, record, &frame, info, &summary)?;
+        return Ok(summary);
+    }
     let unfiltered = frame.beauty()?;
     let image = match filter.as_mut() {
         Some(f) => match last_filtered {
             Some(img) => img,
             None => {
-                let out = f.run(&frame)?;
+                let out = f.run(&film)?;
                 filter_times.push(out.time());
                 out.image
             }
@@ -443,18 +497,6 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     if let Some(p) = &args.exr_unfiltered {
         imaging::write_exr(p, &unfiltered)?;
     }
-    let record = RenderRecord {
-        scene: Some(renderer.scene_info.clone()),
-        filter: chosen.map(|c| c.name().to_string()),
-        settings: configured
-            .iter()
-            .map(|c| (c.name().to_string(), c.requested().clone()))
-            .collect(),
-        extra: BTreeMap::from([
-            ("scene".to_string(), args.scene.display().to_string()),
-            ("spp".to_string(), renderer.samples_done().to_string()),
-        ]),
-    };
     if let Some(p) = &args.save_samples {
         SampleSet::from_frame(&frame, record.clone())?.write(p)?;
     }
@@ -465,13 +507,9 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         crate::stats::aov::write_aov_pngs(dir, &frame, args.exposure)?;
     }
     let summary = RenderSummary {
-        width: renderer.width(),
-        height: renderer.height(),
-        spp: renderer.samples_done(),
         seconds: start.elapsed().as_secs_f64(),
-        kernel_seconds: renderer.kernel_time_total.as_secs_f64(),
-        rays: renderer.rays_total,
         filter_times,
+        ..summary
     };
     println!(
         "{}x{} {} spp in {:.2} s (kernel {:.2} s): {:.2} spp/s, {:.2} Mrays/s -> {}{}",

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
+use super::slurm;
 use crate::bench::ground_truth::{self, ReferenceRequest};
 use crate::gpu::Gpu;
 use crate::imaging;
@@ -80,13 +81,26 @@ pub struct ReferenceArgs {
     pub device: Option<usize>,
     #[arg(long, short)]
     pub quiet: bool,
+    /// Render it on a Slurm cluster instead, as a job array of N sample ranges and a merge job
+    /// into the cache (scripts/slurm/): write the job folder and submit it.
+    #[arg(long, value_name = "N")]
+    pub slurm: Option<u32>,
+    /// With --slurm: print the job instead of writing and submitting it.
+    #[arg(long, requires = "slurm")]
+    pub dry_run: bool,
+    /// With --slurm: the job folder [default: slurm/reference-<scene>-<W>x<H>-<spp>spp].
+    #[arg(long, value_name = "DIR", requires = "slurm")]
+    pub job_dir: Option<PathBuf>,
+    /// Merge these partial renders of the reference (what --slurm's tasks write) into the
+    /// cache instead of rendering it.
+    #[arg(long, value_name = "PART.nfp", num_args = 1.., conflicts_with = "slurm")]
+    pub from_parts: Vec<PathBuf>,
 }
 
 pub fn reference(args: &ReferenceArgs) -> Result<()> {
     if args.spp == 0 || args.width == 0 || args.height == 0 {
         bail!("--spp, --width and --height must be at least 1");
     }
-    let gpu = Gpu::open(args.device)?;
     let req = ReferenceRequest {
         scene: args.scene.clone(),
         width: args.width,
@@ -98,6 +112,38 @@ pub fn reference(args: &ReferenceArgs) -> Result<()> {
         .cache
         .clone()
         .unwrap_or_else(ground_truth::default_cache);
+    if let Some(n) = args.slurm {
+        let name = format!(
+            "reference-{}-{}x{}-{}spp",
+            stem(&req.scene),
+            req.width,
+            req.height,
+            req.spp
+        );
+        let job = slurm::Job {
+            what: format!(
+                "noisefree reference {} --slurm {n}: {} spp in {n} ranges, merged into {}",
+                req.scene.display(),
+                req.spp,
+                cache.display()
+            ),
+            tasks: n,
+            renders: vec![reference_job(&req, &cache, args.device)],
+            final_command: None,
+        };
+        let dir = args
+            .job_dir
+            .clone()
+            .unwrap_or_else(|| slurm::default_dir(&name));
+        return job.run(&dir, args.dry_run);
+    }
+    if !args.from_parts.is_empty() {
+        let (file, cost) = ground_truth::store_merged(&req, &cache, &args.from_parts)?;
+        println!("merged: {}", file.display());
+        println!("{}", super::merge_cmd::describe_cost(&cost));
+        return Ok(());
+    }
+    let gpu = Gpu::open(args.device)?;
     let (_, file, cached) = ground_truth::get_or_render(&gpu, &req, &cache, args.quiet)?;
     println!(
         "{} {}",
@@ -145,4 +191,91 @@ pub fn cache(args: &CacheArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `bench --slurm N`: the references the studies need, each a job array of N ranges merged
+/// into the cache, then the benchmark itself in the merge job (its timings must come from one
+/// device, and it finds the references cached).
+pub fn bench_on_slurm(args: &crate::bench::BenchArgs, n: u32) -> Result<()> {
+    let cache = args
+        .cache
+        .clone()
+        .unwrap_or_else(ground_truth::default_cache);
+    let renders: Vec<_> = crate::bench::reference_requests(args)?
+        .iter()
+        .map(|req| reference_job(req, &cache, args.device))
+        .collect();
+    if renders.is_empty() {
+        bail!(
+            "the studies chosen compare with no reference, so there is nothing to split into \
+             ranges: run `noisefree bench` as one job (e.g. sbatch --wrap 'noisefree bench ...')"
+        );
+    }
+    let mut bench = args.to_args();
+    if args.cache.is_none() {
+        bench.extend(["--cache".into(), slurm::arg(&cache)]);
+    }
+    let job = slurm::Job {
+        what: format!(
+            "noisefree {} --slurm {n}: the studies' references in {n} ranges each, merged into \
+             {}, then the benchmark",
+            bench.join(" "),
+            cache.display()
+        ),
+        tasks: n,
+        renders,
+        final_command: Some(bench),
+    };
+    let name = if args.quick { "bench-quick" } else { "bench" };
+    let dir = args
+        .job_dir
+        .clone()
+        .unwrap_or_else(|| slurm::default_dir(name));
+    job.run(&dir, args.dry_run)
+}
+
+fn stem(p: &std::path::Path) -> String {
+    p.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into())
+}
+
+/// The parts and merge of one reference as a render of a Slurm job: its tasks render with the
+/// reference's options (no filter, so colour only), its merge stores it in `cache`.
+pub(super) fn reference_job(
+    req: &ReferenceRequest,
+    cache: &std::path::Path,
+    device: Option<usize>,
+) -> slurm::JobRender {
+    let common = vec![
+        slurm::arg(&req.scene),
+        "--spp".into(),
+        req.spp.to_string(),
+        "--width".into(),
+        req.width.to_string(),
+        "--height".into(),
+        req.height.to_string(),
+        "--seed".into(),
+        req.seed.to_string(),
+    ];
+    let mut render = common.clone();
+    render.extend(["--filter".into(), "none".into()]);
+    if let Some(d) = device {
+        render.extend(["--device".into(), d.to_string()]);
+    }
+    let mut merge = vec!["reference".to_string()];
+    merge.extend(common);
+    merge.extend(["--cache".into(), slurm::arg(cache), "--from-parts".into()]);
+    slurm::JobRender {
+        name: format!(
+            "{}-{}x{}-{}spp",
+            stem(&req.scene),
+            req.width,
+            req.height,
+            req.spp
+        ),
+        spp: req.spp,
+        render,
+        merge,
+    }
 }

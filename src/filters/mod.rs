@@ -7,6 +7,7 @@
 //! reader both build. Adding a filter is its own files plus one line in [`builtin_filters!`]
 //! below; `render`, `filter` and `bench` find it through the [`Registry`].
 
+pub mod placement;
 pub mod registry;
 pub mod settings;
 
@@ -19,6 +20,7 @@ use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
 use crate::layout::outputs::OutputSet;
 use crate::render::{Frame, FrameInfo, SceneInfo};
+pub use placement::{DeviceFilter, MultiDeviceArgs, Placement};
 pub use registry::{Configured, FilterRequest, Registry};
 pub use settings::{Auto, DeclaredSettings, FieldDoc};
 
@@ -115,9 +117,26 @@ impl<K: FilterKind> Filter for K {
     }
 }
 
-/// A filter ready to run on frames of one size.
-pub trait PreparedFilter {
+/// A filter ready to run on frames of one size. `Send`, so that with several devices each
+/// can filter its own band from its own thread (src/filters/placement.rs).
+pub trait PreparedFilter: Send {
     fn run(&mut self, frame: &Frame) -> Result<FilterRun>;
+
+    /// How many rows beyond a band of the frame the filter reads to give the band's pixels
+    /// exactly the bytes that filtering the whole frame gives them; None (the default): any
+    /// pixel may depend on the whole frame, and only whole frames are filtered.
+    fn reach(&self) -> Option<u32> {
+        None
+    }
+
+    /// Filters the pixels of `rows` only, reading the frame's rows within [`reach`] of them;
+    /// the image's other rows are black. Called only when [`reach`] is Some.
+    ///
+    /// [`reach`]: PreparedFilter::reach
+    fn run_rows(&mut self, frame: &Frame, rows: std::ops::Range<u32>) -> Result<FilterRun> {
+        let _ = rows;
+        self.run(frame)
+    }
 
     /// Fast enough to run after every frame of a progressive render (the device filters).
     fn interactive(&self) -> bool {

@@ -13,6 +13,14 @@ pub fn write_exr(path: &Path, img: &RgbImage) -> Result<()> {
     write_exr_with_metadata(path, img, &std::collections::BTreeMap::new())
 }
 
+/// RLE in 64 × 64 tiles (exr's FAST_LOSSLESS) written in increasing order: with the default
+/// "unspecified" order the tiles compressed in parallel are written as they finish, and the
+/// same image gives different bytes from run to run.
+pub const DETERMINISTIC_ENCODING: exr::prelude::Encoding = exr::prelude::Encoding {
+    line_order: exr::prelude::LineOrder::Increasing,
+    ..exr::prelude::Encoding::FAST_LOSSLESS
+};
+
 /// A linear float RGB OpenEXR with `metadata` as text attributes named `noisefree.<key>`.
 pub fn write_exr_with_metadata(
     path: &Path,
@@ -35,7 +43,7 @@ pub fn write_exr_with_metadata(
     let layer = Layer::new(
         (w, img.height as usize),
         attributes,
-        Encoding::FAST_LOSSLESS,
+        DETERMINISTIC_ENCODING,
         channels,
     );
     let image = Image::from_layer(layer);

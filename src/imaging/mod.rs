@@ -11,7 +11,8 @@ mod png;
 
 pub use colormap::{COLORMAP_ANCHORS, colormap, colormap_exact};
 pub use exr::{
-    check_exr_memory, read_exr_metadata, read_exr_rgb, write_exr, write_exr_with_metadata,
+    DETERMINISTIC_ENCODING, check_exr_memory, read_exr_metadata, read_exr_rgb, write_exr,
+    write_exr_with_metadata,
 };
 pub use files::{check_output_path, write_atomically};
 pub use png::{to_srgb8, write_png, write_rgb8_png};

@@ -10,10 +10,13 @@
 //! - buffer allocation and its memory check (src/render);
 //! - the AOV channels, written and read back (src/stats/aov.rs): a file without an optional
 //!   output still loads when the chosen filter does not need it;
-//! - the layout test's device sizes, and the generic defines of the test kernels.
+//! - the layout test's device sizes, and the generic defines of the test kernels;
+//! - how renders of disjoint sample ranges or tiles merge into one ([`Merge`], applied by
+//!   src/stats/merge/ with an exhaustive match, and written into partial files by
+//!   src/stats/partial/).
 //!
-//! Adding an output: a row in [`OUTPUTS`] (and its buffer in [`BUFFERS`]), the kernel code that
-//! writes it (kernels/render/film.cl), and the filter that reads it.
+//! Adding an output: a row in [`OUTPUTS`] (and its buffer in [`BUFFERS`], with its merge rule),
+//! the kernel code that writes it (kernels/render/film.cl), and the filter that reads it.
 
 use std::mem::{offset_of, size_of};
 
@@ -54,6 +57,33 @@ pub enum Per {
     Sample,
 }
 
+/// How the buffers of renders of disjoint sample ranges (or tiles) of one image combine into
+/// the buffer of a single render of all those samples (`noisefree merge`, src/stats/merge/).
+/// Every buffer declares one, so an output cannot be added without saying how it merges, and
+/// the merge matches on it exhaustively.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Merge {
+    /// Every lane a running mean over the pixel's samples (eq. 6.5): the count-weighted mean of
+    /// the parts' means. FilterVector's depth lane is the exception when the depth shifts are
+    /// gathered: it is recomputed as K + mean(x − K) from the merged [`Merge::DepthShift`].
+    Means,
+    /// [`DepthShift`]: K is the depth of the pixel's first sample, so the merged K is that of
+    /// the part holding sample 0; the other parts' means of x − K_part are moved to it.
+    DepthShift,
+    /// Welford's S_n of every lane (eq. 6.6), each paired with its mean in [`WELFORD_MEANS`]:
+    /// combined by the parallel update of Chan, Golub & LeVeque (1979),
+    /// S = S_a + S_b + δ² n_a n_b / (n_a + n_b), δ = mean_b − mean_a.
+    WelfordSums,
+    /// [`WelfordState`]: the mean first-bounce direction (a running mean) and the Kahan
+    /// compensation of each S_n, which is rewritten from the merged S_n (the part of the
+    /// double-precision sum that its float does not hold).
+    WelfordState,
+    /// xyz: means over the samples whose camera ray hit a surface; w: how many did (a count).
+    HitMeans,
+    /// One element per sample: each part's samples go to their sample numbers.
+    PerSample,
+}
+
 #[derive(Debug)]
 pub struct BufferDecl {
     pub id: BufferId,
@@ -63,6 +93,8 @@ pub struct BufferDecl {
     pub element: &'static str,
     pub element_bytes: usize,
     pub per: Per,
+    /// How partial renders of this buffer merge.
+    pub merge: Merge,
     pub doc: &'static str,
 }
 
@@ -134,6 +166,26 @@ const S_ALBEDO: usize = lane(offset_of!(WelfordSums, albedo));
 const S_DIRECTION: usize = lane(offset_of!(WelfordSums, direction));
 const S_ALBEDO2: usize = lane(offset_of!(WelfordSums, albedo2));
 const W_DIRECTION: usize = lane(offset_of!(WelfordState, direction_mean));
+const D_MEAN: usize = lane(offset_of!(DepthShift, mean));
+
+/// The mean each lane of [`WelfordSums`] is the S_n of: (S_n lane, buffer of the mean, lane of
+/// the mean). kernels/render/film.cl pairs them the same way (`welford` takes both); merging
+/// S_n needs the means (Chan et al.), so a lane without its mean here could not be merged.
+pub const WELFORD_MEANS: &[(usize, BufferId, usize)] = &[
+    (S_DEPTH, DepthShifts, D_MEAN),
+    (S_NORMAL, FilterVectors, F_NORMAL),
+    (S_NORMAL + 1, FilterVectors, F_NORMAL + 1),
+    (S_NORMAL + 2, FilterVectors, F_NORMAL + 2),
+    (S_ALBEDO, FilterVectors, F_ALBEDO),
+    (S_ALBEDO + 1, FilterVectors, F_ALBEDO + 1),
+    (S_ALBEDO + 2, FilterVectors, F_ALBEDO + 2),
+    (S_DIRECTION, WelfordState, W_DIRECTION),
+    (S_DIRECTION + 1, WelfordState, W_DIRECTION + 1),
+    (S_DIRECTION + 2, WelfordState, W_DIRECTION + 2),
+    (S_ALBEDO2, FilterVectors, F_ALBEDO2),
+    (S_ALBEDO2 + 1, FilterVectors, F_ALBEDO2 + 1),
+    (S_ALBEDO2 + 2, FilterVectors, F_ALBEDO2 + 2),
+];
 
 /// Every output buffer, in the order of the megakernel's parameters.
 pub const BUFFERS: &[BufferDecl] = &[
@@ -143,6 +195,7 @@ pub const BUFFERS: &[BufferDecl] = &[
         element: "FilterVector",
         element_bytes: size_of::<FilterVector>(),
         per: Per::Pixel,
+        merge: Merge::Means,
         doc: "FilterVector F per pixel (eq. 6.1, one float16, §6.2.1)",
     },
     BufferDecl {
@@ -151,6 +204,7 @@ pub const BUFFERS: &[BufferDecl] = &[
         element: "DepthShift",
         element_bytes: size_of::<DepthShift>(),
         per: Per::Pixel,
+        merge: Merge::DepthShift,
         doc: "depth mean on shifted data per pixel (F.depth = shift + mean)",
     },
     BufferDecl {
@@ -159,6 +213,7 @@ pub const BUFFERS: &[BufferDecl] = &[
         element: "WelfordSums",
         element_bytes: size_of::<WelfordSums>(),
         per: Per::Pixel,
+        merge: Merge::WelfordSums,
         doc: "Welford S_n of every feature per pixel (the variance GBuffer, eq. 6.2)",
     },
     BufferDecl {
@@ -167,6 +222,7 @@ pub const BUFFERS: &[BufferDecl] = &[
         element: "WelfordState",
         element_bytes: size_of::<WelfordState>(),
         per: Per::Pixel,
+        merge: Merge::WelfordState,
         doc: "Welford state per pixel (mean direction, depth shift, Kahan compensation)",
     },
     BufferDecl {
@@ -175,6 +231,7 @@ pub const BUFFERS: &[BufferDecl] = &[
         element: "float4",
         element_bytes: size_of::<Float4>(),
         per: Per::Pixel,
+        merge: Merge::HitMeans,
         doc: "mean first-hit world position per pixel (xyz) and the samples that hit (w)",
     },
     BufferDecl {
@@ -183,6 +240,7 @@ pub const BUFFERS: &[BufferDecl] = &[
         element: "SampleVector",
         element_bytes: size_of::<SampleVector>(),
         per: Per::Sample,
+        merge: Merge::PerSample,
         doc: "RPF sample vectors (26 floats per sample, thesis §5.1.1)",
     },
 ];
@@ -457,6 +515,30 @@ mod tests {
             switches.len(),
             OUTPUTS.iter().filter(|o| o.switch.is_some()).count()
         );
+    }
+
+    #[test]
+    fn every_welford_sum_has_its_mean_and_merge_rules_fit_their_buffers() {
+        // Each S_n lane of WelfordSums but the padding appears once, with a mean that lies in
+        // an element and belongs to an output the variances require (so it is there to merge).
+        let pad = lane(offset_of!(WelfordSums, pad));
+        let mut seen: Vec<usize> = WELFORD_MEANS.iter().map(|w| w.0).collect();
+        seen.sort();
+        assert_eq!(seen, (0..pad).collect::<Vec<_>>());
+        let variance = OutputSet::of(&[Output::Variance]).closed();
+        for &(_, buffer, mean) in WELFORD_MEANS {
+            assert!(mean < buffer.decl().element_bytes / 4);
+            assert!(variance.contains(buffer.owner()), "{}", buffer.decl().name);
+        }
+        for b in BUFFERS {
+            assert_eq!(
+                b.merge == Merge::PerSample,
+                b.per == Per::Sample,
+                "{}: per-sample buffers and only they merge by sample number",
+                b.name
+            );
+        }
+        assert_eq!(Positions.decl().element_bytes, 16, "HitMeans is xyz + w");
     }
 
     #[test]

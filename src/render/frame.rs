@@ -364,6 +364,18 @@ impl Frame {
         }
     }
 
+    /// Fails unless the frame is `width` × `height` (what `who` was built for).
+    pub fn check_size(&self, width: u32, height: u32, who: &str) -> Result<()> {
+        if self.info.width != width || self.info.height != height {
+            bail!(
+                "{who} was built for {width}x{height}, the frame is {}x{}",
+                self.info.width,
+                self.info.height
+            );
+        }
+        Ok(())
+    }
+
     /// Fails with a message naming what is missing when the frame lacks one of `needs`.
     pub fn require(&self, needs: OutputSet, who: &str) -> Result<()> {
         let missing: Vec<&str> = needs

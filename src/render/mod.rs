@@ -2,12 +2,16 @@
 //! to the outputs asked for, and adds samples progressively to the per-pixel outputs (thesis
 //! §4.2.3, §4.3). Which buffers exist, and how they are bound to the kernel, comes from the
 //! output table of src/layout/outputs.rs; what the renderer leaves is read through a
-//! [`Frame`].
+//! [`Frame`]. A renderer may cover a range of the samples and a [`Tile`] of the image: such
+//! partial renders merge into the whole (src/stats/merge/).
 
+pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
 pub mod progressive;
+pub mod split;
+pub mod tile;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -16,7 +20,7 @@ use anyhow::{Context as _, Result};
 use ocl::{Buffer, Kernel};
 
 pub use crate::arrays::{FrameSettings, SceneArrays};
-use crate::gpu::{Gpu, enqueue, event_duration, round_up};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, fnv1a, round_up};
 use crate::layout::outputs::{BUFFERS, BufferId, Output, OutputSet};
 use crate::layout::{
     BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
@@ -26,6 +30,8 @@ use crate::scene::Scene;
 pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 pub use progressive::{Budget, progress_bar, render_progressively};
+pub use split::{SplitFrame, SplitRenderer};
+pub use tile::Tile;
 
 /// How to render, besides the scene itself.
 #[derive(Clone, Debug)]
@@ -41,6 +47,11 @@ pub struct RenderOptions {
     pub local_size: Option<[usize; 2]>,
     /// Compile in the debug counters of kernels/arrays/trace.cl (tests only).
     pub debug_counters: bool,
+    /// The render's first sample: it renders the samples from here on (`render --samples
+    /// A..B`), counted from here in its statistics. 0 for a whole render.
+    pub first_sample: u32,
+    /// The part of the image rendered; None: all of it.
+    pub tile: Option<Tile>,
 }
 
 impl RenderOptions {
@@ -52,7 +63,15 @@ impl RenderOptions {
             all_features: false,
             local_size: None,
             debug_counters: false,
+            first_sample: 0,
+            tile: None,
         }
+    }
+
+    /// The rectangle rendered: the tile, or the whole image.
+    pub fn tile(&self) -> Tile {
+        self.tile
+            .unwrap_or_else(|| Tile::whole(self.frame.width, self.frame.height))
     }
 }
 
@@ -119,12 +138,18 @@ pub struct Renderer {
     pub scene_info: SceneInfo,
     outputs: OutputSet,
     sample_capacity: u32,
+    all_features: bool,
+    debug: bool,
+    local_size: Option<[usize; 2]>,
+    tile: Tile,
+    first_sample: u32,
     /// One buffer per entry of the output table: allocated when its output is on, a
     /// one-element stand-in otherwise.
     buffers: Vec<(BufferId, Buffer<u8>)>,
     ray_counts: Buffer<u32>,
     debug_counters: Buffer<u32>,
-    kernel: Kernel,
+    /// Always Some after construction (built once the buffers exist).
+    kernel: Option<Kernel>,
     _scene: DeviceScene,
     samples_done: u32,
     pub rays_total: u64,
@@ -147,7 +172,7 @@ impl Renderer {
         options: &RenderOptions,
     ) -> Result<Renderer> {
         check_size(&gpu, options)?;
-        let frame = &options.frame;
+        let tile = options.tile();
         let outputs = options.outputs.closed();
         let capacity = if outputs.contains(Output::Samples) {
             options.sample_capacity.max(1)
@@ -159,14 +184,9 @@ impl Renderer {
         } else {
             FeatureSet::for_scene(scene, outputs)
         };
-        let mut defines = features.defines();
-        defines.push((
-            "DEBUG_COUNTERS".into(),
-            (options.debug_counters as u32).to_string(),
-        ));
-        let program = gpu.program("render/pathtrace.cl", &defines, "")?;
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
-        let (w, h) = (frame.width, frame.height);
+        let scene_info = SceneInfo::new(scene, &arrays);
+        let (w, h) = (tile.width, tile.height);
         // Only what is asked for is allocated: the others are one-element stand-ins.
         let buffers = BUFFERS
             .iter()
@@ -182,26 +202,55 @@ impl Renderer {
         let pixels = w as usize * h as usize;
         let debug_counters = gpu.zeroed::<u32>(DEBUG_COUNTERS.len(), "debug counter")?;
         let ray_counts = gpu.zeroed::<u32>(pixels, "ray count")?;
+        let mut r = Renderer {
+            gpu,
+            arrays,
+            features,
+            scene_info,
+            outputs,
+            sample_capacity: capacity,
+            all_features: options.all_features,
+            debug: options.debug_counters,
+            local_size: options.local_size,
+            tile,
+            first_sample: options.first_sample,
+            buffers,
+            ray_counts,
+            debug_counters,
+            kernel: None,
+            _scene: device_scene,
+            samples_done: 0,
+            rays_total: 0,
+            kernel_time_total: Duration::ZERO,
+        };
+        r.kernel = Some(r.build_kernel()?);
+        Ok(r)
+    }
 
+    /// The megakernel specialised to `self.features`, every argument bound.
+    fn build_kernel(&self) -> Result<Kernel> {
+        let mut defines = self.features.defines();
+        defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
+        let program = self.gpu.program("render/pathtrace.cl", &defines, "")?;
         let mut builder = Kernel::builder();
         builder
             .program(&program)
             .name("render")
-            .queue(gpu.queue.clone());
-        let (wu, hu) = (w as usize, h as usize);
-        match options.local_size {
+            .queue(self.gpu.queue.clone());
+        let (w, h) = (self.width() as usize, self.height() as usize);
+        match self.local_size {
             Some(l) => {
                 builder
-                    .global_work_size([round_up(wu, l[0]), round_up(hu, l[1])])
+                    .global_work_size([round_up(w, l[0]), round_up(h, l[1])])
                     .local_work_size(l);
             }
             None => {
-                builder.global_work_size([wu, hu]);
+                builder.global_work_size([w, h]);
             }
         }
         // Every argument by name, in the kernel's order (checked against the kernel's own
         // argument names by tests/layout.rs).
-        let d = &device_scene;
+        let d = &self._scene;
         builder
             .arg_named("params", &d.params)
             .arg_named("nodes", &d.nodes)
@@ -213,35 +262,22 @@ impl Renderer {
             .arg_named("texels", &d.texels)
             .arg_named("lights", &d.lights)
             .arg_named("light_cdf", &d.light_cdf);
-        for (id, b) in &buffers {
+        for (id, b) in &self.buffers {
             builder.arg_named(id.decl().name, b);
         }
         builder
-            .arg_named("ray_counts", &ray_counts)
-            .arg_named("debug_counters", &debug_counters)
-            .arg_named("sample_capacity", capacity)
-            .arg_named("sample_base", 0u32)
+            .arg_named("ray_counts", &self.ray_counts)
+            .arg_named("debug_counters", &self.debug_counters)
+            .arg_named("sample_capacity", self.sample_capacity)
+            .arg_named("tile_x", self.tile.x)
+            .arg_named("tile_y", self.tile.y)
+            .arg_named("tile_width", self.tile.width)
+            .arg_named("tile_height", self.tile.height)
+            .arg_named("range_first", self.first_sample)
+            .arg_named("sample_base", self.first_sample)
             .arg_named("sample_count", 0u32);
-        let kernel = builder.build().context("creating the render kernel")?;
-        let scene_info = SceneInfo::new(scene, &arrays);
-        Ok(Renderer {
-            gpu,
-            arrays,
-            features,
-            scene_info,
-            outputs,
-            sample_capacity: capacity,
-            buffers,
-            ray_counts,
-            debug_counters,
-            kernel,
-            _scene: device_scene,
-            samples_done: 0,
-            rays_total: 0,
-            kernel_time_total: Duration::ZERO,
-        })
+        builder.build().context("creating the render kernel")
     }
-
     /// The names of the render kernel's arguments in the order they are bound.
     pub fn argument_names() -> Vec<&'static str> {
         let mut v = vec![
@@ -261,18 +297,35 @@ impl Renderer {
             "ray_counts",
             "debug_counters",
             "sample_capacity",
+            "tile_x",
+            "tile_y",
+            "tile_width",
+            "tile_height",
+            "range_first",
             "sample_base",
             "sample_count",
         ]);
         v
     }
 
+    /// Width of what this renderer's buffers hold: the tile's (the image's for a whole render).
     pub fn width(&self) -> u32 {
-        self.arrays.params.image_width
+        self.tile.width
     }
 
     pub fn height(&self) -> u32 {
-        self.arrays.params.image_height
+        self.tile.height
+    }
+
+    /// The part of the image rendered.
+    pub fn tile(&self) -> Tile {
+        self.tile
+    }
+
+    /// The first sample of the render's range: it has rendered samples
+    /// `first_sample()..first_sample() + samples_done()`.
+    pub fn first_sample(&self) -> u32 {
+        self.first_sample
     }
 
     /// The outputs this renderer gathers.
@@ -280,32 +333,114 @@ impl Renderer {
         self.outputs
     }
 
-    /// Samples per pixel accumulated so far.
+    /// Samples per pixel accumulated so far (from [`Renderer::first_sample`] on).
     pub fn samples_done(&self) -> u32 {
         self.samples_done
     }
 
     /// Adds `count` samples per pixel in one launch and waits for it.
     pub fn render_samples(&mut self, count: u32) -> Result<LaunchStats> {
+        self.render_rows(count, 0..self.height())
+    }
+
+    /// Band boundaries must fall on multiples of this many rows: the work-group height, so
+    /// that no work-group of a band reaches into the next band (whose pixels another device
+    /// renders).
+    pub fn row_granularity(&self) -> u32 {
+        self.local_size.map_or(1, |l| l[1] as u32)
+    }
+
+    /// Adds `count` samples per pixel to the pixels of `rows` only (one band of a frame split
+    /// across devices, §4.2), in one launch, and waits for it. The film counts `count` more
+    /// samples per pixel either way: the caller renders the other rows elsewhere. A band must
+    /// start on a multiple of [`Renderer::row_granularity`].
+    pub fn render_rows(&mut self, count: u32, rows: std::ops::Range<u32>) -> Result<LaunchStats> {
         if count == 0 {
             return Ok(LaunchStats::default());
         }
-        self.kernel.set_arg("sample_base", self.samples_done)?;
-        self.kernel.set_arg("sample_count", count)?;
-        // SAFETY: every buffer argument is alive (owned by self) and sized for the global range.
-        let event = unsafe { enqueue(&self.kernel, "the render kernel")? };
-        let kernel_time = event_duration(&event)?;
-        let mut counts = vec![0u32; self.ray_counts.len()];
-        self.ray_counts.read(&mut counts).enq()?;
-        let rays: u64 = counts.iter().map(|&c| c as u64).sum();
+        let rows = rows.start.min(self.height())..rows.end.min(self.height());
+        let stats = if rows.is_empty() {
+            LaunchStats {
+                samples: count,
+                ..Default::default()
+            }
+        } else {
+            self.launch(count, rows)?
+        };
         self.samples_done += count;
-        self.rays_total += rays;
-        self.kernel_time_total += kernel_time;
+        self.rays_total += stats.rays;
+        self.kernel_time_total += stats.kernel_time;
+        Ok(stats)
+    }
+
+    fn launch(&mut self, count: u32, rows: std::ops::Range<u32>) -> Result<LaunchStats> {
+        let kernel = self.kernel.as_ref().expect("built in with_arrays");
+        kernel.set_arg("sample_base", self.first_sample + self.samples_done)?;
+        kernel.set_arg("sample_count", count)?;
+        let w = self.width() as usize;
+        // SAFETY: every buffer argument is alive (owned by self) and sized for the whole
+        // image; the kernel skips work-items beyond the image.
+        let event = unsafe {
+            enqueue_rows(
+                kernel,
+                self.width(),
+                self.height(),
+                rows.clone(),
+                "the render kernel",
+            )?
+        };
+        let kernel_time = event_duration(&event)?;
+        let first = rows.start as usize * w;
+        let mut counts = vec![0u32; rows.len() * w];
+        self.ray_counts
+            .read(&mut counts)
+            .offset(first)
+            .enq()
+            .context("reading the ray counts")?;
         Ok(LaunchStats {
             samples: count,
             kernel_time,
-            rays,
+            rays: counts.iter().map(|&c| c as u64).sum(),
         })
+    }
+
+    /// Empties the film (thesis §4.2.2 "Film": the buffers are emptied when the camera
+    /// updates): every output buffer to zero, no samples.
+    pub fn reset(&mut self) -> Result<()> {
+        for (id, b) in &self.buffers {
+            if self.outputs.contains(id.owner()) {
+                b.cmd()
+                    .fill(0u8, None)
+                    .enq()
+                    .with_context(|| format!("emptying the {} buffer", id.decl().name))?;
+            }
+        }
+        self.samples_done = 0;
+        Ok(())
+    }
+
+    /// Moves the camera to `scene.camera` (the scene this renderer was built from, camera
+    /// changed) and empties the film; the kernel is rebuilt when the camera changes which
+    /// effects it needs (a lens: `HAS_DOF`). Renders then give exactly the bytes of a
+    /// renderer built for `scene`.
+    pub fn set_camera(&mut self, scene: &Scene) -> Result<()> {
+        self.arrays.set_camera(scene);
+        let features = if self.all_features {
+            FeatureSet::all_features(scene, self.outputs)
+        } else {
+            FeatureSet::for_scene(scene, self.outputs)
+        };
+        self._scene
+            .params
+            .write(std::slice::from_ref(&self.arrays.params))
+            .enq()
+            .context("uploading the camera")?;
+        if features != self.features {
+            self.features = features;
+            self.kernel = Some(self.build_kernel()?);
+        }
+        self.scene_info = SceneInfo::new(scene, &self.arrays);
+        self.reset()
     }
 
     /// The outputs as they are now, for filters, AOV files and images. Cheap: it shares the
@@ -345,7 +480,9 @@ impl Renderer {
 
 /// Refuses sizes the device cannot hold, before anything is built.
 fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
-    let (w, h) = (options.frame.width, options.frame.height);
+    let tile = options.tile();
+    tile.check_within(options.frame.width, options.frame.height)?;
+    let (w, h) = (tile.width, tile.height);
     let outputs = options.outputs.closed();
     let capacity = options.sample_capacity.max(1);
     for b in outputs.buffers() {
@@ -355,4 +492,55 @@ fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
         outputs.bytes(w, h, capacity) + 4 * w as u64 * h as u64,
         &format!("the per-pixel outputs ({})", outputs.names().join(", ")),
     )
+}
+
+fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
+    // SAFETY: the shared layout types are plain f32/u32/i32 with explicit padding fields
+    // (src/layout/mod.rs), so every byte is initialised.
+    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
+}
+
+/// A hash of the scene as uploaded: geometry, materials, textures, lights, camera, resolution
+/// and seed. With [`kernel_hash`] it decides every pixel of a render.
+pub fn scene_hash(arrays: &SceneArrays) -> u64 {
+    fnv1a(&scene_bytes(arrays))
+}
+
+fn scene_bytes(arrays: &SceneArrays) -> [&[u8]; 10] {
+    [
+        bytes_of(std::slice::from_ref(&arrays.params)),
+        bytes_of(&arrays.nodes),
+        bytes_of(&arrays.tri_geom),
+        bytes_of(&arrays.tri_shading),
+        bytes_of(&arrays.spheres),
+        bytes_of(&arrays.materials),
+        bytes_of(&arrays.textures),
+        bytes_of(&arrays.texels),
+        bytes_of(&arrays.lights),
+        bytes_of(&arrays.light_cdf),
+    ]
+}
+
+fn kernel_sources() -> String {
+    crate::kernels::SOURCES.iter().map(|(_, s)| *s).collect()
+}
+
+/// A hash of the kernels' sources (this build's megakernel).
+pub fn kernel_hash() -> u64 {
+    fnv1a(&[kernel_sources().as_bytes()])
+}
+
+/// A hash of everything that decides a render's pixels: the scene as uploaded and the
+/// megakernel's sources (the key of the reference cache, src/bench/ground_truth.rs).
+pub fn render_hash(arrays: &SceneArrays) -> u64 {
+    render_hash_with(arrays, &arrays.params)
+}
+
+/// [`render_hash`] with `params` in place of the arrays' own (another seed or camera).
+pub fn render_hash_with(arrays: &SceneArrays, params: &SceneParams) -> u64 {
+    let kernels = kernel_sources();
+    let mut parts = scene_bytes(arrays).to_vec();
+    parts[0] = bytes_of(std::slice::from_ref(params));
+    parts.push(kernels.as_bytes());
+    fnv1a(&parts)
 }

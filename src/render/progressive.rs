@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::Renderer;
+use super::SplitRenderer;
 
 /// When a progressive render stops.
 #[derive(Clone, Copy, Debug)]
@@ -38,11 +38,11 @@ pub fn progress_bar(spp: u32, quiet: bool) -> ProgressBar {
 /// responsive progress, few launches, and well under GPU watchdog limits. The image does not
 /// depend on the batching (tests/determinism.rs).
 pub fn render_progressively(
-    renderer: &mut Renderer,
+    renderer: &mut SplitRenderer,
     budget: Budget,
     bar: &ProgressBar,
     stop: &dyn Fn() -> bool,
-    mut after_frame: impl FnMut(&Renderer) -> Result<()>,
+    mut after_frame: impl FnMut(&SplitRenderer) -> Result<()>,
 ) -> Result<()> {
     let start = Instant::now();
     let limit = budget.time_limit.map(Duration::from_secs_f64);

@@ -15,14 +15,20 @@ use std::path::{Path, PathBuf};
 use anyhow::{Result, anyhow, bail};
 
 use super::{RenderRecord, feature_variance_sums};
-use crate::imaging::{RgbImage, colormap, write_atomically, write_png, write_rgb8_png};
+use crate::imaging::{RgbImage, colormap, to_srgb8, write_atomically, write_rgb8_png};
 use crate::layout::outputs::{BufferId, ChannelScale, OUTPUTS, Output, OutputSet};
 use crate::layout::{FilterVector, SKY_DEPTH, WelfordSums};
 use crate::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 
+/// The header attribute that holds the render record.
+pub const RECORD_ATTRIBUTE: &str = "noisefree.record";
+
 /// Writes the frame's per-pixel outputs as one OpenEXR layer with named channels, plus the
 /// beauty (`R`, `G`, `B`) for viewers and a constant `spp` channel; `record` goes into the
-/// header as text attributes `noisefree.<key>`.
+/// header as one text attribute, `noisefree.record`: its attributes as a TOML table, keys
+/// sorted. One attribute, because the exr crate writes a header's attributes in the order of
+/// a std HashMap, which differs from process to process: with one, the same frame gives the
+/// same bytes every time (what `noisefree merge` promises).
 pub fn write_aov_exr(path: &Path, frame: &Frame, record: &RenderRecord) -> Result<()> {
     use exr::prelude::*;
     let info = frame.info();
@@ -64,16 +70,15 @@ pub fn write_aov_exr(path: &Path, frame: &Frame, record: &RenderRecord) -> Resul
         FlatSamples::F32(vec![info.spp as f32; n]),
     ));
     let mut attributes = LayerAttributes::named("noisefree");
-    for (k, v) in record.to_attributes() {
-        attributes.other.insert(
-            Text::from(format!("noisefree.{k}").as_str()),
-            AttributeValue::Text(Text::from(v.as_str())),
-        );
-    }
+    let table = toml::to_string(&record.to_attributes()).expect("text attributes serialise");
+    attributes.other.insert(
+        Text::from(RECORD_ATTRIBUTE),
+        AttributeValue::Text(Text::from(table.as_str())),
+    );
     let layer = Layer::new(
         (info.width as usize, info.height as usize),
         attributes,
-        Encoding::FAST_LOSSLESS,
+        crate::imaging::DETERMINISTIC_ENCODING,
         AnyChannels::sort(SmallVec::from_vec(list)),
     );
     let image = Image::from_layer(layer);
@@ -173,10 +178,23 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
             path.display()
         );
     }
+    // The record: one TOML attribute, or (files written before it was one) an attribute
+    // `noisefree.<key>` per key.
     let mut attributes = BTreeMap::new();
     for (k, v) in &layer.attributes.other {
-        if let (Some(key), AttributeValue::Text(t)) = (k.to_string().strip_prefix("noisefree."), v)
-        {
+        let (k, AttributeValue::Text(t)) = (k.to_string(), v) else {
+            continue;
+        };
+        if k == RECORD_ATTRIBUTE {
+            let table: BTreeMap<String, String> = toml::from_str(&t.to_string()).map_err(|e| {
+                anyhow!(
+                    "{}: the render record in the header: {}",
+                    path.display(),
+                    e.message()
+                )
+            })?;
+            attributes.extend(table);
+        } else if let Some(key) = k.strip_prefix("noisefree.") {
             attributes.insert(key.to_string(), t.to_string());
         }
     }
@@ -193,12 +211,24 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
     Ok((frame, record))
 }
 
-/// One false-colour PNG per buffer in `dir` (which is created): the light buffers tone-mapped,
-/// depth as grey (near bright, sky black), normals as 0.5 + 0.5 n, albedos as they are, and each
-/// feature variance (sum over its components) on a log scale from 1e-4 (dark) to 1 (bright)
-/// with the colour map of src/imaging.
+/// One false-colour PNG per buffer in `dir` (which is created), from [`aov_pictures`].
 pub fn write_aov_pngs(dir: &Path, frame: &Frame, exposure: f32) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| anyhow!("creating {}: {e}", dir.display()))?;
+    let mut written = Vec::new();
+    for (name, bytes) in aov_pictures(frame, exposure)? {
+        let p = dir.join(format!("{name}.png"));
+        write_rgb8_png(&p, &bytes, frame.width(), frame.height())?;
+        written.push(p);
+    }
+    Ok(written)
+}
+
+/// A false-colour picture of every buffer the frame holds, as (name, 8-bit sRGB bytes): the
+/// light buffers tone-mapped, depth as grey (near bright, sky black), normals as 0.5 + 0.5 n,
+/// albedos as they are, and each feature variance (sum over its components) on a log scale
+/// from 1e-4 (dark) to 1 (bright) with the colour map of src/imaging. For AOV files and the
+/// viewer.
+pub fn aov_pictures(frame: &Frame, exposure: f32) -> Result<Vec<(&'static str, Vec<u8>)>> {
     let (w, h) = (frame.width(), frame.height());
     let fv: &[FilterVector] = frame.filter_vectors()?;
     let image = |f: &dyn Fn(&FilterVector) -> [f32; 3]| RgbImage {
@@ -206,35 +236,27 @@ pub fn write_aov_pngs(dir: &Path, frame: &Frame, exposure: f32) -> Result<Vec<Pa
         height: h,
         pixels: fv.iter().map(f).collect(),
     };
-    let mut written = Vec::new();
-    let mut save = |name: &str, img: &RgbImage, exposure: f32| -> Result<()> {
-        let p = dir.join(format!("{name}.png"));
-        write_png(&p, img, exposure)?;
-        written.push(p);
-        Ok(())
-    };
-    save("beauty", &frame.beauty()?, exposure)?;
-    save("direct", &image(&|f| f.direct), exposure)?;
-    save("indirect", &image(&|f| f.indirect), exposure)?;
+    let mut out = Vec::new();
+    out.push(("beauty", to_srgb8(&frame.beauty()?, exposure)));
+    out.push(("direct", to_srgb8(&image(&|f| f.direct), exposure)));
+    out.push(("indirect", to_srgb8(&image(&|f| f.indirect), exposure)));
     if frame.outputs().contains(Output::Features) {
         let finite_depths = fv.iter().map(|f| f.depth).filter(|d| *d < SKY_DEPTH * 0.5);
         let (lo, hi) = finite_depths.fold((f32::INFINITY, 0.0f32), |(lo, hi), d| {
             (lo.min(d), hi.max(d))
         });
-        save(
-            "depth",
-            &image(&|f| {
-                if f.depth >= SKY_DEPTH * 0.5 || !(hi > lo) {
-                    return [0.0; 3];
-                }
-                let v = 1.0 - 0.9 * (f.depth - lo) / (hi - lo);
-                [v; 3]
-            }),
-            0.0,
-        )?;
-        save("normal", &image(&|f| f.normal.map(|c| 0.5 + 0.5 * c)), 0.0)?;
-        save("albedo", &image(&|f| f.albedo), 0.0)?;
-        save("albedo2", &image(&|f| f.albedo2), 0.0)?;
+        let depth = image(&|f| {
+            if f.depth >= SKY_DEPTH * 0.5 || !(hi > lo) {
+                return [0.0; 3];
+            }
+            let v = 1.0 - 0.9 * (f.depth - lo) / (hi - lo);
+            [v; 3]
+        });
+        out.push(("depth", to_srgb8(&depth, 0.0)));
+        let normal = image(&|f| f.normal.map(|c| 0.5 + 0.5 * c));
+        out.push(("normal", to_srgb8(&normal, 0.0)));
+        out.push(("albedo", to_srgb8(&image(&|f| f.albedo), 0.0)));
+        out.push(("albedo2", to_srgb8(&image(&|f| f.albedo2), 0.0)));
     }
     if frame.outputs().contains(Output::Variance) {
         let sums: &[WelfordSums] = frame.host_slice(BufferId::WelfordSums)?;
@@ -246,7 +268,7 @@ pub fn write_aov_pngs(dir: &Path, frame: &Frame, exposure: f32) -> Result<Vec<Pa
             "var_direction",
             "var_albedo2",
         ];
-        for (k, name) in names.iter().enumerate() {
+        for (k, name) in names.into_iter().enumerate() {
             let bytes: Vec<u8> = sums
                 .iter()
                 .flat_map(|g| {
@@ -255,10 +277,8 @@ pub fn write_aov_pngs(dir: &Path, frame: &Frame, exposure: f32) -> Result<Vec<Pa
                     colormap(if v > 0.0 { t } else { 0.0 })
                 })
                 .collect();
-            let p = dir.join(format!("{name}.png"));
-            write_rgb8_png(&p, &bytes, w, h)?;
-            written.push(p);
+            out.push((name, bytes));
         }
     }
-    Ok(written)
+    Ok(out)
 }

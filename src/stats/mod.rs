@@ -1,8 +1,11 @@
 //! Per-pixel statistics on the host (thesis §6.1-6.2.2) and the files that carry a render's
 //! outputs: the AOV EXR (every per-pixel output, [`aov`]) and the samples file (the per-sample
-//! output, [`samples`]), each with a [`RenderRecord`] of how it was made.
+//! output, [`samples`]), each with a [`RenderRecord`] of how it was made; partial renders of
+//! sample ranges and tiles ([`partial`]) and their exact merge ([`merge`]).
 
 pub mod aov;
+pub mod merge;
+pub mod partial;
 pub mod record;
 pub mod samples;
 

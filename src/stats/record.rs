@@ -11,8 +11,8 @@ use crate::render::SceneInfo;
 /// The version of the record's keys.
 pub const RECORD_VERSION: &str = "2";
 
-/// A render's record (text attributes `noisefree.<key>` in an EXR header, a TOML table in a
-/// samples file).
+/// A render's record (a TOML table of text attributes: the attribute `noisefree.record` of an
+/// AOV file's header, a samples file's record, a partial file's `[record]`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RenderRecord {
     /// None in files written by other programs or older versions.

@@ -1,6 +1,8 @@
 //! Shared test helpers: the device (PoCL in CI), small scenes, image statistics.
 #![allow(dead_code)]
 
+pub mod merge;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::{Arc, OnceLock};

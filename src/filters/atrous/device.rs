@@ -1,6 +1,7 @@
 //! The à-trous filter on the device: an init kernel, `iterations` pass kernels ping-ponging
 //! between two colour buffers, and a finish kernel (kernels/filters/atrous.cl).
 
+use std::ops::Range;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -9,7 +10,7 @@ use ocl::{Buffer, Kernel};
 
 use super::{ALBEDO_EPSILON, AtrousSettings};
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AtrousParams, Float4};
 use crate::render::Frame;
@@ -121,16 +122,27 @@ impl AtrousKernel {
     /// Filters `frame` (which must be width × height) and reads the image back. The kernel
     /// time is the sum over init, every pass and finish, from their profiling events.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter_rows(frame, 0..self.height)
+    }
+
+    /// Rows that pass `i` must produce beyond a band, so that the passes after it see every
+    /// tap they read: the sum of their reaches (pass j reaches 2 · 2^j rows).
+    fn margin_after(&self, i: usize) -> u32 {
+        (i + 1..self.passes.len()).map(|j| 2u32 << j).sum()
+    }
+
+    /// Rows a band's pixels read beyond the band: 2 · (1 + 2 + ... + 2^(n−1)).
+    pub fn reach(&self) -> u32 {
+        (0..self.passes.len()).map(|j| 2u32 << j).sum()
+    }
+
+    /// Filters the pixels of `rows` only (one band of a frame split across devices), reading
+    /// the frame's rows within [`AtrousKernel::reach`]: init and every pass run on the band
+    /// widened by what the later passes read, so each pixel of the band gets the bytes that
+    /// filtering the whole frame gives it. The image's other rows are black.
+    pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
-        if frame.width() != self.width || frame.height() != self.height {
-            bail!(
-                "the filter was built for {}x{}, the frame is {}x{}",
-                self.width,
-                self.height,
-                frame.width(),
-                frame.height()
-            );
-        }
+        frame.check_size(self.width, self.height, "the a-trous filter")?;
         frame.require(
             OutputSet::of(&[Output::Colour, Output::Features]),
             "the a-trous filter",
@@ -138,14 +150,25 @@ impl AtrousKernel {
         let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
         self.init.set_arg("fv", fv)?;
         self.finish.set_arg("fv", fv)?;
-        let mut events = Vec::with_capacity(self.passes.len() + 2);
-        for k in std::iter::once(&self.init)
-            .chain(&self.passes)
-            .chain(std::iter::once(&self.finish))
-        {
+        let h = self.height;
+        let rows = rows.start.min(h)..rows.end.min(h);
+        let widened = |m: u32| rows.start.saturating_sub(m)..(rows.end + m).min(h);
+        let n = self.passes.len();
+        let launches = std::iter::once((&self.init, widened(self.reach())))
+            .chain(
+                self.passes
+                    .iter()
+                    .enumerate()
+                    .map(|(i, k)| (k, widened(self.margin_after(i)))),
+            )
+            .chain(std::iter::once((&self.finish, rows.clone())));
+        let mut events = Vec::with_capacity(n + 2);
+        for (k, band) in launches {
             // SAFETY: every buffer outlives its launch (we wait for all of them below) and
             // holds width x height pixels; the in-order queue runs the passes one by one.
-            events.push(unsafe { enqueue(k, "an a-trous filter pass")? });
+            events.push(unsafe {
+                enqueue_rows(k, self.width, h, band, "an a-trous filter pass")?
+            });
         }
         let mut kernel_time = std::time::Duration::ZERO;
         for e in &events {
@@ -153,7 +176,7 @@ impl AtrousKernel {
         }
         let result = &self.colour[self.passes.len() % 2];
         Ok(FilterRun {
-            image: read_rgb(result, self.width, self.height)?,
+            image: read_rgb_rows(result, self.width, self.height, rows)?,
             wall_time: start.elapsed(),
             kernel_time: Some(kernel_time),
         })
@@ -163,6 +186,14 @@ impl AtrousKernel {
 impl PreparedFilter for AtrousKernel {
     fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
         self.filter(frame)
+    }
+
+    fn reach(&self) -> Option<u32> {
+        Some(AtrousKernel::reach(self))
+    }
+
+    fn run_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
+        self.filter_rows(frame, rows)
     }
 }
 

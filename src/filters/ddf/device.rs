@@ -1,6 +1,7 @@
 //! The data-driven filter on the device: kernels/filters/ddf.cl, built once per variant and
 //! option set (the disk cache keeps the binaries).
 
+use std::ops::Range;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -9,7 +10,7 @@ use ocl::{Buffer, Kernel};
 
 use super::{DdfSettings, DirectionTerm, Variant};
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue, event_duration, read_rgb, round_up};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows, round_up};
 use crate::layout::outputs::BufferId;
 use crate::layout::{DdfParams, Float4};
 use crate::render::Frame;
@@ -130,16 +131,21 @@ impl DdfKernel {
 
     /// Filters `frame` (which must be width x height); returns the image and the kernel time.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter_rows(frame, 0..self.height)
+    }
+
+    /// Rows a band's pixels read beyond the band: half the kernel width (Alg. 8's window).
+    pub fn reach(&self) -> u32 {
+        (self.settings.kw - 1) / 2
+    }
+
+    /// Filters the pixels of `rows` only (one band of a frame split across devices); the
+    /// frame's rows within [`DdfKernel::reach`] of the band must be current. The image's other
+    /// rows are zero. Each pixel gets the bytes filtering the whole frame gives it: its window
+    /// and the image bounds are the same.
+    pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
-        if frame.width() != self.width || frame.height() != self.height {
-            bail!(
-                "the filter was built for {}x{}, the frame is {}x{}",
-                self.width,
-                self.height,
-                frame.width(),
-                frame.height()
-            );
-        }
+        frame.check_size(self.width, self.height, "the data-driven filter")?;
         frame.require(
             <super::Ddf as crate::filters::FilterKind>::needs(&self.settings),
             "the data-driven filter",
@@ -158,11 +164,21 @@ impl DdfKernel {
             .set_arg("gb", frame.device(&self.gpu, BufferId::WelfordSums)?)?;
         self.kernel
             .set_arg("state", frame.device(&self.gpu, BufferId::WelfordState)?)?;
-        // SAFETY: all buffers outlive the launch (we wait for it) and hold width x height pixels.
-        let event = unsafe { enqueue(&self.kernel, "the data-driven filter")? };
+        let rows = rows.start.min(self.height)..rows.end.min(self.height);
+        // SAFETY: all buffers outlive the launch (we wait for it) and hold width x height
+        // pixels; the kernel skips work-items outside the image.
+        let event = unsafe {
+            enqueue_rows(
+                &self.kernel,
+                self.width,
+                self.height,
+                rows.clone(),
+                "the data-driven filter",
+            )?
+        };
         let kernel_time = event_duration(&event)?;
         Ok(FilterRun {
-            image: read_rgb(&self.out, self.width, self.height)?,
+            image: read_rgb_rows(&self.out, self.width, self.height, rows)?,
             wall_time: start.elapsed(),
             kernel_time: Some(kernel_time),
         })
@@ -172,5 +188,13 @@ impl DdfKernel {
 impl PreparedFilter for DdfKernel {
     fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
         self.filter(frame)
+    }
+
+    fn reach(&self) -> Option<u32> {
+        Some(DdfKernel::reach(self))
+    }
+
+    fn run_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
+        self.filter_rows(frame, rows)
     }
 }

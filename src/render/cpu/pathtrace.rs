@@ -423,12 +423,15 @@ pub fn trace_path(
 
 /// Renders samples [sample_base, sample_base + count) into `means` (FilterVector lanes, one
 /// [f32; 16] per pixel) and `shifts` (DepthShift: K and the mean of depth - K), exactly as
-/// kernels/render/film.cl folds them without variances (eq. 6.5). Returns rays traced.
+/// kernels/render/film.cl folds them without variances (eq. 6.5), for a render of the samples
+/// from `range_first` on (kernels/render/pathtrace.cl): sample `range_first` is its first, whose
+/// depth is K. Returns rays traced.
 pub fn render(
     s: &SceneArrays,
     opt: ReferenceOptions,
     means: &mut [[f32; 16]],
     shifts: &mut [[f32; 2]],
+    range_first: u32,
     sample_base: u32,
     count: u32,
 ) -> u64 {
@@ -444,10 +447,10 @@ pub fn render(
                 let sample = sample_base + k;
                 let key = rng_sample_key(s.params.seed, pixel as u32, sample);
                 let x16 = trace_path(s, opt, x, y, key, &mut rays).to_array();
-                let n = (sample + 1) as f32;
+                let n = (sample - range_first + 1) as f32;
                 for (i, (m, v)) in mean.iter_mut().zip(x16).enumerate() {
                     if i == DEPTH_LANE {
-                        if sample == 0 {
+                        if sample == range_first {
                             *shift = [v, 0.0];
                         }
                         shift[1] += ((v - shift[0]) - shift[1]) / n;

@@ -6,17 +6,21 @@
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context as _, Result, anyhow, bail};
 use ocl::core::QUEUE_PROFILING_ENABLE;
-use ocl::enums::{DeviceInfo, DeviceInfoResult, ProfilingInfo, ProgramInfo, ProgramInfoResult};
+use ocl::enums::{DeviceInfo, DeviceInfoResult, ProgramInfo, ProgramInfoResult};
 use ocl::flags::{DeviceType, MemFlags};
-use ocl::{Buffer, Context, Device, Event, OclPrm, Platform, Program, Queue};
+use ocl::{Buffer, Context, Device, OclPrm, Platform, Program, Queue};
 
-use crate::imaging::RgbImage;
 use crate::kernels;
 pub use crate::memory::human_bytes;
+pub use launch::{
+    BAND_WORK_GROUP, enqueue, enqueue_rows, event_duration, read_rgb, read_rgb_rows, round_up,
+};
+
+mod launch;
 
 /// What the user is told when no OpenCL platform is installed.
 pub const NO_PLATFORM_HELP: &str = "no OpenCL platform found. noisefree needs an OpenCL driver; \
@@ -191,17 +195,44 @@ pub fn default_cache_dir() -> Option<PathBuf> {
 
 /// FNV-1a, 64 bit: a stable hash (std's hasher may change between Rust releases).
 pub fn fnv1a(parts: &[&[u8]]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut h = Fnv1a::new();
     for part in parts {
-        for &b in *part {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0100_0000_01b3);
-        }
-        // Separate the parts, so ("ab", "c") and ("a", "bc") differ.
-        h ^= 0xff;
-        h = h.wrapping_mul(0x0100_0000_01b3);
+        h.update(part);
+        h.end_part();
     }
-    h
+    h.finish()
+}
+
+/// [`fnv1a`] fed part by part (data that is streamed, e.g. a file's payload).
+#[derive(Clone, Copy, Debug)]
+pub struct Fnv1a(u64);
+
+impl Default for Fnv1a {
+    fn default() -> Self {
+        Fnv1a::new()
+    }
+}
+
+impl Fnv1a {
+    pub fn new() -> Fnv1a {
+        Fnv1a(0xcbf2_9ce4_8422_2325)
+    }
+
+    pub fn update(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= b as u64;
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+
+    /// Separates the parts, so ("ab", "c") and ("a", "bc") differ.
+    pub fn end_part(&mut self) {
+        self.update(&[0xff]);
+    }
+
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
 }
 
 impl Gpu {
@@ -209,6 +240,20 @@ impl Gpu {
     /// kernel cache folder.
     pub fn open(index: Option<usize>) -> Result<Arc<Gpu>> {
         Gpu::open_with_cache(index, default_cache_dir())
+    }
+
+    /// Opens every device of `indices` (`--devices 0,1`), each with its own context and queue;
+    /// empty: the one device [`Gpu::open`] chooses.
+    pub fn open_all(indices: &[usize]) -> Result<Vec<Arc<Gpu>>> {
+        if indices.is_empty() {
+            return Ok(vec![Gpu::open(None)?]);
+        }
+        for (k, i) in indices.iter().enumerate() {
+            if indices[..k].contains(i) {
+                bail!("device {i} is listed twice in --devices (see `noisefree devices`)");
+            }
+        }
+        indices.iter().map(|&i| Gpu::open(Some(i))).collect()
     }
 
     /// Opens a device with the given kernel cache folder (None: no disk cache).
@@ -441,55 +486,4 @@ fn store_binary(program: &Program, file: &std::path::Path) -> Result<()> {
     std::fs::write(&tmp, &bin)?;
     std::fs::rename(&tmp, file)?;
     Ok(())
-}
-
-/// Kernel execution time of a finished command, from its profiling event.
-pub fn event_duration(event: &Event) -> Result<Duration> {
-    event.wait_for()?;
-    let start = event.profiling_info(ProfilingInfo::Start)?.time()?;
-    let end = event.profiling_info(ProfilingInfo::End)?.time()?;
-    Ok(Duration::from_nanos(end.saturating_sub(start)))
-}
-
-/// Enqueues `kernel` and returns its profiling event (the caller waits on it, e.g. with
-/// [`event_duration`]).
-///
-/// # Safety
-/// Every buffer argument of `kernel` must be alive and sized for its global range until the
-/// event completes.
-pub unsafe fn enqueue(kernel: &ocl::Kernel, what: &str) -> Result<Event> {
-    let mut event = Event::empty();
-    // SAFETY: the caller's contract.
-    unsafe {
-        kernel
-            .cmd()
-            .enew(&mut event)
-            .enq()
-            .with_context(|| format!("launching {what}"))?;
-    }
-    Ok(event)
-}
-
-/// The first `width × height` pixels of a device image of `float4`s (rgb, w unused).
-pub fn read_rgb(
-    buffer: &ocl::Buffer<crate::layout::Float4>,
-    width: u32,
-    height: u32,
-) -> Result<RgbImage> {
-    let mut out = vec![crate::layout::Float4::default(); buffer.len()];
-    buffer
-        .read(&mut out)
-        .enq()
-        .context("reading an image back")?;
-    out.truncate(width as usize * height as usize);
-    Ok(RgbImage {
-        width,
-        height,
-        pixels: out.iter().map(|p| [p.0[0], p.0[1], p.0[2]]).collect(),
-    })
-}
-
-/// Rounds `n` up to a multiple of `m`.
-pub fn round_up(n: usize, m: usize) -> usize {
-    n.div_ceil(m) * m
 }
