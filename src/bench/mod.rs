@@ -23,6 +23,8 @@
 //! - `balance` (only when asked, with `--devices`): several devices sharing each frame
 //!   (thesis §4.2): each device's share and idle time per frame, with and without
 //!   re-balancing, and where the filter runs.
+//! - `rpf-readings`, `rpf-scale` (only when asked; hours): RPF's readings against the
+//!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -38,6 +40,7 @@ pub mod ground_truth;
 pub mod oidn;
 pub mod plot;
 pub mod quality;
+pub mod rpf;
 pub mod speed;
 pub mod study;
 pub mod sweep;
@@ -62,6 +65,10 @@ pub enum Study {
     Sweep,
     /// Several devices per frame (needs --devices with two or more; not in the default set).
     Balance,
+    /// RPF's readings against the thesis's gain (not in the default set: hours).
+    RpfReadings,
+    /// RPF against the scene scale, Tables 5.3-5.4 (not in the default set: hours).
+    RpfScale,
 }
 
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -90,6 +97,10 @@ pub struct BenchArgs {
     /// with --quick].
     #[arg(long, value_name = "N")]
     pub reference_spp: Option<u32>,
+    /// Width and height of the quality studies' images and references (quality,
+    /// accuracy-time, sweep, rpf-*) [default: 512, the thesis's; 64 with --quick].
+    #[arg(long, value_name = "N")]
+    pub size: Option<u32>,
     /// Measure again even what the CSV files already hold.
     #[arg(long)]
     pub fresh: bool,
@@ -157,6 +168,9 @@ impl BenchArgs {
         if let Some(n) = self.reference_spp {
             v.extend(["--reference-spp".into(), n.to_string()]);
         }
+        if let Some(n) = self.size {
+            v.extend(["--size".into(), n.to_string()]);
+        }
         if let Some(d) = self.device {
             v.extend(["--device".into(), d.to_string()]);
         }
@@ -178,6 +192,9 @@ struct Selection {
 fn select(args: &BenchArgs) -> Result<Selection> {
     if args.reference_spp == Some(0) {
         bail!("--reference-spp must be at least 1");
+    }
+    if args.size.is_some_and(|n| !(8..=8192).contains(&n)) {
+        bail!("--size must be 8 to 8192 pixels");
     }
     let mut studies = args.study.clone();
     if args.specialisation {
@@ -203,7 +220,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
     let needs_bundled = args.scene.is_empty()
         || studies
             .iter()
-            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep));
+            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep | Study::RpfScale));
     if scenes_dir.is_none() && needs_bundled {
         return Err(no_scenes_dir());
     }
@@ -225,7 +242,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
 /// --slurm` renders on the cluster before the benchmark runs.
 pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::ReferenceRequest>> {
     let sel = select(args)?;
-    let sizes = study::sizes_for(args.quick, args.reference_spp);
+    let sizes = study::sizes_for(args.quick, args.reference_spp, args.size);
     let mut paths: Vec<PathBuf> = Vec::new();
     for s in &sel.studies {
         match s {
@@ -233,6 +250,18 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
             Study::Sweep => {
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 for name in sweep::sweep_scenes(args.quick) {
+                    paths.push(dir.join(format!("{name}.toml")));
+                }
+            }
+            Study::RpfReadings => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                for name in rpf::THESIS_SCENES {
+                    paths.push(dir.join(format!("{name}.toml")));
+                }
+            }
+            Study::RpfScale => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                for name in &rpf::THESIS_SCENES[..3] {
                     paths.push(dir.join(format!("{name}.toml")));
                 }
             }
@@ -264,6 +293,8 @@ pub struct Context {
     pub reference_cache: PathBuf,
     /// `--reference-spp`, if given.
     pub reference_spp: Option<u32>,
+    /// `--size`, if given.
+    pub size: Option<u32>,
 }
 
 impl Context {
@@ -401,6 +432,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             .clone()
             .unwrap_or_else(ground_truth::default_cache),
         reference_spp: args.reference_spp,
+        size: args.size,
     };
     ctx.say(&format!(
         "device: {} | bundled scenes: {} | results in {}",
@@ -419,6 +451,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
+            Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
+            Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;

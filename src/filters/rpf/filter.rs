@@ -30,6 +30,8 @@ use super::gather::{self, RestLine, ROWS};
 use super::samples::{FLOATS_PER_SAMPLE, SampleSet};
 use super::weights::{self, COLORS, Dependencies, FEATURES, POSITIONS, RANDOMS, Weights};
 use super::{RangeColors, RpfSettings};
+use crate::imaging::RgbImage;
+use rayon::prelude::*;
 
 /// Numbers of the mutual-information variables (the 26 elements of Table 5.1): screen
 /// position, random parameters, features, colour.
@@ -295,4 +297,33 @@ pub(super) fn filter_pixel(
 pub(super) fn analyze_pixel(it: &Iteration<'_>, x: u32, y: u32) -> PixelInfo {
     let mut scratch = Scratch::new(it.settings.mi_buckets, it.level);
     analyze(it, x, y, &mut scratch)
+}
+
+/// The mean of the 3 × 3 pixels around each pixel (those inside the image), in f64, in row
+/// order.
+pub(super) fn box3(img: &RgbImage) -> RgbImage {
+    let (w, h) = (img.width as i64, img.height as i64);
+    let pixels = (0..h * w)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut acc = [0.0f64; 3];
+            let mut count = 0.0;
+            for qy in (y - 1).max(0)..=(y + 1).min(h - 1) {
+                for qx in (x - 1).max(0)..=(x + 1).min(w - 1) {
+                    let p = img.pixels[(qy * w + qx) as usize];
+                    for k in 0..3 {
+                        acc[k] += p[k] as f64;
+                    }
+                    count += 1.0;
+                }
+            }
+            acc.map(|a| (a / count) as f32)
+        })
+        .collect();
+    RgbImage {
+        width: img.width,
+        height: img.height,
+        pixels,
+    }
 }
