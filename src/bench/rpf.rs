@@ -96,6 +96,11 @@ pub fn readings() -> Vec<Reading> {
         r("buckets-8", "8 histogram buckets", |s| s.mi_buckets = 8),
         r("buckets-16", "16 histogram buckets", |s| s.mi_buckets = 16),
         r(
+            "buckets-unit",
+            "Peng's buckets, one standard deviation wide (the code Sen & Darabi cite)",
+            |s| s.mi_bucketing = rpf::MiBucketing::Unit,
+        ),
+        r(
             "kappa-3",
             "κ = 3 for world positions too (Alg. 6 line 8 read as 3 everywhere)",
             |s| s.world_position_tolerance = 3.0,

@@ -29,7 +29,7 @@ use super::select::{self, FeatureLine, SelectScratch, Selection};
 use super::gather::{self, RestLine, ROWS};
 use super::samples::{FLOATS_PER_SAMPLE, SampleSet};
 use super::weights::{self, COLORS, Dependencies, FEATURES, POSITIONS, RANDOMS, Weights};
-use super::{RangeColors, RpfSettings};
+use super::{MiBucketing, RangeColors, RpfSettings};
 use crate::imaging::RgbImage;
 use rayon::prelude::*;
 
@@ -143,7 +143,7 @@ pub(super) struct Scratch {
 }
 
 impl Scratch {
-    pub fn new(buckets: usize, level: Level) -> Scratch {
+    pub fn new(settings: &RpfSettings, level: Level) -> Scratch {
         Scratch {
             select: SelectScratch::default(),
             indices: Vec::new(),
@@ -152,7 +152,10 @@ impl Scratch {
             current: Vec::new(),
             dims: Vec::new(),
             dist: Vec::new(),
-            mi: MiWorkspace::with_level(buckets, level),
+            mi: match settings.mi_bucketing {
+                MiBucketing::Range => MiWorkspace::with_level(settings.mi_buckets, level),
+                MiBucketing::Unit => MiWorkspace::unit(level),
+            },
         }
     }
 
@@ -295,7 +298,7 @@ pub(super) fn filter_pixel(
 
 /// The neighbourhood size and weights of one pixel (no filtering).
 pub(super) fn analyze_pixel(it: &Iteration<'_>, x: u32, y: u32) -> PixelInfo {
-    let mut scratch = Scratch::new(it.settings.mi_buckets, it.level);
+    let mut scratch = Scratch::new(it.settings, it.level);
     analyze(it, x, y, &mut scratch)
 }
 

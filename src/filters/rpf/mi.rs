@@ -14,10 +14,14 @@
 //! 5, the value the NVIDIA reference implementation of RPF settled on ("5 should be pretty close
 //! to Sen's implementation, based on the cited Matlab code" of Peng et al.).
 //!
+//! The other reading, Peng's unit-wide buckets on the standardised values
+//! ([`super::RpfSettings::mi_bucketing`] = "unit"), is in [`super::mi_unit`].
+//!
 //! The histogram estimate can come out a rounding error below zero for independent variables;
 //! it is clamped to 0 (mutual information is never negative).
 
 use super::bitsets::JointInput;
+use super::mi_unit;
 use super::cpu::Level;
 
 /// Most buckets per variable ([`super::RpfSettings::mi_buckets`] is checked against it).
@@ -162,6 +166,13 @@ pub struct MiWorkspace {
     /// Joint counts of the last pair, `B × B`.
     joint: Vec<u32>,
     level: Level,
+    /// Peng's unit buckets ([`super::mi_unit`]) instead of `B` over the range.
+    unit: bool,
+    /// Unit buckets: the states of each variable, variable-major (`n` each), their number,
+    /// and scratch.
+    states: Vec<u16>,
+    count: Vec<usize>,
+    table: Vec<u32>,
 }
 
 impl MiWorkspace {
@@ -186,6 +197,18 @@ impl MiWorkspace {
             xlogx: vec![0.0],
             joint: vec![0; buckets * buckets],
             level,
+            unit: false,
+            states: Vec::new(),
+            count: Vec::new(),
+            table: Vec::new(),
+        }
+    }
+
+    /// A workspace with Peng's unit buckets ([`super::mi_unit`]).
+    pub fn unit(level: Level) -> MiWorkspace {
+        MiWorkspace {
+            unit: true,
+            ..Self::with_level(MAX_BUCKETS, level)
         }
     }
 
@@ -208,10 +231,38 @@ impl MiWorkspace {
             let c = self.xlogx.len() as f64;
             self.xlogx.push(c * c.log2());
         }
+        if self.unit {
+            self.states.resize(vars * n, 0);
+            self.count.resize(vars, 0);
+        }
         for v in 0..vars {
             let values = &values[rows[v] * stride..rows[v] * stride + n];
             let masks = &mut self.masks[v * b * words..(v + 1) * b * words];
             let counts = &mut self.counts[v * b..(v + 1) * b];
+            if self.unit {
+                let states = &mut self.states[v * n..(v + 1) * n];
+                let p = mi_unit::quantize_unit(values, states, &mut self.table);
+                self.count[v] = p;
+                let mut all = vec![0u32; p];
+                for &c in states.iter() {
+                    all[c as usize] += 1;
+                }
+                if p <= b {
+                    for (c, &s) in self.codes.iter_mut().zip(states.iter()) {
+                        *c = s as u8;
+                    }
+                    self.level.bitsets(&self.codes, b, words, masks);
+                    counts.fill(0);
+                    counts[..p].copy_from_slice(&all);
+                }
+                self.varies[v] = p > 1;
+                self.entropy[v] = if p > 1 {
+                    entropy_from(&self.xlogx, &all, n)
+                } else {
+                    0.0
+                };
+                continue;
+            }
             let populated = match self.level.quantize_bitsets(values, b, words, masks, counts) {
                 Some(populated) => populated,
                 None => {
@@ -242,6 +293,22 @@ impl MiWorkspace {
     pub fn mi(&mut self, x: usize, y: usize) -> f64 {
         if !self.varies[x] || !self.varies[y] {
             return 0.0;
+        }
+        if self.unit && (self.count[x] > self.buckets || self.count[y] > self.buckets) {
+            // A wide variable: its joint histogram counted directly, summed row-major.
+            let n = self.n;
+            let (px, py) = (self.count[x], self.count[y]);
+            let (sx, sy) = (
+                &self.states[x * n..(x + 1) * n],
+                &self.states[y * n..(y + 1) * n],
+            );
+            let mut joint = std::mem::take(&mut self.table);
+            mi_unit::joint_counts(sx, sy, px, py, &mut joint);
+            let s: f64 = joint.iter().map(|&c| self.xlogx[c as usize]).sum();
+            self.table = joint;
+            let nf = n as f64;
+            let h = (nf.log2() - s / nf).max(0.0);
+            return (self.entropy[x] + self.entropy[y] - h).max(0.0);
         }
         let (b, words) = (self.buckets, self.words);
         let set = |v: usize| &self.masks[v * b * words..(v + 1) * b * words];

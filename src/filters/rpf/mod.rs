@@ -23,12 +23,33 @@
 //! one core, Table 5.3), so a multi-threaded host implementation that is simple to check is the
 //! better trade. The renderer only has to copy the sample vectors back.
 //!
+//! # Speed (issue 14: ≤ 40 s per 512 × 512 frame at 8 spp on 2 cores, results unchanged)
+//!
+//! Per pixel and iteration the work is: ~M random draws (12,100 at b = 55), an acceptance test
+//! of every distinct drawn sample, the gather and standardisation of N (~2,400 samples at
+//! b = 55 on Cornell diffuse), 26 variables bucketed and ~190 mutual informations, and eq. 5.18
+//! for the pixel's samples over N. Each step has a plain path and an AVX-512 path chosen at
+//! run time ([`cpu::Level`]); every path gives the same bytes (tests/rpf_levels.rs compares
+//! them, and the golden images of the commits that made them fast are bit-identical to
+//! before):
+//!
+//! * draws: 16 at a time on speculation, hashed at their stream positions (`draws.rs`);
+//! * acceptance test: exact f32 intervals on 64-byte feature lines, prefetched ([`select`]);
+//! * gather: 16 × 16 transposes of the feature and sample lines ([`gather`]);
+//! * standardisation: four rows' f64 sums side by side, each in the plain order
+//!   ([`preprocess::standardize_rows`]);
+//! * mutual information: buckets as bitsets, joint counts by population count (`bitsets.rs`);
+//! * eq. 5.18: the pixel's samples in f64 lanes, glibc's `expf` reproduced bit for bit
+//!   ([`kernel`]).
+//!
+//! Measured side by side on the loaded 2-core build machine: results/README.md ("RPF speed").
+//!
 //! # Determinism
 //!
 //! The random numbers of a pixel are a counter-based hash of (seed, pixel, iteration)
 //! ([`preprocess::PixelRng`]); nothing depends on thread ids or on the order pixels are done
 //! in, and each pixel's sums run in a fixed order. The same seed gives the same bytes with any
-//! number of threads (tests/rpf.rs).
+//! number of threads (tests/rpf.rs) and on any instruction-set level (tests/rpf_levels.rs).
 //!
 //! # Memory
 //!
@@ -36,7 +57,7 @@
 //! [`samples::check_memory`] says before allocating whether they fit and how many spp or rows
 //! would). The filter adds two colours and two 64-byte lines per sample (24 + 128 bytes:
 //! [`select::FeatureLine`], [`gather::RestLine`]) and, per thread, scratch for the
-//! largest neighbourhood (≈ 29 · 4 · 2 · M bytes); allocations that fail are errors, not
+//! largest neighbourhood (≈ 51 · 4 · 1.5 · M bytes); allocations that fail are errors, not
 //! aborts.
 
 mod bitsets;
@@ -45,6 +66,7 @@ mod draws;
 pub mod gather;
 pub mod kernel;
 pub mod mi;
+pub mod mi_unit;
 pub mod preprocess;
 mod run;
 pub mod select;
@@ -92,6 +114,16 @@ pub enum RangeColors {
     Original,
 }
 
+/// How Alg. 7 buckets a variable (see [`mi`], [`mi_unit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MiBucketing {
+    /// `mi_buckets` equal buckets over the variable's range in N.
+    Range,
+    /// Peng's: one bucket per standard deviation (the standardised value rounded).
+    Unit,
+}
+
 crate::filter_settings! {
     /// Parameters of RPF (thesis ch. 5).
     pub struct RpfSettings, flags "rpf-" {
@@ -106,6 +138,10 @@ crate::filter_settings! {
         /// Histogram buckets per variable for the mutual information (Alg. 7; 2 to 16), as in
         /// the NVIDIA reference implementation.
         pub mi_buckets: usize = 5,
+        /// Buckets of Alg. 7: "range" (`mi_buckets` equal buckets over each variable's range
+        /// in N) or "unit" (one per standard deviation of the standardised values: Peng's
+        /// rounding, the code Sen & Darabi cite; `mi_buckets` is then unused).
+        pub mi_bucketing: MiBucketing = MiBucketing::Range,
         /// M = ⌊b² · spp · sample_fraction⌋ samples considered per pixel (§5.1.2: ½).
         pub sample_fraction: f32 = 0.5,
         /// Standard deviations a world position may lie from the pixel's mean (Alg. 6 line 8:
@@ -268,7 +304,7 @@ pub fn filter_at_level(
         let rows_done = AtomicU32::new(0);
         let neighbours = AtomicU64::new(0);
         next.par_chunks_mut(w * spp).enumerate().for_each_init(
-            || filter::Scratch::new(settings.mi_buckets, level),
+            || filter::Scratch::new(settings, level),
             |scratch, (y, row)| {
                 let mut sum = 0u64;
                 for x in 0..w {
