@@ -25,6 +25,8 @@
 //!   re-balancing, and where the filter runs.
 //! - `aaf-shadows` (only when asked): AAF soft shadows against Monte Carlo on Grids, error
 //!   against light samples and against time (Wang 2013 Fig. 3.6), the spp map (`aaf`).
+//! - `rpf-readings`, `rpf-scale` (only when asked; hours): RPF's readings against the
+//!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -41,6 +43,7 @@ pub mod ground_truth;
 pub mod oidn;
 pub mod plot;
 pub mod quality;
+pub mod rpf;
 pub mod speed;
 pub mod study;
 pub mod sweep;
@@ -68,6 +71,10 @@ pub enum Study {
     /// AAF soft shadows against Monte Carlo on Grids, Wang 2013 Fig. 3.6 (not in the default
     /// set).
     AafShadows,
+    /// RPF's readings against the thesis's gain (not in the default set: hours).
+    RpfReadings,
+    /// RPF against the scene scale, Tables 5.3-5.4 (not in the default set: hours).
+    RpfScale,
 }
 
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -96,6 +103,10 @@ pub struct BenchArgs {
     /// with --quick].
     #[arg(long, value_name = "N")]
     pub reference_spp: Option<u32>,
+    /// Width and height of the quality studies' images and references (quality,
+    /// accuracy-time, sweep, rpf-*) [default: 512, the thesis's; 64 with --quick].
+    #[arg(long, value_name = "N")]
+    pub size: Option<u32>,
     /// Measure again even what the CSV files already hold.
     #[arg(long)]
     pub fresh: bool,
@@ -163,6 +174,9 @@ impl BenchArgs {
         if let Some(n) = self.reference_spp {
             v.extend(["--reference-spp".into(), n.to_string()]);
         }
+        if let Some(n) = self.size {
+            v.extend(["--size".into(), n.to_string()]);
+        }
         if let Some(d) = self.device {
             v.extend(["--device".into(), d.to_string()]);
         }
@@ -184,6 +198,9 @@ struct Selection {
 fn select(args: &BenchArgs) -> Result<Selection> {
     if args.reference_spp == Some(0) {
         bail!("--reference-spp must be at least 1");
+    }
+    if args.size.is_some_and(|n| !(8..=8192).contains(&n)) {
+        bail!("--size must be 8 to 8192 pixels");
     }
     let mut studies = args.study.clone();
     if args.specialisation {
@@ -207,9 +224,12 @@ fn select(args: &BenchArgs) -> Result<Selection> {
     // bundled scene by name (filter-speed and the sweep do): fail before measuring anything.
     let scenes_dir = scenes_dir(args.scenes.as_deref())?;
     let needs_bundled = args.scene.is_empty()
-        || studies
-            .iter()
-            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep | Study::AafShadows));
+        || studies.iter().any(|s| {
+            matches!(
+                s,
+                Study::FilterSpeed | Study::Sweep | Study::RpfScale | Study::AafShadows
+            )
+        });
     if scenes_dir.is_none() && needs_bundled {
         return Err(no_scenes_dir());
     }
@@ -231,7 +251,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
 /// --slurm` renders on the cluster before the benchmark runs.
 pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::ReferenceRequest>> {
     let sel = select(args)?;
-    let sizes = study::sizes_for(args.quick, args.reference_spp);
+    let sizes = study::sizes_for(args.quick, args.reference_spp, args.size);
     let mut paths: Vec<PathBuf> = Vec::new();
     for s in &sel.studies {
         match s {
@@ -245,6 +265,18 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
             Study::AafShadows => {
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 paths.push(dir.join("grids.toml"));
+            }
+            Study::RpfReadings => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                for name in rpf::THESIS_SCENES {
+                    paths.push(dir.join(format!("{name}.toml")));
+                }
+            }
+            Study::RpfScale => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                for name in &rpf::THESIS_SCENES[..3] {
+                    paths.push(dir.join(format!("{name}.toml")));
+                }
             }
             Study::RenderSpeed | Study::Statistics | Study::FilterSpeed | Study::Balance => {}
         }
@@ -274,6 +306,8 @@ pub struct Context {
     pub reference_cache: PathBuf,
     /// `--reference-spp`, if given.
     pub reference_spp: Option<u32>,
+    /// `--size`, if given.
+    pub size: Option<u32>,
 }
 
 impl Context {
@@ -411,6 +445,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             .clone()
             .unwrap_or_else(ground_truth::default_cache),
         reference_spp: args.reference_spp,
+        size: args.size,
     };
     ctx.say(&format!(
         "device: {} | bundled scenes: {} | results in {}",
@@ -430,6 +465,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
             Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
+            Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
+            Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;

@@ -24,23 +24,21 @@ pub struct Sizes {
 }
 
 pub fn sizes(ctx: &Context) -> Sizes {
-    sizes_for(ctx.quick, ctx.reference_spp)
+    sizes_for(ctx.quick, ctx.reference_spp, ctx.size)
 }
 
-/// The image sizes of a run (`--quick`) and its references' spp (`--reference-spp`).
-pub fn sizes_for(quick: bool, reference_spp: Option<u32>) -> Sizes {
-    if quick {
-        Sizes {
-            width: 64,
-            height: 64,
-            reference_spp: reference_spp.unwrap_or(256),
-        }
+/// The image sizes of a run (`--quick`, `--size`) and its references' spp (`--reference-spp`).
+pub fn sizes_for(quick: bool, reference_spp: Option<u32>, size: Option<u32>) -> Sizes {
+    let (side, spp) = if quick {
+        (64, 256)
     } else {
-        Sizes {
-            width: 512,
-            height: 512,
-            reference_spp: reference_spp.unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
-        }
+        (512, ground_truth::DEFAULT_REFERENCE_SPP)
+    };
+    let side = size.unwrap_or(side);
+    Sizes {
+        width: side,
+        height: side,
+        reference_spp: reference_spp.unwrap_or(spp),
     }
 }
 
@@ -61,12 +59,16 @@ pub struct StudyScene {
 
 impl StudyScene {
     pub fn load(path: &Path, s: &Sizes, seed: u32) -> Result<StudyScene> {
-        let scene = scene::load_scene(path)?;
+        Self::from_scene(&scene_name(path), scene::load_scene(path)?, s, seed)
+    }
+
+    /// A study scene of a scene already loaded (and perhaps changed, e.g. scaled).
+    pub fn from_scene(name: &str, scene: Scene, s: &Sizes, seed: u32) -> Result<StudyScene> {
         let o = options(&scene, s, seed);
         let arrays = SceneArrays::build(&scene, &o.frame)?;
         let info = SceneInfo::new(&scene, &arrays);
         Ok(StudyScene {
-            name: scene_name(path),
+            name: name.to_string(),
             scene,
             arrays,
             info,
