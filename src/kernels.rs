@@ -51,6 +51,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "filters/atrous.cl",
         include_str!("../kernels/filters/atrous.cl"),
     ),
+    (
+        "filters/path_density.cl",
+        include_str!("../kernels/filters/path_density.cl"),
+    ),
     ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];
 
