@@ -146,6 +146,39 @@ fn ring_scan_is_exact_knn() {
 }
 
 #[test]
+fn epsilon_approximate_sigma_is_within_one_plus_epsilon_of_the_exact() {
+    // Every held j-th distance is ≥ the true j-th (a subset's) and < (1 + ε) times it, so the
+    // sums are too: σ_exact ≤ σ_ε ≤ (1 + ε) σ_exact (float sums are monotone; the upper bound
+    // gets 1e-6 relative for the rounding of (1 + ε) · sum against the sum of the products).
+    let s = noisy(12, 10, 6);
+    for (k, eps) in [(10, 0.5f32), (50, 0.5), (50, 2.0)] {
+        let exact = reference::densities(&s, &params(k).for_spp(s.spp));
+        let p = PathDensityParams {
+            epsilon: eps,
+            ..params(k)
+        }
+        .for_spp(s.spp);
+        let approx = reference::densities(&s, &p);
+        let mut differ = 0;
+        for (a, e) in approx.sigma.iter().zip(&exact.sigma) {
+            assert!(a >= e, "k {k} eps {eps}: {a} < {e}");
+            assert!(
+                *a <= (1.0 + eps) * e * (1.0 + 1e-6),
+                "k {k} eps {eps}: {a} vs {e}"
+            );
+            differ += (a != e) as usize;
+        }
+        eprintln!("k {k} eps {eps}: {differ} of {} sigmas differ", s.len());
+        assert!(
+            differ > 0,
+            "k {k} eps {eps}: the earlier stop changed nothing"
+        );
+        let (_, d) = run_device(&s, p);
+        assert_eq!(d, approx, "k {k} eps {eps}: kernel against reference");
+    }
+}
+
+#[test]
 fn kernels_match_the_reference() {
     // A rendered frame (Cornell glossy: mirror and metal fireflies) and a synthetic one, in
     // both modes and for the seed's three k.

@@ -21,6 +21,12 @@
 // r / w_W >= the k-th best distance, no later ring can improve the k best: stop. The result is
 // the k smallest distances over the whole image (the same multiset whatever the scan order).
 //
+// epsilon-approximate kNN (the seed's [5], Arya et al.): stop once r / w_W >= d_k / (1 + eps)
+// (`shrink` = 1 / (1 + eps)). Every unseen sample is then farther than d_j / (1 + eps) for every
+// held j-th distance d_j, so d_j <= (1 + eps) times the true j-th distance, and d_j >= it (a
+// subset's j-th smallest): sigma is over-estimated by at most the factor 1 + eps (more rejection,
+// the seed's "slightly underestimate density"). eps = 0 is the exact scan.
+//
 // Build options:
 //   PD_K   k, the number of neighbours (the size of the private sorted array).
 //
@@ -79,7 +85,7 @@ inline float pd_distance(float2 a, float4 la, float2 b, float4 lb, float inv_w, 
 // frame_spp: samples per frame group (spp for the accumulated mode: one group).
 __kernel void pd_density(__global const float4* lab, __global const float2* xy, uint width,
                          uint height, uint spp, uint frame_spp, float inv_w, float inv_c,
-                         float keep, float reject, __global float* sigma_out,
+                         float shrink, float keep, float reject, __global float* sigma_out,
                          __global float* weight_out) {
     uint i = get_global_id(0);
     if (i >= width * height * spp) return;
@@ -124,7 +130,7 @@ __kernel void pd_density(__global const float4* lab, __global const float2* xy, 
                 }
             }
         }
-        if (count == PD_K && (float)r * inv_w >= best[PD_K - 1]) break;
+        if (count == PD_K && (float)r * inv_w >= best[PD_K - 1] * shrink) break;
     }
     float sum = 0.0f;
     for (uint k = 0u; k < count; ++k) sum += best[k];

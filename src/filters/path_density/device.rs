@@ -100,6 +100,7 @@ impl PathDensityKernel {
             .arg(frame_spp)
             .arg(p.inv_w())
             .arg(p.inv_c())
+            .arg(p.shrink())
             .arg(p.keep)
             .arg(p.reject)
             .arg(&sigma)

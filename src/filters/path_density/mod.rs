@@ -34,7 +34,9 @@
 //!   are; none at all gives σ = 0 (nothing contradicts the sample).
 //! - **Exact kNN** on the device by rings of pixels with an early stop
 //!   (kernels/filters/path_density.cl), not a space-partitioning tree: the samples are already
-//!   stored pixel-major, so image space needs no tree. The ε-approximate kNN is not built.
+//!   stored pixel-major, so image space needs no tree. `epsilon` > 0 gives the seed's
+//!   ε-approximate kNN (its ref. [5]) as an earlier stop of the same scan: every held distance
+//!   is within 1 + ε of the true one, so σ is over-estimated by at most 1 + ε.
 //!
 //! # Accumulated (consistent) and per-frame (biased) modes
 //!
@@ -121,6 +123,8 @@ crate::filter_settings! {
         pub keep: f32 = 2.0,
         /// σ from which a sample is rejected (3); the weight is linear between.
         pub reject: f32 = 3.0,
+        /// ε of the approximate kNN: σ at most 1 + ε times the exact one (0: exact).
+        pub epsilon: f32 = 0.0,
         /// "accumulated" (every sample so far; consistent) or "per-frame" (biased).
         pub mode: DensityMode = DensityMode::Accumulated,
         /// Samples per frame in the per-frame mode.
@@ -138,6 +142,8 @@ pub struct PathDensityParams {
     pub color_weight: f32,
     pub keep: f32,
     pub reject: f32,
+    /// ε of the approximate kNN (0: exact).
+    pub epsilon: f32,
     /// Samples per frame group; `u32::MAX` (accumulated): all of a pixel's samples.
     pub frame_spp: u32,
 }
@@ -149,6 +155,12 @@ impl PathDensityParams {
 
     pub fn inv_c(&self) -> f32 {
         1.0 / self.color_weight
+    }
+
+    /// 1 / (1 + ε): the ring scan stops once the ring's distance reaches the k-th best times
+    /// this.
+    pub fn shrink(&self) -> f32 {
+        1.0 / (1.0 + self.epsilon)
     }
 
     /// The group size for `spp` stored samples per pixel.
@@ -185,6 +197,12 @@ impl PathDensityParams {
                 self.reject
             );
         }
+        if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
+            bail!(
+                "the path-density epsilon must be a finite number >= 0 (0: exact kNN), got {}",
+                self.epsilon
+            );
+        }
         if self.frame_spp == 0 {
             bail!("the path-density frame_spp must be at least 1");
         }
@@ -200,6 +218,7 @@ impl PathDensitySettings {
             color_weight: self.color_weight,
             keep: self.keep,
             reject: self.reject,
+            epsilon: self.epsilon,
             frame_spp: match self.mode {
                 DensityMode::Accumulated => u32::MAX,
                 DensityMode::PerFrame => self.frame_spp,

@@ -150,7 +150,8 @@ impl Best {
     }
 }
 
-/// σ of every sample by the kernel's ring scan, and the weights.
+/// σ of every sample by the kernel's ring scan (ε-approximate when `p.epsilon` > 0), and the
+/// weights.
 pub fn densities(samples: &FilmSamples, p: &PathDensityParams) -> Densities {
     let labs = labs(samples);
     let n = samples.len();
@@ -236,7 +237,7 @@ fn ring_sigma(
                 dx += step;
             }
         }
-        if best.full() && r as f32 * p.inv_w() >= best.d[best.k - 1] {
+        if best.full() && r as f32 * p.inv_w() >= best.d[best.k - 1] * p.shrink() {
             break;
         }
     }
@@ -244,7 +245,7 @@ fn ring_sigma(
 }
 
 /// σ of sample `i` by brute force over every sample of its frame group in the whole image
-/// (the definition the ring scan must reproduce).
+/// (the definition the exact ring scan must reproduce; `p.epsilon` is ignored).
 pub fn brute_force_sigma(samples: &FilmSamples, p: &PathDensityParams, i: usize) -> f32 {
     let labs = labs(samples);
     let Some(li) = labs[i] else {
