@@ -305,6 +305,19 @@ fn every_sample_rejected_falls_back_to_the_plain_mean_and_one_sample_is_kept() {
             assert!(max_rel(a[c], b[c]) <= 1.2e-7, "{a:?} {b:?}");
         }
     }
+    // The colour weight read as a product (ΔE · 20 instead of ΔE / 20, digest §3.2 item 1)
+    // rejects almost everything in noise: measured 100 % of the samples of this image (grey
+    // noise of ΔE ≈ 5-15 between neighbours); the divisor rejects 0.52 % (fireflies).
+    let product = PathDensityParams {
+        color_weight: 1.0 / 20.0,
+        ..params(10)
+    };
+    let (_, d) = run_device(&s, product);
+    eprintln!("product reading: rejected {:?}", d.fractions());
+    assert!(d.fractions().0 > 0.95);
+    let (_, d) = run_device(&s, params(10));
+    eprintln!("divisor reading: rejected {:?}", d.fractions());
+    assert!(d.fractions().0 < 0.01);
     // One sample in the whole image: no neighbour, σ = 0, kept; the pixel is the sample.
     let one = samples(1, 1, 1, |_, _, _, _| [5.0, 1.0, 0.5]);
     let (image, d) = run_device(&one, params(10));
@@ -394,6 +407,40 @@ fn dense_highlights_and_two_colour_modes_survive_where_a_trimmed_mean_fails() {
         (trimmed[2] - mean[2]).abs() > 0.1 * mean[2],
         "the trimmed mean keeps the blue: {trimmed:?}"
     );
+}
+
+#[test]
+fn a_coloured_grid_keeps_its_black_lines() {
+    // The seed's Fig. 5.9: coloured cells between black lines one pixel wide. In CIELAB the
+    // line's samples have each other (and their pixel's) as neighbours and the cells' samples
+    // theirs, so nothing is rejected and every pixel keeps its colour: the lines neither grow
+    // nor shrink. (An RGB metric, the seed shows, would reject cell samples next to the lines.)
+    let cell = |x: u32, y: u32| -> [f32; 3] {
+        if x % 6 == 0 || y % 6 == 0 {
+            [0.0; 3]
+        } else {
+            match (x / 6 + y / 6) % 3 {
+                0 => [0.8, 0.1, 0.1],
+                1 => [0.1, 0.6, 0.1],
+                _ => [0.1, 0.1, 0.9],
+            }
+        }
+    };
+    let grid = samples(25, 19, 8, |x, y, _, _| cell(x, y));
+    let (image, d) = run_device(&grid, params(10));
+    assert!(d.weight.iter().all(|&w| w == 1.0), "{:?}", d.fractions());
+    for y in 0..19 {
+        for x in 0..25 {
+            let (p, c) = (image.pixels[(y * 25 + x) as usize], cell(x, y));
+            for ch in 0..3 {
+                // 8 equal values summed: exact for 0, within an ulp or two for the others.
+                assert!(
+                    (p[ch] - c[ch]).abs() <= 2.4e-7 * c[ch],
+                    "({x}, {y}): {p:?} {c:?}"
+                );
+            }
+        }
+    }
 }
 
 /// Rejected fraction of a rendered frame of Cornell glossy at `spp` in `mode`.
