@@ -49,6 +49,12 @@
 //! so a rare but correct sample (a caustic) is rejected in every frame and the average never
 //! converges to it. It is **biased** and offered to measure that bias.
 //!
+//! # Whole frames
+//!
+//! A sample's k nearest neighbours may lie any number of rows away (the ring scan runs until
+//! it has k), so the filter has no bounded reach: split across devices it runs on the merged
+//! film ([`PreparedFilter::reach`] is None), like every filter of the stored samples.
+//!
 //! # Input
 //!
 //! The RPF sample vectors (the `samples` output, src/layout/outputs.rs): film position with
