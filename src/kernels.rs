@@ -63,6 +63,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "filters/aaf_shadows.cl",
         include_str!("../kernels/filters/aaf_shadows.cl"),
     ),
+    (
+        "filters/path_density.cl",
+        include_str!("../kernels/filters/path_density.cl"),
+    ),
     ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];
 

@@ -218,3 +218,43 @@ fn quick_aaf_shadows_study_reproduces_the_claim_in_small() {
     assert!(ratio > 1.1, "{row}");
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// The path-density study (only when asked, not in the default set): every method at every
+/// progressive step, the rejected and down-weighted fractions filled exactly for the cells that
+/// run the path-density kernel alone.
+#[test]
+fn path_density_study_completes_with_well_formed_results() {
+    let out = tempdir("bench-path-density");
+    let run = noisefree()
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["bench", "--quick", "-q", "--study", "path-density", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "bench --study path-density: {stderr}");
+    let csv = std::fs::read_to_string(out.join("path_density.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header.len(), 10, "{header:?}");
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let steps = noisefree::bench::path_density::SPP.len();
+    assert_eq!(rows.len() % steps, 0);
+    assert!(rows.len() >= 12 * steps, "{} rows", rows.len());
+    for r in &rows {
+        assert_eq!(r.len(), 10, "{r:?}");
+        let kernel_alone = r[2].starts_with("path-density") && !r[2].contains("->");
+        for (i, v) in r.iter().enumerate() {
+            let fraction = i == 7 || i == 8;
+            assert_eq!(
+                v.is_empty(),
+                fraction && !kernel_alone,
+                "column {} of {r:?}",
+                header[i]
+            );
+            assert_ne!(*v, "nan", "{r:?}");
+        }
+    }
+    assert!(out.join("path_density.md").exists());
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -20,6 +20,8 @@
 //!   figures (equal-quality sample reduction, equal-time error ratio).
 //! - `sweep`: Table 7.1's one-parameter-at-a-time sweep and hypotheses 1-3 (§7.3), plus the
 //!   variance scales s_f the thesis leaves open.
+//! - `path-density` (only when asked): the path-density filter of DeCoro 2009 ch. 5 over
+//!   8-64 spp, accumulated against per-frame, with its chains and the α-trimmed baselines.
 //! - `balance` (only when asked, with `--devices`): several devices sharing each frame
 //!   (thesis §4.2): each device's share and idle time per frame, with and without
 //!   re-balancing, and where the filter runs.
@@ -41,6 +43,7 @@ pub mod curves;
 pub mod filter_speed;
 pub mod ground_truth;
 pub mod oidn;
+pub mod path_density;
 pub mod plot;
 pub mod quality;
 pub mod rpf;
@@ -66,6 +69,10 @@ pub enum Study {
     Quality,
     AccuracyTime,
     Sweep,
+    /// The path-density filter (DeCoro 2009 ch. 5): error and rejected fractions over spp,
+    /// accumulated against per-frame, its chains and the α-trimmed baselines (not in the
+    /// default set).
+    PathDensity,
     /// Several devices per frame (needs --devices with two or more; not in the default set).
     Balance,
     /// AAF soft shadows against Monte Carlo on Grids, Wang 2013 Fig. 3.6 (not in the default
@@ -255,7 +262,9 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
     let mut paths: Vec<PathBuf> = Vec::new();
     for s in &sel.studies {
         match s {
-            Study::Quality | Study::AccuracyTime => paths.extend(sel.scenes.iter().cloned()),
+            Study::Quality | Study::AccuracyTime | Study::PathDensity => {
+                paths.extend(sel.scenes.iter().cloned())
+            }
             Study::Sweep => {
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 for name in sweep::sweep_scenes(args.quick) {
@@ -463,6 +472,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::Quality => quality::quality(&ctx, args.fresh)?,
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
+            Study::PathDensity => path_density::path_density(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
             Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
             Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,

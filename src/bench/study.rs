@@ -123,6 +123,26 @@ impl StudyScene {
         Ok(v)
     }
 
+    /// The path-density filter's chains (DeCoro 2009 ch. 5: outlier removal first, then a
+    /// filter of the inter-pixel variance), as extra cells of the quality and accuracy-time
+    /// studies: path-density → ddf and → atrous. (label, filter).
+    pub fn chains(&self) -> Result<Vec<(String, Configured)>> {
+        use crate::filters::path_density::{PathDensity, PathDensitySettings, Then};
+        [(Then::Ddf, "ddf"), (Then::Atrous, "atrous")]
+            .into_iter()
+            .map(|(then, name)| {
+                let settings = PathDensitySettings {
+                    then,
+                    ..Default::default()
+                };
+                Ok((
+                    format!("path-density->{name}"),
+                    Configured::typed::<PathDensity>(settings, &self.info)?,
+                ))
+            })
+            .collect()
+    }
+
     /// The filters compared: every registered filter with its defaults (Table 7.2 for the
     /// thesis's), specialised to this scene.
     pub fn methods(&self) -> Result<Vec<Configured>> {

@@ -42,6 +42,8 @@ builtin_filters! {
     rpf::Rpf,       // Random Parameter Filtering (thesis ch. 5)
     atrous::Atrous, // the edge-avoiding à-trous wavelet filter (Dammertz et al. 2010)
     aaf_shadows::AafShadows, // axis-aligned filtering of soft shadows (Wang 2013 ch. 3)
+    path_density::PathDensity, // the path-density outlier filter (DeCoro 2009 ch. 5)
+    trimmed::Trimmed, // α-trimmed means of the samples (DeCoro 2009 §5.2 baselines)
 }
 
 /// A filter, as its module declares it. Implement this; the registry sees it as a [`Filter`].
