@@ -67,6 +67,10 @@ typedef struct __attribute__((aligned(16))) {
     float2 uv2;
     uint material;
     int light; // Index into the light list when the triangle is emissive, else -1.
+    uint object; // The object (mesh part) the triangle belongs to (src/scene Triangle::object).
+    uint pad0;
+    uint pad1;
+    uint pad2;
 } TriangleShading;
 
 // An analytic sphere (kept in its own list, tested after the BVH).
@@ -231,5 +235,67 @@ typedef struct __attribute__((aligned(16))) {
     float sigma_position;
     float tan_half_fov;
 } AtrousParams;
+
+// AAF soft shadows (Wang 2013 ch. 3), what the megakernel gathers per pixel for the one
+// sphere light whose shadows are filtered: a running mean over the path samples, like F.
+typedef struct __attribute__((aligned(16))) {
+    float direct[3]; // The light the path samples whose first hit is the pixel centre's receiver brought  to it straight from that light (its next-event estimate, or its emission found by  the first bounce): the part of F that the filtered term replaces.
+    float pad0;
+} ShadowTerms;
+// Float lanes of ShadowTerms (offset / 4).
+#define SHADOW_TERMS_DIRECT 0
+#define SHADOW_TERMS_FLOATS 4
+
+// AAF soft shadows: the primary hit through the pixel centre (and the lens centre) and its
+// light samples (kernels/render/shadows.cl), from the sparse and the adaptive pass.
+typedef struct __attribute__((aligned(16))) {
+    float visible; // Σ f·l over the light samples: l = cos θ at the receiver, f = 1 when unoccluded.
+    float weight; // Σ l (eq. 3.2's normaliser); 0 when the pixel is no receiver.
+    float samples; // Light samples traced (sparse + adaptive).
+    float occluded; // Samples whose shadow ray met an occluder.
+    float light_distance; // d1: receiver-to-light-centre distance.
+    float slope_max; // s1 = max(d1/d2 − 1) over the occluded samples (eq. 3.5).
+    float slope_min; // s2 = min(d1/d2 − 1) over the occluded samples.
+    float slope_source; // 0: no slopes; 1: from the pixel's own occluded samples; 2: filled from neighbours.
+    float pixel_size; // d: the world size of one pixel at the hit (eq. 3.4).
+    float target; // n(x) of eq. 3.5 clamped to [sparse, max] (before rounding to whole strata).
+    float object; // The object hit: mesh part for triangles, −1 − index for spheres.
+    float pad0;
+    float position[3]; // World position of the hit.
+    float pad1;
+    float normal[3]; // Shading normal at the hit, facing the camera.
+    float pad2;
+    float unshadowed[3]; // Σ r(x_k) over the light samples' points x_k on the receiver: r of eq. 3.1, the  light's unshadowed direct term from its centre with the albedo (albedo · L sin²α  cos θ_c); divided by `samples` it is r over the pixel, anti-aliased as the samples  spread over it.
+    float pad3;
+} ShadowPixel;
+// Float lanes of ShadowPixel (offset / 4).
+#define SHADOW_PIXEL_VISIBLE 0
+#define SHADOW_PIXEL_WEIGHT 1
+#define SHADOW_PIXEL_SAMPLES 2
+#define SHADOW_PIXEL_OCCLUDED 3
+#define SHADOW_PIXEL_LIGHT_DISTANCE 4
+#define SHADOW_PIXEL_SLOPE_MAX 5
+#define SHADOW_PIXEL_SLOPE_MIN 6
+#define SHADOW_PIXEL_SLOPE_SOURCE 7
+#define SHADOW_PIXEL_PIXEL_SIZE 8
+#define SHADOW_PIXEL_TARGET 9
+#define SHADOW_PIXEL_OBJECT 10
+#define SHADOW_PIXEL_POSITION 12
+#define SHADOW_PIXEL_NORMAL 16
+#define SHADOW_PIXEL_UNSHADOWED 20
+#define SHADOW_PIXEL_FLOATS 24
+
+// Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
+typedef struct __attribute__((aligned(16))) {
+    float4 light; // The filtered sphere light: centre (xyz) and radius (w).
+    uint width;
+    uint height;
+    int radius; // Half width of the 1-D window, pixels.
+    uint axis; // 0: the pass along rows (x), 1: along columns (y).
+    float sigma; // σ of the light (R/2).
+    float normal_cos; // cos of the largest normal angle between neighbours.
+    float depth_tolerance; // Largest offset along the light direction, in units of β.
+    float beta_tolerance; // Largest |β − β'| / max(β, β').
+} AafShadowParams;
 
 #endif

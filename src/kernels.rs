@@ -43,6 +43,14 @@ pub const SOURCES: &[(&str, &str)] = &[
     ),
     ("render/film.cl", include_str!("../kernels/render/film.cl")),
     (
+        "render/bandlimit.cl",
+        include_str!("../kernels/render/bandlimit.cl"),
+    ),
+    (
+        "render/shadows.cl",
+        include_str!("../kernels/render/shadows.cl"),
+    ),
+    (
         "render/pathtrace.cl",
         include_str!("../kernels/render/pathtrace.cl"),
     ),
@@ -54,6 +62,14 @@ pub const SOURCES: &[(&str, &str)] = &[
     (
         "filters/bmfr.cl",
         include_str!("../kernels/filters/bmfr.cl"),
+    ),
+    (
+        "filters/aaf_shadows.cl",
+        include_str!("../kernels/filters/aaf_shadows.cl"),
+    ),
+    (
+        "filters/path_density.cl",
+        include_str!("../kernels/filters/path_density.cl"),
     ),
     ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];

@@ -183,7 +183,14 @@ fn bundled_scenes_load() {
             path.display()
         );
         let r = &scene.render;
-        assert_eq!((r.width, r.height, r.spp, r.seed), (512, 512, 8, 1));
+        // The thesis's scenes are compared at 512 x 512 and 8 spp (ch. 7); Grids, the AAF
+        // seed's scene, at the seed's 640 x 480.
+        let stem = path.file_stem().unwrap().to_string_lossy();
+        if stem == "grids" {
+            assert_eq!((r.width, r.height, r.seed), (640, 480, 1));
+        } else {
+            assert_eq!((r.width, r.height, r.spp, r.seed), (512, 512, 8, 1));
+        }
         assert!(
             scene.materials.iter().any(|m| m.is_emissive()) || scene.environment.is_some(),
             "{}: no light",

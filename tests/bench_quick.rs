@@ -233,3 +233,81 @@ fn method_selects_the_compared_methods() {
     );
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// `bench --study aaf-shadows --quick` (Wang 2013 Fig. 3.6 at 64 × 64): its table, report and
+/// figures, and the seed's claim in small: adaptive AAF's error is that of Monte Carlo at more
+/// light samples than it spent.
+#[test]
+fn quick_aaf_shadows_study_reproduces_the_claim_in_small() {
+    let out = tempdir("bench-aaf");
+    let run = noisefree()
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["bench", "--quick", "-q", "--study", "aaf-shadows", "--out"])
+        .arg(&out)
+        .args(["--cache"])
+        .arg(out.join("cache"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.success(),
+        "bench --study aaf-shadows failed: {stderr}"
+    );
+    let csv = std::fs::read_to_string(out.join("aaf-shadows.csv")).unwrap();
+    // 3 Monte Carlo, 2 fixed, 1 adaptive rows.
+    assert_eq!(csv.lines().count(), 1 + 6, "{csv}");
+    for png in ["aaf-shadows-grids.png", "aaf-shadows-time-grids.png"] {
+        let bytes = std::fs::read(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+        assert_eq!(&bytes[1..4], b"PNG");
+    }
+    let md = std::fs::read_to_string(out.join("aaf-shadows.md")).unwrap();
+    let row = md
+        .lines()
+        .find(|l| l.starts_with("| aaf-adaptive |"))
+        .unwrap_or_else(|| panic!("no adaptive row: {md}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let ratio: f64 = cells[8].parse().unwrap_or_else(|_| panic!("{row}"));
+    // Measured 1.26 (24 light spp ~ Monte Carlo at 30); bound 1.1.
+    assert!(ratio > 1.1, "{row}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// The path-density study (only when asked, not in the default set): every method at every
+/// progressive step, the rejected and down-weighted fractions filled exactly for the cells that
+/// run the path-density kernel alone.
+#[test]
+fn path_density_study_completes_with_well_formed_results() {
+    let out = tempdir("bench-path-density");
+    let run = noisefree()
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["bench", "--quick", "-q", "--study", "path-density", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "bench --study path-density: {stderr}");
+    let csv = std::fs::read_to_string(out.join("path_density.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header.len(), 10, "{header:?}");
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let steps = noisefree::bench::path_density::SPP.len();
+    assert_eq!(rows.len() % steps, 0);
+    assert!(rows.len() >= 12 * steps, "{} rows", rows.len());
+    for r in &rows {
+        assert_eq!(r.len(), 10, "{r:?}");
+        let kernel_alone = r[2].starts_with("path-density") && !r[2].contains("->");
+        for (i, v) in r.iter().enumerate() {
+            let fraction = i == 7 || i == 8;
+            assert_eq!(
+                v.is_empty(),
+                fraction && !kernel_alone,
+                "column {} of {r:?}",
+                header[i]
+            );
+            assert_ne!(*v, "nan", "{r:?}");
+        }
+    }
+    assert!(out.join("path_density.md").exists());
+    let _ = std::fs::remove_dir_all(&out);
+}

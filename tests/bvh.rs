@@ -74,6 +74,7 @@ fn soup(rng: &mut TestRng, n: usize, extent: f32, size: f32) -> Vec<Triangle> {
                 n: [n; 3],
                 uv: [Vec2::ZERO; 3],
                 material: 0,
+                object: 0,
             }
         })
         .collect()

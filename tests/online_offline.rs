@@ -26,8 +26,8 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
     let scenes = bundled_scenes();
     assert_eq!(
         scenes.len(),
-        10,
-        "the five thesis scenes and their DOF variants"
+        11,
+        "the five thesis scenes, their DOF variants and Grids (AAF's sphere-light scene)"
     );
     for path in scenes {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();

@@ -171,3 +171,87 @@ fn a_single_part_merges_to_exactly_its_own_bytes() {
         }
     }
 }
+
+/// AAF's shadow output from sample ranges: its passes depend on the pixel alone, so every part
+/// holds the same shadow pixels (merged as `Merge::Identical`: bit for bit), the replaced
+/// light is a mean over the path samples like F, and the filtered image is the one machine's.
+/// Tiles are refused (the slope fill reaches across them).
+#[test]
+fn shadow_output_merges_from_sample_ranges_and_refuses_tiles() {
+    let scene = bundled_scene("grids");
+    let shadows = |o: &mut RenderOptions| {
+        o.outputs = OutputSet::of(&[Output::Variance, Output::Shadows]);
+    };
+    let render = |range: std::ops::Range<u32>| {
+        let mut o = options_for(&scene);
+        shadows(&mut o);
+        o.first_sample = range.start;
+        let mut r = Renderer::new(gpu(), &scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
+        r.render_samples(range.end - range.start).unwrap();
+        let info = PieceInfo {
+            tile: Tile::whole(W, H),
+            samples: range,
+            rays: r.rays_total,
+            seconds: 0.0,
+            device: "test".into(),
+        };
+        (r.frame(), info)
+    };
+    let (one, _) = render(0..SPP);
+    let mut id = identity(&scene);
+    id.outputs = one.outputs();
+    let dir = tempdir("partial-shadows");
+    let paths: Vec<PathBuf> = [0..7, 7..SPP]
+        .into_iter()
+        .map(|range| {
+            let (frame, info) = render(range.clone());
+            let path = dir.join(format!("{}.nfp", range.start));
+            let piece = Piece::of_frame(&frame, info).unwrap();
+            partial::write(&path, &id, std::slice::from_ref(&piece)).unwrap();
+            path
+        })
+        .collect();
+    let merged = Plan::new(&paths).unwrap().merge(|_| {}).unwrap().frame;
+    assert_outputs_within_bound(&one, &merged);
+    let (a, b) = (
+        one.host(BufferId::ShadowPixels).unwrap().floats(),
+        merged.host(BufferId::ShadowPixels).unwrap().floats(),
+    );
+    assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
+    let pixels: &[noisefree::layout::ShadowPixel] = one.host_slice(BufferId::ShadowPixels).unwrap();
+    let receivers = pixels.iter().filter(|p| p.weight > 0.0).count();
+    assert!(receivers * 2 > pixels.len(), "{receivers} receivers");
+
+    let aaf = |frame: &Frame| {
+        let r = Registry::builtin();
+        let c = r
+            .configure(
+                r.get("aaf-shadows").unwrap(),
+                &FilterRequest::default(),
+                &frame.info().scene,
+            )
+            .unwrap();
+        c.prepare(frame.info(), &gpu())
+            .unwrap()
+            .run(frame)
+            .unwrap()
+            .image
+    };
+    let (i1, i2) = (aaf(&one), aaf(&merged));
+    let (d, compared) = filtered_difference(&one, &i1, &i2);
+    eprintln!(
+        "aaf-shadows image: merged within {d:.2e} of the one-machine render ({compared} pixels)"
+    );
+    assert!(d <= 1e-5, "{d:e}");
+
+    let mut o = options_for(&scene);
+    shadows(&mut o);
+    o.tile = Some(Tile::parse("20x30+0+0").unwrap());
+    let e = format!(
+        "{:#}",
+        Renderer::new(gpu(), &scene, &o)
+            .err()
+            .expect("a tile is refused")
+    );
+    assert!(e.contains("whole image") && e.contains("--samples"), "{e}");
+}

@@ -592,6 +592,7 @@ fn settings_are_the_thesis_defaults_and_are_checked() {
     assert_eq!(s.sigma2_8(), 0.02);
     assert_eq!(s.mi_buckets, 5);
     assert_eq!(s.sample_fraction, 0.5);
+    assert_eq!(s.final_box, 1);
     assert_eq!(
         RpfSettings::for_setting(Setting::Outdoor).sigma2_8,
         Auto::Set(0.002)
@@ -635,6 +636,10 @@ fn settings_are_the_thesis_defaults_and_are_checked() {
             tolerance_floor: f32::INFINITY,
             ..s.clone()
         },
+        RpfSettings {
+            final_box: 2,
+            ..s.clone()
+        },
     ] {
         assert!(filter(&set, &bad).is_err(), "{bad:?}");
     }
@@ -647,6 +652,38 @@ fn settings_are_the_thesis_defaults_and_are_checked() {
     nan.samples[5].normal2[1] = f32::NAN;
     let e = format!("{:#}", filter(&nan, &s).unwrap_err());
     assert!(e.contains("normal2.y") && e.contains("pixel 2, 0"), "{e}");
+}
+
+/// `final_box = 3` is the 3 × 3 mean of the `final_box = 1` image (fewer pixels at the
+/// border), §3.1.1's box filter.
+#[test]
+fn the_three_by_three_final_box_averages_the_pixel_means() {
+    let (set, _) = textured_plane(9, 7, 3, 19, 0.01, 1.0);
+    let one = filter(&set, &fast(&[5, 3])).unwrap();
+    let three = filter(
+        &set,
+        &RpfSettings {
+            final_box: 3,
+            ..fast(&[5, 3])
+        },
+    )
+    .unwrap();
+    let (w, h) = (9i64, 7i64);
+    for y in 0..h {
+        for x in 0..w {
+            let mut acc = [0.0f64; 3];
+            let mut count = 0.0;
+            for qy in (y - 1).max(0)..=(y + 1).min(h - 1) {
+                for qx in (x - 1).max(0)..=(x + 1).min(w - 1) {
+                    let p = one.pixels[(qy * w + qx) as usize];
+                    (0..3).for_each(|k| acc[k] += p[k] as f64);
+                    count += 1.0;
+                }
+            }
+            let want = acc.map(|a| (a / count) as f32);
+            assert_eq!(three.pixels[(y * w + x) as usize], want, "({x}, {y})");
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use noisefree::layout::SampleVector;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
-use noisefree::render::cpu::pathtrace::{ReferenceOptions, trace_path};
+use noisefree::render::cpu::pathtrace::{ReferenceOptions, ShadowTarget, trace_path};
 use noisefree::render::cpu::rng::{DIM_LENS_U, DIM_LENS_V, DIM_PIXEL_X, DIM_PIXEL_Y};
 use noisefree::render::cpu::rng::{rng_sample_key, rng_uniform};
 use noisefree::render::cpu::sampling::camera_ray;
@@ -139,6 +139,7 @@ material = "white"
                 y,
                 rng_sample_key(21, i as u32, s),
                 &mut rays,
+                ShadowTarget::NONE,
             );
             for c in 0..3 {
                 total[c] += ps.total[c] as f64 / spp as f64;

@@ -165,4 +165,60 @@ inline bool occluded(const SceneRefs* s, float3 o, float3 d, float t_max, uint* 
     return false;
 }
 
+// Every hit in (0, t_max), for AAF's shadow rays (Wang 2013 §3.4 pass 1; its released code's
+// any-hit program records t and ignores the hit, so the ray goes on): the nearest and the
+// farthest hit distance, both 0 when nothing is hit. A sphere counts with both of its
+// crossings that lie in the range. Returns whether anything was hit.
+inline bool occluder_range(const SceneRefs* s, float3 o, float3 d, float t_max, float* t_near,
+                           float* t_far, uint* ray_count) {
+    *ray_count += 1u;
+    float lo = INFINITY, hi = 0.0f;
+#if HAS_TRIANGLES
+    float3 inv_d = safe_inverse(d);
+    uint node_count = s->params->node_count;
+    uint current = 0u;
+    while (current < node_count) {
+        __global const BvhNode* node = s->nodes + current;
+        if (ray_aabb(o, inv_d, 0.0f, t_max, node_min(node), node_max(node))) {
+            uint leaf = node->leaf;
+            if (leaf != 0u) {
+                uint first = leaf & LEAF_FIRST_MASK;
+                uint count = leaf >> LEAF_COUNT_SHIFT;
+                for (uint k = first; k < first + count; ++k) {
+                    __global const TriangleGeom* tri = s->tri_geom + k;
+                    float u, v;
+                    float t = ray_triangle(o, d, tri->v0.xyz, tri->v1.xyz, tri->v2.xyz, &u, &v);
+                    if (t > 0.0f && t < t_max) {
+                        lo = fmin(lo, t);
+                        hi = fmax(hi, t);
+                    }
+                }
+                current = node->skip;
+            } else {
+                current += 1u;
+            }
+        } else {
+            current = node->skip;
+        }
+    }
+#endif
+#if HAS_SPHERES
+    for (uint i = 0u; i < s->params->sphere_count; ++i) {
+        __global const Sphere* sp = s->spheres + i;
+        float3 c = (float3)(sp->center[0], sp->center[1], sp->center[2]);
+        float t0 = ray_sphere(o, d, c, sp->radius, 0.0f, t_max);
+        if (t0 > 0.0f) {
+            lo = fmin(lo, t0);
+            hi = fmax(hi, t0);
+            float t1 = ray_sphere(o, d, c, sp->radius, t0, t_max);
+            if (t1 > 0.0f) hi = fmax(hi, t1);
+        }
+    }
+#endif
+    bool hit = hi > 0.0f;
+    *t_near = hit ? lo : 0.0f;
+    *t_far = hi;
+    return hit;
+}
+
 #endif

@@ -17,8 +17,8 @@
 #include "render/rng.cl"
 
 #if FILTER_VECTOR_FLOATS != 16 || WELFORD_SUMS_FLOATS != 16 || WELFORD_STATE_FLOATS != 20 \
-    || DEPTH_SHIFT_FLOATS != 2
-#error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16"
+    || DEPTH_SHIFT_FLOATS != 2 || SHADOW_TERMS_FLOATS != 4
+#error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16, ShadowTerms as float4"
 #endif
 
 // One path's contribution and first-hit features.
@@ -37,6 +37,10 @@ typedef struct {
 #if OUTPUT_SAMPLES
     float3 world2;     // second hit, 0 if none
     float3 normal2;    // shading normal at the second hit, 0 if none
+#endif
+#if OUTPUT_SHADOWS
+    float3 shadow_direct;      // light straight from the shadow light to the first surface,
+                               // when that is the pixel centre's receiver (ShadowTerms)
 #endif
 } PathSample;
 
@@ -57,6 +61,9 @@ inline PathSample path_sample_empty(void) {
     ps.world2 = (float3)(0.0f);
     ps.normal2 = (float3)(0.0f);
 #endif
+#if OUTPUT_SHADOWS
+    ps.shadow_direct = (float3)(0.0f);
+#endif
     return ps;
 }
 
@@ -72,6 +79,9 @@ typedef struct {
 #endif
 #if OUTPUT_POSITION
     float position[4];                     // mean first-hit position (xyz), hits (w)
+#endif
+#if OUTPUT_SHADOWS
+    float shadow[SHADOW_TERMS_FLOATS];     // ShadowTerms: the mean of the replaced light
 #endif
 } PixelStats;
 
@@ -89,6 +99,9 @@ inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
 #if OUTPUT_POSITION
     vstore4(vload4(pixel, positions), 0, p->position);
 #endif
+#if OUTPUT_SHADOWS
+    vstore4(vload4(pixel, shadow_terms), 0, p->shadow);
+#endif
 }
 
 inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
@@ -104,6 +117,9 @@ inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pi
 #endif
 #if OUTPUT_POSITION
     vstore4(vload4(0, p->position), pixel, positions);
+#endif
+#if OUTPUT_SHADOWS
+    vstore4(vload4(0, p->shadow), pixel, shadow_terms);
 #endif
 }
 
@@ -187,6 +203,12 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
     accumulate3(p, FILTER_VECTOR_NORMAL, WELFORD_SUMS_NORMAL, ps->normal, n);
     accumulate3(p, FILTER_VECTOR_ALBEDO, WELFORD_SUMS_ALBEDO, ps->albedo, n);
     accumulate3(p, FILTER_VECTOR_ALBEDO2, WELFORD_SUMS_ALBEDO2, ps->albedo2, n);
+#endif
+#if OUTPUT_SHADOWS
+    float* sh = p->shadow;
+    running_mean(&sh[SHADOW_TERMS_DIRECT], ps->shadow_direct.x, n);
+    running_mean(&sh[SHADOW_TERMS_DIRECT + 1], ps->shadow_direct.y, n);
+    running_mean(&sh[SHADOW_TERMS_DIRECT + 2], ps->shadow_direct.z, n);
 #endif
 #if OUTPUT_POSITION
     // The mean over the samples whose camera ray hit a surface; w counts them. A pixel whose

@@ -26,15 +26,17 @@ inline uint select_light(const SceneRefs* s, float u) {
 
 // Radiance arriving at p from one sampled light, divided by the sample's probability density
 // (solid angle, including the light choice) and multiplied by cos at p: the estimator of
-// integral L_e cos dw. The caller multiplies by the throughput and albedo / pi.
+// integral L_e cos dw. The caller multiplies by the throughput and albedo / pi. `chosen` gets
+// the index of the light picked.
 inline float3 sample_direct_light(const SceneRefs* s, float3 surface_p, float3 ng, float3 ns,
-                                  uint key, uint bounce, uint* ray_count) {
+                                  uint key, uint bounce, uint* ray_count, uint* chosen) {
     // The shadow ray starts at the offset origin, so the light is sampled from there too:
     // directions aimed from the unmoved point would, at grazing angles, cross the light's
     // plane before the sampled point (an offset of 6e-5 under a ceiling moved the hit on a
     // lamp 1 cm below it by 0.6% of the distance) and the light would shadow itself.
     float3 p = offset_ray_origin(surface_p, ng, s->params->scene_size);
     uint index = select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT));
+    *chosen = index;
     __global const Light* light = s->lights + index;
     float r1 = rng_uniform(key, bounce, DIM_LIGHT_U);
     float r2 = rng_uniform(key, bounce, DIM_LIGHT_V);

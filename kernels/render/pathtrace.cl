@@ -10,6 +10,7 @@
 #include "render/materials.cl"
 #include "render/lights.cl"
 #include "render/film.cl"
+#include "render/shadows.cl"
 
 inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 
@@ -20,8 +21,12 @@ inline void add_light(PathSample* ps, uint bounce, float3 value) {
     if (bounce <= 1u) ps->direct += value; else ps->indirect += value;
 }
 
-// Algorithm 1 for one sample. `bounce` counts the surfaces the path has left.
-inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count) {
+// Algorithm 1 for one sample. `bounce` counts the surfaces the path has left. With
+// OUTPUT_SHADOWS, `shadow_light` is the light whose soft shadows AAF filters and
+// `shadow_object` the object the pixel centre's receiver belongs to (NaN: none): the samples
+// whose first hit is on it record the light's terms (kernels/render/shadows.cl).
+inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count,
+                             uint shadow_light, float shadow_object) {
     __constant const SceneParams* params = s->params;
     PathSample ps = path_sample_empty();
     float3 o, d;
@@ -30,6 +35,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
     bool count_emission = true;               // no light connection was made at the last vertex
 #if OUTPUT_FEATURES
     bool want_albedo2 = true;
+#endif
+#if OUTPUT_SHADOWS
+    bool on_receiver = false;                 // the first hit is the centre's receiver
 #endif
     for (uint bounce = 0u; bounce < params->max_vertices; ++bounce) {
 #if HAS_RUSSIAN_ROULETTE
@@ -70,7 +78,15 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 #endif
         if (m->kind == MATERIAL_EMITTER) {    // an implicit connection ends the path
             // Lights emit from their front (outside) only, matching sample_direct_light.
-            if (count_emission && sf.entering) add_light(&ps, bounce, throughput * m->emission.xyz);
+            if (count_emission && sf.entering) {
+                add_light(&ps, bounce, throughput * m->emission.xyz);
+#if OUTPUT_SHADOWS
+                // Without light sampling, the shadow light's direct term arrives here.
+                if (bounce == 1u && on_receiver && sf.light >= 0
+                    && (uint)sf.light == shadow_light)
+                    ps.shadow_direct += throughput * m->emission.xyz;
+#endif
+            }
 #if OUTPUT_FEATURES
             if (bounce == 0u) {
                 ps.depth = hit.t;
@@ -91,12 +107,24 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
             want_albedo2 = false;
         }
 #endif
+#if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
+        if (bounce == 0u && m->kind == MATERIAL_DIFFUSE && shadow_light < params->light_count
+            && hit_object(s, &hit) == shadow_object) {
+            on_receiver = true;
+        }
+#endif
 #if HAS_LIGHTS && NEXT_EVENT_ESTIMATION
         // Alg. 1 line 18: SampleLights, at diffuse hits only. The light count is checked at run
         // time too: the generic kernel (all effects compiled in) renders light-less scenes.
         if (m->kind == MATERIAL_DIFFUSE && params->light_count > 0u) {
-            float3 li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, ray_count);
+            uint chosen;
+            float3 li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, ray_count,
+                                            &chosen);
             add_light(&ps, bounce + 1u, throughput * albedo * INV_PI_F * li);
+#if OUTPUT_SHADOWS
+            if (bounce == 0u && on_receiver && chosen == shadow_light)
+                ps.shadow_direct += throughput * albedo * INV_PI_F * li;
+#endif
         }
 #endif
         Scatter sc = scatter(s, &sf, d, albedo, key, bounce);   // Alg. 1 line 17: SampleBRDF
@@ -120,6 +148,9 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
             float k = limit / peak;
             ps.direct *= k;
             ps.indirect *= k;
+#if OUTPUT_SHADOWS
+            ps.shadow_direct *= k;
+#endif
         }
     }
     return ps;
@@ -153,7 +184,8 @@ __kernel void render(__constant const SceneParams* params,
                      uint tile_height,
                      uint range_first,
                      uint sample_base,
-                     uint sample_count) {
+                     uint sample_count,
+                     uint shadow_light) {                // OUTPUT_SHADOWS builds only
     uint tx = get_global_id(0), ty = get_global_id(1);
     if (tx >= tile_width || ty >= tile_height) return;
     uint x = tile_x + tx, y = tile_y + ty;
@@ -163,11 +195,18 @@ __kernel void render(__constant const SceneParams* params,
                    textures, texels, lights, light_cdf, debug_counters};
     PixelStats stats;
     pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, slot);
+    float shadow_object = NAN;
+#if OUTPUT_SHADOWS
+    // The shadow passes ran before the first path samples (whole images only: the host
+    // refuses tiles with the shadow output, so slot == pixel).
+    __global const float* centre = shadow_pixels + (size_t)slot * SHADOW_PIXEL_FLOATS;
+    if (centre[SHADOW_PIXEL_WEIGHT] > 0.0f) shadow_object = centre[SHADOW_PIXEL_OBJECT];
+#endif
     uint rays = 0u;
     for (uint k = 0u; k < sample_count; ++k) {
         uint sample = sample_base + k;
         uint key = rng_sample_key(params->seed, pixel, sample);
-        PathSample ps = trace_path(&s, x, y, key, &rays);
+        PathSample ps = trace_path(&s, x, y, key, &rays, shadow_light, shadow_object);
         uint index = sample - range_first;              // 0 for the render's first sample
         film_accumulate(&stats, &ps, index + 1u);
 #if OUTPUT_SAMPLES

@@ -102,6 +102,8 @@ impl SceneArrays {
                 uv2: Float2::from_vec2(t.uv[2]),
                 material: t.material,
                 light: -1,
+                object: t.object,
+                ..Default::default()
             });
         }
 

@@ -129,6 +129,56 @@ pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
         .any(|sp| ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_max).is_some_and(|t| t > 0.0))
 }
 
+/// Every hit in (0, t_max), nearest and farthest (kernels/arrays/trace.cl `occluder_range`):
+/// AAF's any-hit shadow rays that record the distance and go on. None when nothing is hit.
+pub fn occluder_range(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, f32)> {
+    let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+    let inv_d = safe_inverse(d);
+    let n = s.params.node_count as usize;
+    let mut current = 0usize;
+    while current < n {
+        let node = &s.nodes[current];
+        if ray_aabb(
+            o,
+            inv_d,
+            0.0,
+            t_max,
+            v3(&node.bounds_min),
+            v3(&node.bounds_max),
+        ) {
+            if node.leaf != 0 {
+                let first = (node.leaf & LEAF_FIRST_MASK) as usize;
+                let count = (node.leaf >> LEAF_COUNT_SHIFT) as usize;
+                for g in &s.tri_geom[first..first + count] {
+                    if let Some((t, _, _)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
+                        && t > 0.0
+                        && t < t_max
+                    {
+                        lo = lo.min(t);
+                        hi = hi.max(t);
+                    }
+                }
+                current = node.skip as usize;
+            } else {
+                current += 1;
+            }
+        } else {
+            current = node.skip as usize;
+        }
+    }
+    for sp in s.spheres.iter().take(s.params.sphere_count as usize) {
+        let c = v3(&sp.center);
+        if let Some(t0) = ray_sphere(o, d, c, sp.radius, 0.0, t_max).filter(|&t| t > 0.0) {
+            lo = lo.min(t0);
+            hi = hi.max(t0);
+            if let Some(t1) = ray_sphere(o, d, c, sp.radius, t0, t_max).filter(|&t| t > 0.0) {
+                hi = hi.max(t1);
+            }
+        }
+    }
+    (hi > 0.0).then_some((lo, hi))
+}
+
 /// Every primitive, no BVH: the ground truth for traversal tests.
 pub fn brute_force_closest(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
     let mut best: Option<Hit> = None;

@@ -48,7 +48,8 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         pb.set_message(format!("accuracy against time: {name}"));
         let reference = reference_image(ctx, path, &s)?;
         let methods = study.methods()?;
-        for candidate in Candidate::all(&methods, &[], oidn.as_ref())
+        let chains = study.chains()?;
+        for candidate in Candidate::all(&methods, &chains, oidn.as_ref())
             .into_iter()
             .filter(|c| ctx.wants(&c.label()))
         {

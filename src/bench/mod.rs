@@ -20,9 +20,15 @@
 //!   figures (equal-quality sample reduction, equal-time error ratio).
 //! - `sweep`: Table 7.1's one-parameter-at-a-time sweep and hypotheses 1-3 (§7.3), plus the
 //!   variance scales s_f the thesis leaves open.
+//! - `path-density` (only when asked): the path-density filter of DeCoro 2009 ch. 5 over
+//!   8-64 spp, accumulated against per-frame, with its chains and the α-trimmed baselines.
 //! - `balance` (only when asked, with `--devices`): several devices sharing each frame
 //!   (thesis §4.2): each device's share and idle time per frame, with and without
 //!   re-balancing, and where the filter runs.
+//! - `aaf-shadows` (only when asked): AAF soft shadows against Monte Carlo on Grids, error
+//!   against light samples and against time (Wang 2013 Fig. 3.6), the spp map (`aaf`).
+//! - `rpf-readings`, `rpf-scale` (only when asked; hours): RPF's readings against the
+//!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -30,14 +36,17 @@
 //! confused with `render::cpu`, the CPU mirror of the kernels); `table` the resumable CSV
 //! tables and `plot` the charts and contact sheets.
 
+pub mod aaf;
 pub mod accuracy_time;
 pub mod balance;
 pub mod curves;
 pub mod filter_speed;
 pub mod ground_truth;
 pub mod oidn;
+pub mod path_density;
 pub mod plot;
 pub mod quality;
+pub mod rpf;
 pub mod speed;
 pub mod study;
 pub mod sweep;
@@ -60,8 +69,19 @@ pub enum Study {
     Quality,
     AccuracyTime,
     Sweep,
+    /// The path-density filter (DeCoro 2009 ch. 5): error and rejected fractions over spp,
+    /// accumulated against per-frame, its chains and the α-trimmed baselines (not in the
+    /// default set).
+    PathDensity,
     /// Several devices per frame (needs --devices with two or more; not in the default set).
     Balance,
+    /// AAF soft shadows against Monte Carlo on Grids, Wang 2013 Fig. 3.6 (not in the default
+    /// set).
+    AafShadows,
+    /// RPF's readings against the thesis's gain (not in the default set: hours).
+    RpfReadings,
+    /// RPF against the scene scale, Tables 5.3-5.4 (not in the default set: hours).
+    RpfScale,
 }
 
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -90,6 +110,10 @@ pub struct BenchArgs {
     /// with --quick].
     #[arg(long, value_name = "N")]
     pub reference_spp: Option<u32>,
+    /// Width and height of the quality studies' images and references (quality,
+    /// accuracy-time, sweep, rpf-*) [default: 512, the thesis's; 64 with --quick].
+    #[arg(long, value_name = "N")]
+    pub size: Option<u32>,
     /// Measure again even what the CSV files already hold.
     #[arg(long)]
     pub fresh: bool,
@@ -162,6 +186,9 @@ impl BenchArgs {
         if let Some(n) = self.reference_spp {
             v.extend(["--reference-spp".into(), n.to_string()]);
         }
+        if let Some(n) = self.size {
+            v.extend(["--size".into(), n.to_string()]);
+        }
         if let Some(d) = self.device {
             v.extend(["--device".into(), d.to_string()]);
         }
@@ -198,6 +225,9 @@ fn select(args: &BenchArgs) -> Result<Selection> {
             known.join(", ")
         );
     }
+    if args.size.is_some_and(|n| !(8..=8192).contains(&n)) {
+        bail!("--size must be 8 to 8192 pixels");
+    }
     let mut studies = args.study.clone();
     if args.specialisation {
         studies.push(Study::RenderSpeed);
@@ -220,9 +250,12 @@ fn select(args: &BenchArgs) -> Result<Selection> {
     // bundled scene by name (filter-speed and the sweep do): fail before measuring anything.
     let scenes_dir = scenes_dir(args.scenes.as_deref())?;
     let needs_bundled = args.scene.is_empty()
-        || studies
-            .iter()
-            .any(|s| matches!(s, Study::FilterSpeed | Study::Sweep));
+        || studies.iter().any(|s| {
+            matches!(
+                s,
+                Study::FilterSpeed | Study::Sweep | Study::RpfScale | Study::AafShadows
+            )
+        });
     if scenes_dir.is_none() && needs_bundled {
         return Err(no_scenes_dir());
     }
@@ -244,14 +277,32 @@ fn select(args: &BenchArgs) -> Result<Selection> {
 /// --slurm` renders on the cluster before the benchmark runs.
 pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::ReferenceRequest>> {
     let sel = select(args)?;
-    let sizes = study::sizes_for(args.quick, args.reference_spp);
+    let sizes = study::sizes_for(args.quick, args.reference_spp, args.size);
     let mut paths: Vec<PathBuf> = Vec::new();
     for s in &sel.studies {
         match s {
-            Study::Quality | Study::AccuracyTime => paths.extend(sel.scenes.iter().cloned()),
+            Study::Quality | Study::AccuracyTime | Study::PathDensity => {
+                paths.extend(sel.scenes.iter().cloned())
+            }
             Study::Sweep => {
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 for name in sweep::sweep_scenes(args.quick) {
+                    paths.push(dir.join(format!("{name}.toml")));
+                }
+            }
+            Study::AafShadows => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                paths.push(dir.join("grids.toml"));
+            }
+            Study::RpfReadings => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                for name in rpf::THESIS_SCENES {
+                    paths.push(dir.join(format!("{name}.toml")));
+                }
+            }
+            Study::RpfScale => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                for name in &rpf::THESIS_SCENES[..3] {
                     paths.push(dir.join(format!("{name}.toml")));
                 }
             }
@@ -285,6 +336,8 @@ pub struct Context {
     pub reference_spp: Option<u32>,
     /// `--method`: the methods of the quality studies (empty: all).
     pub methods: Vec<String>,
+    /// `--size`, if given.
+    pub size: Option<u32>,
 }
 
 impl Context {
@@ -433,6 +486,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             .unwrap_or_else(ground_truth::default_cache),
         reference_spp: args.reference_spp,
         methods: args.method.clone(),
+        size: args.size,
     };
     ctx.say(&format!(
         "device: {} | bundled scenes: {} | results in {}",
@@ -450,7 +504,11 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::Quality => quality::quality(&ctx, args.fresh)?,
             Study::AccuracyTime => accuracy_time::accuracy_time(&ctx, args.fresh)?,
             Study::Sweep => sweep::sweep(&ctx, args.fresh)?,
+            Study::PathDensity => path_density::path_density(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
+            Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
+            Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
+            Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;

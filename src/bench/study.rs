@@ -24,23 +24,21 @@ pub struct Sizes {
 }
 
 pub fn sizes(ctx: &Context) -> Sizes {
-    sizes_for(ctx.quick, ctx.reference_spp)
+    sizes_for(ctx.quick, ctx.reference_spp, ctx.size)
 }
 
-/// The image sizes of a run (`--quick`) and its references' spp (`--reference-spp`).
-pub fn sizes_for(quick: bool, reference_spp: Option<u32>) -> Sizes {
-    if quick {
-        Sizes {
-            width: 64,
-            height: 64,
-            reference_spp: reference_spp.unwrap_or(256),
-        }
+/// The image sizes of a run (`--quick`, `--size`) and its references' spp (`--reference-spp`).
+pub fn sizes_for(quick: bool, reference_spp: Option<u32>, size: Option<u32>) -> Sizes {
+    let (side, spp) = if quick {
+        (64, 256)
     } else {
-        Sizes {
-            width: 512,
-            height: 512,
-            reference_spp: reference_spp.unwrap_or(ground_truth::DEFAULT_REFERENCE_SPP),
-        }
+        (512, ground_truth::DEFAULT_REFERENCE_SPP)
+    };
+    let side = size.unwrap_or(side);
+    Sizes {
+        width: side,
+        height: side,
+        reference_spp: reference_spp.unwrap_or(spp),
     }
 }
 
@@ -61,12 +59,16 @@ pub struct StudyScene {
 
 impl StudyScene {
     pub fn load(path: &Path, s: &Sizes, seed: u32) -> Result<StudyScene> {
-        let scene = scene::load_scene(path)?;
+        Self::from_scene(&scene_name(path), scene::load_scene(path)?, s, seed)
+    }
+
+    /// A study scene of a scene already loaded (and perhaps changed, e.g. scaled).
+    pub fn from_scene(name: &str, scene: Scene, s: &Sizes, seed: u32) -> Result<StudyScene> {
         let o = options(&scene, s, seed);
         let arrays = SceneArrays::build(&scene, &o.frame)?;
         let info = SceneInfo::new(&scene, &arrays);
         Ok(StudyScene {
-            name: scene_name(path),
+            name: name.to_string(),
             scene,
             arrays,
             info,
@@ -121,6 +123,26 @@ impl StudyScene {
         Ok(v)
     }
 
+    /// The path-density filter's chains (DeCoro 2009 ch. 5: outlier removal first, then a
+    /// filter of the inter-pixel variance), as extra cells of the quality and accuracy-time
+    /// studies: path-density → ddf and → atrous. (label, filter).
+    pub fn chains(&self) -> Result<Vec<(String, Configured)>> {
+        use crate::filters::path_density::{PathDensity, PathDensitySettings, Then};
+        [(Then::Ddf, "ddf"), (Then::Atrous, "atrous")]
+            .into_iter()
+            .map(|(then, name)| {
+                let settings = PathDensitySettings {
+                    then,
+                    ..Default::default()
+                };
+                Ok((
+                    format!("path-density->{name}"),
+                    Configured::typed::<PathDensity>(settings, &self.info)?,
+                ))
+            })
+            .collect()
+    }
+
     /// The filters compared: every registered filter with its defaults (Table 7.2 for the
     /// thesis's), specialised to this scene.
     pub fn methods(&self) -> Result<Vec<Configured>> {
@@ -150,7 +172,7 @@ pub fn methods_markdown() -> String {
     md
 }
 
-fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
+pub(super) fn options(scene: &Scene, s: &Sizes, seed: u32) -> RenderOptions {
     let mut o = RenderOptions::for_scene(scene);
     o.frame.width = s.width;
     o.frame.height = s.height;

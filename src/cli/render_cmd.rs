@@ -341,6 +341,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     let mut outputs = OutputSet::colour();
     if let Some(c) = chosen {
         outputs = outputs.union(c.needs());
+        c.adjust_render(&mut options);
     }
     if args.aovs.is_some() || args.aov_png.is_some() {
         outputs = outputs.union(OutputSet::of(&[Output::Features, Output::Variance]));
@@ -525,6 +526,21 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
             .map(|p| format!(", {}", p.display()))
             .unwrap_or_default()
     );
+    if let Some((sampling, stats)) = film.primary().shadow_stats() {
+        println!(
+            "shadow samples of sphere light {}: {:.2} spp on average over the image (Σn/N²), \
+             {:.2} over its {} receivers, {} at most (sparse {}, max {}); {:.1} Mrays in {:.3} s",
+            sampling.light,
+            stats.average_spp,
+            stats.receiver_spp,
+            stats.receivers,
+            stats.max_spp,
+            sampling.sparse_spp,
+            sampling.max_spp,
+            stats.rays as f64 / 1e6,
+            stats.kernel_time.as_secs_f64()
+        );
+    }
     if let (Some(c), Some(f)) = (chosen, &filter) {
         let what = if f.interactive() {
             "kernel"

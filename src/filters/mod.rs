@@ -19,7 +19,7 @@ use anyhow::Result;
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
 use crate::layout::outputs::OutputSet;
-use crate::render::{Frame, FrameInfo, SceneInfo};
+use crate::render::{Frame, FrameInfo, RenderOptions, SceneInfo};
 pub use placement::{DeviceFilter, MultiDeviceArgs, Placement};
 pub use registry::{Configured, FilterRequest, Registry};
 pub use settings::{Auto, DeclaredSettings, FieldDoc};
@@ -42,6 +42,9 @@ builtin_filters! {
     rpf::Rpf,       // Random Parameter Filtering (thesis ch. 5)
     atrous::Atrous, // the edge-avoiding à-trous wavelet filter (Dammertz et al. 2010)
     bmfr::Bmfr,     // blockwise feature regression (single-frame BMFR, Koskela et al. 2019)
+    aaf_shadows::AafShadows, // axis-aligned filtering of soft shadows (Wang 2013 ch. 3)
+    path_density::PathDensity, // the path-density outlier filter (DeCoro 2009 ch. 5)
+    trimmed::Trimmed, // α-trimmed means of the samples (DeCoro 2009 §5.2 baselines)
 }
 
 /// A filter, as its module declares it. Implement this; the registry sees it as a [`Filter`].
@@ -66,6 +69,10 @@ pub trait FilterKind: Send + Sync + 'static {
 
     /// The outputs the renderer must gather for these settings.
     fn needs(settings: &Self::Settings) -> OutputSet;
+
+    /// How the renderer gathers them, where that is the filter's choice (AAF's sample
+    /// counts); most filters leave the options as they are.
+    fn render_options(_settings: &Self::Settings, _options: &mut RenderOptions) {}
 
     /// Builds the filter for frames like `frame` (size, scene) on `gpu`.
     fn prepare(

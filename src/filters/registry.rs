@@ -21,9 +21,10 @@ use super::settings::{self, FieldDoc, display_value, overlay};
 use super::{Filter, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::OutputSet;
-use crate::render::{FrameInfo, SceneInfo};
+use crate::render::{FrameInfo, RenderOptions, SceneInfo};
 
 type Prepare = dyn Fn(&FrameInfo, &Arc<Gpu>) -> Result<Box<dyn PreparedFilter>> + Send + Sync;
+type AdjustRender = dyn Fn(&mut RenderOptions) + Send + Sync;
 
 /// A filter with its settings, checked and specialised to one scene.
 pub struct Configured {
@@ -34,6 +35,7 @@ pub struct Configured {
     notes: Vec<String>,
     needs: OutputSet,
     prepare: Box<Prepare>,
+    render: Box<AdjustRender>,
 }
 
 impl std::fmt::Debug for Configured {
@@ -54,6 +56,7 @@ impl Configured {
         use super::DeclaredSettings as _;
         let effective = settings::to_table(&typed);
         let needs = K::needs(&typed);
+        let for_render = typed.clone();
         Configured {
             name: K::NAME,
             fields: K::Settings::fields(),
@@ -62,6 +65,7 @@ impl Configured {
             notes,
             needs,
             prepare: Box::new(move |frame, gpu| K::prepare(&typed, frame, gpu)),
+            render: Box::new(move |options| K::render_options(&for_render, options)),
         }
     }
 
@@ -81,6 +85,11 @@ impl Configured {
     /// The outputs the renderer must gather.
     pub fn needs(&self) -> OutputSet {
         self.needs
+    }
+
+    /// Sets how the renderer gathers what the filter needs (after `outputs` is chosen).
+    pub fn adjust_render(&self, options: &mut RenderOptions) {
+        (self.render)(options)
     }
 
     /// The settings as asked for (may say `auto`): what AOV files record.
@@ -337,6 +346,7 @@ fn value_name(ty: &str) -> &'static str {
         "[f32; 5]" => "A,B,C,D,E",
         "Vec<u32>" => "N,N,...",
         "Auto<f32>" => "auto|X",
+        "Auto<i32>" | "Auto<u32>" => "auto|N",
         _ => "VALUE",
     }
 }

@@ -49,6 +49,9 @@ pub fn all_declarations() -> Vec<Declaration> {
         declaration::<DdfParams>(false),
         declaration::<SampleVector>(true),
         declaration::<AtrousParams>(false),
+        declaration::<ShadowTerms>(true),
+        declaration::<ShadowPixel>(true),
+        declaration::<AafShadowParams>(false),
     ]
 }
 

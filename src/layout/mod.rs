@@ -233,6 +233,11 @@ device_structs! {
         pub material: u32,
         /// Index into the light list when the triangle is emissive, else -1.
         pub light: i32,
+        /// The object (mesh part) the triangle belongs to (src/scene Triangle::object).
+        pub object: u32,
+        pub pad0: u32,
+        pub pad1: u32,
+        pub pad2: u32,
     }
 
     /// An analytic sphere (kept in its own list, tested after the BVH).
@@ -397,6 +402,79 @@ device_structs! {
         pub texture1: [f32; 3],
         /// The sample's colour (direct + indirect).
         pub color: [f32; 3],
+    }
+
+    /// AAF soft shadows (Wang 2013 ch. 3), what the megakernel gathers per pixel for the one
+    /// sphere light whose shadows are filtered: a running mean over the path samples, like F.
+    #[align(16)]
+    pub struct ShadowTerms {
+        /// The light the path samples whose first hit is the pixel centre's receiver brought
+        /// to it straight from that light (its next-event estimate, or its emission found by
+        /// the first bounce): the part of F that the filtered term replaces.
+        pub direct: [f32; 3],
+        pub pad0: f32,
+    }
+
+    /// AAF soft shadows: the primary hit through the pixel centre (and the lens centre) and its
+    /// light samples (kernels/render/shadows.cl), from the sparse and the adaptive pass.
+    #[align(16)]
+    pub struct ShadowPixel {
+        /// Σ f·l over the light samples: l = cos θ at the receiver, f = 1 when unoccluded.
+        pub visible: f32,
+        /// Σ l (eq. 3.2's normaliser); 0 when the pixel is no receiver.
+        pub weight: f32,
+        /// Light samples traced (sparse + adaptive).
+        pub samples: f32,
+        /// Samples whose shadow ray met an occluder.
+        pub occluded: f32,
+        /// d1: receiver-to-light-centre distance.
+        pub light_distance: f32,
+        /// s1 = max(d1/d2 − 1) over the occluded samples (eq. 3.5).
+        pub slope_max: f32,
+        /// s2 = min(d1/d2 − 1) over the occluded samples.
+        pub slope_min: f32,
+        /// 0: no slopes; 1: from the pixel's own occluded samples; 2: filled from neighbours.
+        pub slope_source: f32,
+        /// d: the world size of one pixel at the hit (eq. 3.4).
+        pub pixel_size: f32,
+        /// n(x) of eq. 3.5 clamped to [sparse, max] (before rounding to whole strata).
+        pub target: f32,
+        /// The object hit: mesh part for triangles, −1 − index for spheres.
+        pub object: f32,
+        pub pad0: f32,
+        /// World position of the hit.
+        pub position: [f32; 3],
+        pub pad1: f32,
+        /// Shading normal at the hit, facing the camera.
+        pub normal: [f32; 3],
+        pub pad2: f32,
+        /// Σ r(x_k) over the light samples' points x_k on the receiver: r of eq. 3.1, the
+        /// light's unshadowed direct term from its centre with the albedo (albedo · L sin²α
+        /// cos θ_c); divided by `samples` it is r over the pixel, anti-aliased as the samples
+        /// spread over it.
+        pub unshadowed: [f32; 3],
+        pub pad3: f32,
+    }
+
+    /// Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
+    #[align(16)]
+    pub struct AafShadowParams {
+        /// The filtered sphere light: centre (xyz) and radius (w).
+        pub light: Float4,
+        pub width: u32,
+        pub height: u32,
+        /// Half width of the 1-D window, pixels.
+        pub radius: i32,
+        /// 0: the pass along rows (x), 1: along columns (y).
+        pub axis: u32,
+        /// σ of the light (R/2).
+        pub sigma: f32,
+        /// cos of the largest normal angle between neighbours.
+        pub normal_cos: f32,
+        /// Largest offset along the light direction, in units of β.
+        pub depth_tolerance: f32,
+        /// Largest |β − β'| / max(β, β').
+        pub beta_tolerance: f32,
     }
 
     /// Parameters of one pass of the edge-avoiding a-trous filter (Dammertz et al. 2010).

@@ -20,7 +20,10 @@
 
 use std::mem::{offset_of, size_of};
 
-use super::{DepthShift, FilterVector, Float4, SampleVector, WelfordState, WelfordSums};
+use super::{
+    DepthShift, FilterVector, Float4, SampleVector, ShadowPixel, ShadowTerms, WelfordState,
+    WelfordSums,
+};
 
 /// A group of per-pixel outputs switched on together.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -36,6 +39,9 @@ pub enum Output {
     Position,
     /// Every sample's Random Parameter Filtering vector (thesis §5.1.1, Table 5.1).
     Samples,
+    /// AAF soft shadows of one sphere light (Wang 2013 ch. 3): the part of F the filtered term
+    /// replaces, and the sparse + adaptive light samples of each pixel's centre receiver.
+    Shadows,
 }
 
 /// A device buffer of the megakernel.
@@ -47,6 +53,8 @@ pub enum BufferId {
     WelfordState,
     Positions,
     SampleVectors,
+    ShadowTerms,
+    ShadowPixels,
 }
 
 /// How many elements a buffer holds.
@@ -82,6 +90,10 @@ pub enum Merge {
     HitMeans,
     /// One element per sample: each part's samples go to their sample numbers.
     PerSample,
+    /// The same in every part: computed before the path samples from the pixel alone (AAF's
+    /// shadow passes, whose light samples are a hash of the pixel, not of the sample range),
+    /// so the merge keeps the first part's and checks that the others agree.
+    Identical,
 }
 
 #[derive(Debug)]
@@ -166,6 +178,21 @@ const S_ALBEDO: usize = lane(offset_of!(WelfordSums, albedo));
 const S_DIRECTION: usize = lane(offset_of!(WelfordSums, direction));
 const S_ALBEDO2: usize = lane(offset_of!(WelfordSums, albedo2));
 const W_DIRECTION: usize = lane(offset_of!(WelfordState, direction_mean));
+const T_DIRECT: usize = lane(offset_of!(ShadowTerms, direct));
+const P_VISIBLE: usize = lane(offset_of!(ShadowPixel, visible));
+const P_WEIGHT: usize = lane(offset_of!(ShadowPixel, weight));
+const P_SAMPLES: usize = lane(offset_of!(ShadowPixel, samples));
+const P_OCCLUDED: usize = lane(offset_of!(ShadowPixel, occluded));
+const P_DISTANCE: usize = lane(offset_of!(ShadowPixel, light_distance));
+const P_SLOPE_MAX: usize = lane(offset_of!(ShadowPixel, slope_max));
+const P_SLOPE_MIN: usize = lane(offset_of!(ShadowPixel, slope_min));
+const P_SLOPE_SOURCE: usize = lane(offset_of!(ShadowPixel, slope_source));
+const P_PIXEL_SIZE: usize = lane(offset_of!(ShadowPixel, pixel_size));
+const P_TARGET: usize = lane(offset_of!(ShadowPixel, target));
+const P_OBJECT: usize = lane(offset_of!(ShadowPixel, object));
+const P_POSITION: usize = lane(offset_of!(ShadowPixel, position));
+const P_NORMAL: usize = lane(offset_of!(ShadowPixel, normal));
+const P_UNSHADOWED: usize = lane(offset_of!(ShadowPixel, unshadowed));
 const D_MEAN: usize = lane(offset_of!(DepthShift, mean));
 
 /// The mean each lane of [`WelfordSums`] is the S_n of: (S_n lane, buffer of the mean, lane of
@@ -242,6 +269,24 @@ pub const BUFFERS: &[BufferDecl] = &[
         per: Per::Sample,
         merge: Merge::PerSample,
         doc: "RPF sample vectors (26 floats per sample, thesis §5.1.1)",
+    },
+    BufferDecl {
+        id: ShadowTerms,
+        name: "shadow_terms",
+        element: "ShadowTerms",
+        element_bytes: size_of::<ShadowTerms>(),
+        per: Per::Pixel,
+        merge: Merge::Means,
+        doc: "AAF shadows: the direct light the filtered term replaces, per pixel",
+    },
+    BufferDecl {
+        id: ShadowPixels,
+        name: "shadow_pixels",
+        element: "ShadowPixel",
+        element_bytes: size_of::<ShadowPixel>(),
+        per: Per::Pixel,
+        merge: Merge::Identical,
+        doc: "AAF shadows: visibility sums, slopes and the pixel centre's hit, per pixel",
     },
 ];
 
@@ -331,6 +376,39 @@ pub const OUTPUTS: &[OutputDecl] = &[
         buffers: &[SampleVectors],
         channels: &[],
         doc: "every sample's RPF vector (thesis §5.1.1); kept in a samples file, not the AOVs",
+    },
+    OutputDecl {
+        output: Output::Shadows,
+        name: "shadows",
+        switch: Some("OUTPUT_SHADOWS"),
+        requires: &[Output::Colour],
+        buffers: &[ShadowTerms, ShadowPixels],
+        channels: &[
+            ch("shadow.direct.R", ShadowTerms, T_DIRECT),
+            ch("shadow.direct.G", ShadowTerms, T_DIRECT + 1),
+            ch("shadow.direct.B", ShadowTerms, T_DIRECT + 2),
+            ch("shadow.visible", ShadowPixels, P_VISIBLE),
+            ch("shadow.weight", ShadowPixels, P_WEIGHT),
+            ch("shadow.samples", ShadowPixels, P_SAMPLES),
+            ch("shadow.occluded", ShadowPixels, P_OCCLUDED),
+            ch("shadow.light_distance", ShadowPixels, P_DISTANCE),
+            ch("shadow.slope_max", ShadowPixels, P_SLOPE_MAX),
+            ch("shadow.slope_min", ShadowPixels, P_SLOPE_MIN),
+            ch("shadow.slope_source", ShadowPixels, P_SLOPE_SOURCE),
+            ch("shadow.pixel_size", ShadowPixels, P_PIXEL_SIZE),
+            ch("shadow.target", ShadowPixels, P_TARGET),
+            ch("shadow.object", ShadowPixels, P_OBJECT),
+            ch("shadow.position.X", ShadowPixels, P_POSITION),
+            ch("shadow.position.Y", ShadowPixels, P_POSITION + 1),
+            ch("shadow.position.Z", ShadowPixels, P_POSITION + 2),
+            ch("shadow.normal.X", ShadowPixels, P_NORMAL),
+            ch("shadow.normal.Y", ShadowPixels, P_NORMAL + 1),
+            ch("shadow.normal.Z", ShadowPixels, P_NORMAL + 2),
+            ch("shadow.unshadowed.R", ShadowPixels, P_UNSHADOWED),
+            ch("shadow.unshadowed.G", ShadowPixels, P_UNSHADOWED + 1),
+            ch("shadow.unshadowed.B", ShadowPixels, P_UNSHADOWED + 2),
+        ],
+        doc: "AAF soft shadows of one sphere light: unshadowed term, visibility sums, slopes",
     },
 ];
 

@@ -39,6 +39,11 @@ pub struct SceneInfo {
     /// Indoor or outdoor (RPF's σ²₈, thesis §5.1.4).
     pub setting: Setting,
     pub seed: u32,
+    /// The emissive spheres, in the order of the scene's light list (which puts them first):
+    /// centre and radius. AAF soft shadows filter one of them. Files written before this
+    /// field existed read as none.
+    #[serde(default)]
+    pub sphere_lights: Vec<[f32; 4]>,
 }
 
 impl SceneInfo {
@@ -56,6 +61,12 @@ impl SceneInfo {
             scene_size: arrays.params.scene_size,
             setting: scene.render.setting,
             seed: arrays.params.seed,
+            sphere_lights: arrays
+                .lights
+                .iter()
+                .filter(|l| l.kind == crate::layout::LIGHT_SPHERE)
+                .map(|l| l.p0.0)
+                .collect(),
         }
     }
 
@@ -77,6 +88,7 @@ impl SceneInfo {
             scene_size: 0.0,
             setting: Setting::Indoor,
             seed: 0,
+            sphere_lights: Vec::new(),
         }
     }
 

@@ -10,6 +10,7 @@ pub mod cpu;
 pub mod features;
 pub mod frame;
 pub mod progressive;
+pub mod shadows;
 pub mod split;
 pub mod tile;
 
@@ -30,6 +31,7 @@ use crate::scene::Scene;
 pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 pub use progressive::{Budget, progress_bar, render_progressively};
+pub use shadows::{ShadowSampling, ShadowStats};
 pub use split::{SplitFrame, SplitRenderer};
 pub use tile::Tile;
 
@@ -47,6 +49,8 @@ pub struct RenderOptions {
     pub local_size: Option<[usize; 2]>,
     /// Compile in the debug counters of kernels/arrays/trace.cl (tests only).
     pub debug_counters: bool,
+    /// How the shadow output is sampled (with [`Output::Shadows`]).
+    pub shadows: ShadowSampling,
     /// The render's first sample: it renders the samples from here on (`render --samples
     /// A..B`), counted from here in its statistics. 0 for a whole render.
     pub first_sample: u32,
@@ -63,6 +67,7 @@ impl RenderOptions {
             all_features: false,
             local_size: None,
             debug_counters: false,
+            shadows: ShadowSampling::default(),
             first_sample: 0,
             tile: None,
         }
@@ -103,6 +108,20 @@ impl DeviceScene {
             lights: gpu.upload(&a.lights)?,
             light_cdf: gpu.upload(&a.light_cdf)?,
         })
+    }
+
+    /// Binds the scene arguments every scene kernel starts with, by name, in their order.
+    fn bind<'b>(&'b self, b: &mut ocl::builders::KernelBuilder<'b>) {
+        b.arg_named("params", &self.params)
+            .arg_named("nodes", &self.nodes)
+            .arg_named("tri_geom", &self.tri_geom)
+            .arg_named("tri_shading", &self.tri_shading)
+            .arg_named("spheres", &self.spheres)
+            .arg_named("materials", &self.materials)
+            .arg_named("textures", &self.textures)
+            .arg_named("texels", &self.texels)
+            .arg_named("lights", &self.lights)
+            .arg_named("light_cdf", &self.light_cdf);
     }
 }
 
@@ -150,6 +169,13 @@ pub struct Renderer {
     debug_counters: Buffer<u32>,
     /// Always Some after construction (built once the buffers exist).
     kernel: Option<Kernel>,
+    /// The sphere light of the shadow output (with [`Output::Shadows`]), and how it is sampled.
+    shadow_light: Option<u32>,
+    shadow_sampling: ShadowSampling,
+    /// The AAF shadow passes, with the shadow output; run before the first path samples.
+    /// Built with the render kernel, from its program.
+    shadow_passes: Option<shadows::ShadowPasses>,
+    shadow_stats: Option<ShadowStats>,
     _scene: DeviceScene,
     samples_done: u32,
     pub rays_total: u64,
@@ -183,6 +209,16 @@ impl Renderer {
             FeatureSet::all_features(scene, outputs)
         } else {
             FeatureSet::for_scene(scene, outputs)
+        };
+        let shadow_light = if outputs.contains(Output::Shadows) {
+            Some(shadows::shadow_light(
+                &arrays,
+                &options.shadows,
+                tile,
+                &options.frame,
+            )?)
+        } else {
+            None
         };
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let scene_info = SceneInfo::new(scene, &arrays);
@@ -218,17 +254,23 @@ impl Renderer {
             ray_counts,
             debug_counters,
             kernel: None,
+            shadow_light,
+            shadow_sampling: options.shadows,
+            shadow_passes: None,
+            shadow_stats: None,
             _scene: device_scene,
             samples_done: 0,
             rays_total: 0,
             kernel_time_total: Duration::ZERO,
         };
-        r.kernel = Some(r.build_kernel()?);
+        let (kernel, shadow_passes) = r.build_kernels()?;
+        (r.kernel, r.shadow_passes) = (Some(kernel), shadow_passes);
         Ok(r)
     }
 
-    /// The megakernel specialised to `self.features`, every argument bound.
-    fn build_kernel(&self) -> Result<Kernel> {
+    /// The megakernel specialised to `self.features`, every argument bound, and the shadow
+    /// passes from its program (with the shadow output).
+    fn build_kernels(&self) -> Result<(Kernel, Option<shadows::ShadowPasses>)> {
         let mut defines = self.features.defines();
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
         let program = self.gpu.program("render/pathtrace.cl", &defines, "")?;
@@ -250,18 +292,7 @@ impl Renderer {
         }
         // Every argument by name, in the kernel's order (checked against the kernel's own
         // argument names by tests/layout.rs).
-        let d = &self._scene;
-        builder
-            .arg_named("params", &d.params)
-            .arg_named("nodes", &d.nodes)
-            .arg_named("tri_geom", &d.tri_geom)
-            .arg_named("tri_shading", &d.tri_shading)
-            .arg_named("spheres", &d.spheres)
-            .arg_named("materials", &d.materials)
-            .arg_named("textures", &d.textures)
-            .arg_named("texels", &d.texels)
-            .arg_named("lights", &d.lights)
-            .arg_named("light_cdf", &d.light_cdf);
+        self._scene.bind(&mut builder);
         for (id, b) in &self.buffers {
             builder.arg_named(id.decl().name, b);
         }
@@ -275,8 +306,22 @@ impl Renderer {
             .arg_named("tile_height", self.tile.height)
             .arg_named("range_first", self.first_sample)
             .arg_named("sample_base", self.first_sample)
-            .arg_named("sample_count", 0u32);
-        builder.build().context("creating the render kernel")
+            .arg_named("sample_count", 0u32)
+            .arg_named("shadow_light", self.shadow_light.unwrap_or(u32::MAX));
+        let kernel = builder.build().context("creating the render kernel")?;
+        let shadow_passes = match self.shadow_light {
+            Some(_) => Some(shadows::ShadowPasses::new(
+                &self.gpu,
+                &program,
+                [self.width() as usize, self.height() as usize],
+                self.shadow_sampling,
+                &self._scene,
+                &self.debug_counters,
+                self.buffer(BufferId::ShadowPixels),
+            )?),
+            None => None,
+        };
+        Ok((kernel, shadow_passes))
     }
     /// The names of the render kernel's arguments in the order they are bound.
     pub fn argument_names() -> Vec<&'static str> {
@@ -304,6 +349,7 @@ impl Renderer {
             "range_first",
             "sample_base",
             "sample_count",
+            "shadow_light",
         ]);
         v
     }
@@ -357,6 +403,19 @@ impl Renderer {
     pub fn render_rows(&mut self, count: u32, rows: std::ops::Range<u32>) -> Result<LaunchStats> {
         if count == 0 {
             return Ok(LaunchStats::default());
+        }
+        if self.samples_done == 0
+            && let Some(passes) = &self.shadow_passes
+        {
+            // Over the whole image, whatever the rows: a device of a split frame computes
+            // every pixel's receiver and slopes (they depend on the pixel alone), so its
+            // film holds the same shadow pixels as one device's would.
+            let (rays, time) = passes.run()?;
+            let frame = self.frame();
+            let pixels = frame.host_slice::<crate::layout::ShadowPixel>(BufferId::ShadowPixels)?;
+            self.shadow_stats = Some(shadows::shadow_stats(pixels, rays, time));
+            self.rays_total += rays;
+            self.kernel_time_total += time;
         }
         let rows = rows.start.min(self.height())..rows.end.min(self.height());
         let stats = if rows.is_empty() {
@@ -437,7 +496,8 @@ impl Renderer {
             .context("uploading the camera")?;
         if features != self.features {
             self.features = features;
-            self.kernel = Some(self.build_kernel()?);
+            let (kernel, shadow_passes) = self.build_kernels()?;
+            (self.kernel, self.shadow_passes) = (Some(kernel), shadow_passes);
         }
         self.scene_info = SceneInfo::new(scene, &self.arrays);
         self.reset()
@@ -464,6 +524,22 @@ impl Renderer {
             self.gpu.clone(),
             buffers,
         )
+    }
+
+    /// How the shadow output was sampled, and what it spent (after the first launch); None
+    /// without the shadow output.
+    pub fn shadow_stats(&self) -> Option<(ShadowSampling, ShadowStats)> {
+        Some((self.shadow_passes.as_ref()?.sampling(), self.shadow_stats?))
+    }
+
+    /// One of the output buffers (a one-element stand-in when not gathered).
+    fn buffer(&self, id: BufferId) -> &Buffer<u8> {
+        &self
+            .buffers
+            .iter()
+            .find(|(i, _)| *i == id)
+            .expect("every buffer is allocated")
+            .1
     }
 
     /// The debug counters (all zero unless built with `debug_counters`), named by

@@ -195,6 +195,9 @@ pub struct Triangle {
     pub n: [Vec3; 3],
     pub uv: [Vec2; 3],
     pub material: u32,
+    /// The object the triangle belongs to: one number per part of each `[[mesh]]`, in file
+    /// order (filters that must not mix surfaces, e.g. AAF's slope fill, compare it).
+    pub object: u32,
 }
 
 impl Triangle {

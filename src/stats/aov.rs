@@ -17,7 +17,7 @@ use anyhow::{Result, anyhow, bail};
 use super::{RenderRecord, feature_variance_sums};
 use crate::imaging::{RgbImage, colormap, to_srgb8, write_atomically, write_rgb8_png};
 use crate::layout::outputs::{BufferId, ChannelScale, OUTPUTS, Output, OutputSet};
-use crate::layout::{FilterVector, SKY_DEPTH, WelfordSums};
+use crate::layout::{FilterVector, SKY_DEPTH, ShadowPixel, WelfordSums};
 use crate::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 
 /// The header attribute that holds the render record.
@@ -279,6 +279,30 @@ pub fn aov_pictures(frame: &Frame, exposure: f32) -> Result<Vec<(&'static str, V
                 .collect();
             out.push((name, bytes));
         }
+    }
+    if frame.outputs().contains(Output::Shadows) {
+        // AAF's shadow output: the light samples per pixel (the spp map, colour-mapped from 0
+        // to the most any pixel took) and the noisy visibility h_n (grey; black where no
+        // receiver).
+        let px: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
+        let most = px.iter().map(|p| p.samples).fold(0.0f32, f32::max).max(1.0);
+        let spp: Vec<u8> = px
+            .iter()
+            .flat_map(|p| colormap((p.samples / most) as f64))
+            .collect();
+        let visibility: Vec<u8> = px
+            .iter()
+            .flat_map(|p| {
+                let v = if p.weight > 0.0 {
+                    p.visible / p.weight
+                } else {
+                    0.0
+                };
+                [(v.clamp(0.0, 1.0) * 255.0).round() as u8; 3]
+            })
+            .collect();
+        out.push(("shadow_spp", spp));
+        out.push(("shadow_visibility", visibility));
     }
     Ok(out)
 }

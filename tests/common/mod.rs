@@ -1,6 +1,7 @@
 //! Shared test helpers: the device (PoCL in CI), small scenes, image statistics.
 #![allow(dead_code)]
 
+pub mod aaf;
 pub mod merge;
 
 use std::path::{Path, PathBuf};

@@ -21,30 +21,66 @@
 //!   colours cannot overflow. Weights are computed in f32; `exp(−d)` for d ≥ 105 is 0 in f32
 //!   and is not evaluated.
 
+use super::kernel;
 use super::mi::MiWorkspace;
-use super::preprocess::{self, OffsetTable, PixelRng, Selection};
-use super::samples::{FLOATS_PER_SAMPLE, SampleSet, to_floats};
+use super::cpu::Level;
+use super::preprocess::{self, OffsetTable, PixelRng};
+use super::select::{self, FeatureLine, SelectScratch, Selection};
+use super::gather::{self, RestLine, ROWS};
+use super::samples::{FLOATS_PER_SAMPLE, SampleSet};
 use super::weights::{self, COLORS, Dependencies, FEATURES, POSITIONS, RANDOMS, Weights};
-use super::{RangeColors, RpfSettings};
+use super::{MiBucketing, RangeColors, RpfSettings};
+use crate::imaging::RgbImage;
+use rayon::prelude::*;
 
-/// Offsets of the element groups in the 26 floats of a sample vector (Table 5.1).
+/// Numbers of the mutual-information variables (the 26 elements of Table 5.1): screen
+/// position, random parameters, features, colour.
 const P0: usize = 0;
 const R0: usize = P0 + POSITIONS;
 const F0: usize = R0 + RANDOMS;
 const C0: usize = F0 + FEATURES;
-/// The current colours follow the 26 elements in the scratch rows.
-const CUR0: usize = FLOATS_PER_SAMPLE;
-const ROWS: usize = FLOATS_PER_SAMPLE + COLORS;
+/// The gathered row of each variable.
+const MI_ROWS: [usize; FLOATS_PER_SAMPLE] = {
+    let mut rows = [0; FLOATS_PER_SAMPLE];
+    let mut v = 0;
+    while v < FLOATS_PER_SAMPLE {
+        rows[v] = match v {
+            _ if v < R0 => gather::P_ROW + v - P0,
+            _ if v < F0 => gather::R_ROW + v - R0,
+            _ if v < C0 => gather::F_ROW + v - F0,
+            _ => gather::C_ROW + v - C0,
+        };
+        v += 1;
+    }
+    rows
+};
+/// The rows standardised over N: the 26 elements and the current colours.
+const STANDARDIZED: [usize; FLOATS_PER_SAMPLE + COLORS] = {
+    let mut rows = [0; FLOATS_PER_SAMPLE + COLORS];
+    let mut k = 0;
+    while k < FLOATS_PER_SAMPLE {
+        rows[k] = MI_ROWS[k];
+        k += 1;
+    }
+    while k < FLOATS_PER_SAMPLE + COLORS {
+        rows[k] = gather::CUR_ROW + k - FLOATS_PER_SAMPLE;
+        k += 1;
+    }
+    rows
+};
 /// Dimensions of the weight of eq. 5.2: 3 colours + 15 features.
 const DIMS: usize = COLORS + FEATURES;
-/// exp(−d) is 0 in f32 from here on.
-const EXP_CUTOFF: f32 = 105.0;
+const _: () = assert!(DIMS == kernel::MAX_DIMS);
 
 /// Per-iteration constants shared by all pixels.
 pub(super) struct Iteration<'a> {
     pub set: &'a SampleSet,
-    /// Colours of the previous iteration (the originals in the first), one per sample.
-    pub current: &'a [[f32; 3]],
+    /// [`FeatureLine::of`] every sample.
+    pub lines: &'a [FeatureLine],
+    /// [`RestLine::of`] every sample, with the current colours of this iteration.
+    pub rest: &'a [RestLine],
+    /// The instruction-set level of the inner loops.
+    pub level: Level,
     pub settings: &'a RpfSettings,
     /// 0-based iteration index (t of eqs. 5.9 and 5.14).
     pub t: u32,
@@ -58,14 +94,18 @@ pub(super) struct Iteration<'a> {
 impl<'a> Iteration<'a> {
     pub fn new(
         set: &'a SampleSet,
-        current: &'a [[f32; 3]],
+        lines: &'a [FeatureLine],
+        rest: &'a [RestLine],
+        level: Level,
         settings: &'a RpfSettings,
         t: u32,
         box_size: u32,
     ) -> Self {
         Iteration {
             set,
-            current,
+            lines,
+            rest,
+            level,
             settings,
             t,
             table: OffsetTable::new(box_size),
@@ -90,9 +130,9 @@ pub(super) fn max_neighbours(box_size: u32, spp: u32, fraction: f32) -> usize {
 
 /// Reusable per-thread buffers (no allocation per pixel once grown).
 pub(super) struct Scratch {
-    visited: Vec<u64>,
+    select: SelectScratch,
     indices: Vec<u32>,
-    /// `ROWS` rows of `cap` values: the 26 elements, then the current colours.
+    /// `ROWS` rows of `cap` values: the elements of the rest and feature lines ([`gather`]).
     rows: Vec<f32>,
     cap: usize,
     current: Vec<[f32; 3]>,
@@ -103,16 +143,19 @@ pub(super) struct Scratch {
 }
 
 impl Scratch {
-    pub fn new(buckets: usize) -> Scratch {
+    pub fn new(settings: &RpfSettings, level: Level) -> Scratch {
         Scratch {
-            visited: Vec::new(),
+            select: SelectScratch::default(),
             indices: Vec::new(),
             rows: Vec::new(),
             cap: 0,
             current: Vec::new(),
             dims: Vec::new(),
             dist: Vec::new(),
-            mi: MiWorkspace::new(buckets),
+            mi: match settings.mi_bucketing {
+                MiBucketing::Range => MiWorkspace::with_level(settings.mi_buckets, level),
+                MiBucketing::Unit => MiWorkspace::unit(level),
+            },
         }
     }
 
@@ -123,7 +166,6 @@ impl Scratch {
             let cap = n.max(self.cap * 3 / 2).next_multiple_of(16) + 16;
             self.rows.resize(ROWS * cap, 0.0);
             self.dims.resize(DIMS * cap, 0.0);
-            self.dist.resize(cap, 0.0);
             self.cap = cap;
         }
     }
@@ -146,6 +188,7 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
     let mut rng = PixelRng::new(s.seed, pixel, it.t);
     let sel = Selection {
         samples: &set.samples,
+        lines: it.lines,
         width: set.width,
         height: set.height,
         spp: set.spp,
@@ -155,37 +198,31 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
         kappa_other: s.feature_tolerance as f64,
         floor: s.tolerance_floor as f64,
     };
-    preprocess::select(
+    select::select(
         &sel,
+        it.level,
         x,
         y,
         &mut rng,
-        &mut scratch.visited,
+        &mut scratch.select,
         &mut scratch.indices,
     );
     let n = scratch.indices.len();
     scratch.ensure(n);
     let cap = scratch.cap;
-    // Gather N into rows (structure of arrays).
-    scratch.current.clear();
-    for (j, &index) in scratch.indices.iter().enumerate() {
-        let v = to_floats(&set.samples[index as usize]);
-        for (e, &value) in v.iter().enumerate() {
-            scratch.rows[e * cap + j] = value;
-        }
-        let c = it.current[index as usize];
-        for (k, &value) in c.iter().enumerate() {
-            scratch.rows[(CUR0 + k) * cap + j] = value;
-        }
-        scratch.current.push(c);
-    }
+    gather::gather(
+        it.level,
+        &scratch.indices,
+        (it.lines, it.rest),
+        &mut scratch.rows,
+        cap,
+        &mut scratch.current,
+    );
     // Alg. 6 lines 15-18: standardise every element over N.
-    for r in 0..ROWS {
-        preprocess::standardize(&mut scratch.rows[r * cap..r * cap + n]);
-    }
+    preprocess::standardize_rows(it.level, &mut scratch.rows, cap, &STANDARDIZED, n);
     // Alg. 7 on the 26 original elements.
     let mi = &mut scratch.mi;
-    mi.load(&scratch.rows, FLOATS_PER_SAMPLE, cap, n);
+    mi.load(&scratch.rows, &MI_ROWS, cap, n);
     let mut d = Dependencies::default();
     for k in 0..COLORS {
         for l in 0..RANDOMS {
@@ -229,60 +266,67 @@ pub(super) fn filter_pixel(
     // Fold α, β and 1/(2σ²) into the coordinates: the exponent of eq. 5.2 becomes a squared
     // distance. Dimensions with a zero factor are left out.
     let color_row = match it.settings.range_colors {
-        RangeColors::Current => CUR0,
-        RangeColors::Original => C0,
+        RangeColors::Current => gather::CUR_ROW,
+        RangeColors::Original => gather::C_ROW,
     };
     let mut active = 0;
     let factors = (0..COLORS)
         .map(|k| (color_row + k, w.alpha[k] as f64))
-        .chain((0..FEATURES).map(|k| (F0 + k, w.beta[k] as f64)));
+        .chain((0..FEATURES).map(|k| (gather::F_ROW + k, w.beta[k] as f64)));
     for (row, factor) in factors {
         let scale = (factor * inv).sqrt() as f32;
         if !(scale > 0.0 && scale.is_finite()) {
             continue;
         }
-        let (src, dst) = (row * cap, active * cap);
-        for j in 0..n {
-            scratch.dims[dst + j] = scale * scratch.rows[src + j];
+        let src = &scratch.rows[row * cap..row * cap + n];
+        let dst = &mut scratch.dims[active * cap..active * cap + n];
+        for (d, &r) in dst.iter_mut().zip(src) {
+            *d = scale * r;
         }
         active += 1;
     }
     let spp = it.set.spp as usize;
-    for (i, o) in out.iter_mut().enumerate().take(spp) {
-        let dist = &mut scratch.dist[..n];
-        dist.fill(0.0);
-        for a in 0..active {
-            let row = &scratch.dims[a * cap..a * cap + n];
-            let centre = row[i];
-            for (d, &v) in dist.iter_mut().zip(row) {
-                let t = v - centre;
-                *d += t * t;
-            }
-        }
-        let ci = scratch.current[i];
-        let mut sum_w = 0.0f64;
-        let mut acc = [0.0f64; 3];
-        for (d, cj) in dist.iter().zip(&scratch.current) {
-            if *d >= EXP_CUTOFF {
-                continue;
-            }
-            let wij = (-*d).exp() as f64;
-            sum_w += wij;
-            for k in 0..3 {
-                acc[k] += wij * (cj[k] as f64 - ci[k] as f64);
-            }
-        }
-        // sum_w ≥ 1: sample i is in N with distance 0.
-        *o = std::array::from_fn(|k| {
-            let v = ci[k] as f64 + acc[k] / sum_w;
-            v.clamp(-(f32::MAX as f64), f32::MAX as f64) as f32
-        });
-    }
+    let nb = kernel::Neighbourhood {
+        dims: &scratch.dims,
+        cap,
+        active,
+        current: &scratch.current[..n],
+    };
+    kernel::weigh(it.level, &nb, &mut out[..spp], &mut scratch.dist);
     info
 }
 
 /// The neighbourhood size and weights of one pixel (no filtering).
 pub(super) fn analyze_pixel(it: &Iteration<'_>, x: u32, y: u32) -> PixelInfo {
-    let mut scratch = Scratch::new(it.settings.mi_buckets);
+    let mut scratch = Scratch::new(it.settings, it.level);
     analyze(it, x, y, &mut scratch)
+}
+
+/// The mean of the 3 × 3 pixels around each pixel (those inside the image), in f64, in row
+/// order.
+pub(super) fn box3(img: &RgbImage) -> RgbImage {
+    let (w, h) = (img.width as i64, img.height as i64);
+    let pixels = (0..h * w)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut acc = [0.0f64; 3];
+            let mut count = 0.0;
+            for qy in (y - 1).max(0)..=(y + 1).min(h - 1) {
+                for qx in (x - 1).max(0)..=(x + 1).min(w - 1) {
+                    let p = img.pixels[(qy * w + qx) as usize];
+                    for k in 0..3 {
+                        acc[k] += p[k] as f64;
+                    }
+                    count += 1.0;
+                }
+            }
+            acc.map(|a| (a / count) as f32)
+        })
+        .collect();
+    RgbImage {
+        width: img.width,
+        height: img.height,
+        pixels,
+    }
 }

@@ -14,8 +14,15 @@
 //! 5, the value the NVIDIA reference implementation of RPF settled on ("5 should be pretty close
 //! to Sen's implementation, based on the cited Matlab code" of Peng et al.).
 //!
+//! The other reading, Peng's unit-wide buckets on the standardised values
+//! ([`super::RpfSettings::mi_bucketing`] = "unit"), is in [`super::mi_unit`].
+//!
 //! The histogram estimate can come out a rounding error below zero for independent variables;
 //! it is clamped to 0 (mutual information is never negative).
+
+use super::bitsets::JointInput;
+use super::mi_unit;
+use super::cpu::Level;
 
 /// Most buckets per variable ([`super::RpfSettings::mi_buckets`] is checked against it).
 pub const MAX_BUCKETS: usize = 16;
@@ -128,79 +135,153 @@ pub fn mutual_information(x: &[f32], y: &[f32], buckets: usize) -> f64 {
     mi.max(0.0)
 }
 
-/// The same estimate for many pairs of one neighbourhood, without allocating: every variable is
-/// quantised once, marginal entropies are computed once, and each pair costs one pass that
-/// counts into four interleaved joint histograms (so consecutive samples in the same bucket do
-/// not wait on each other's increments). Entropies use a table of c·log₂ c:
-/// H = log₂ n − (1/n) Σ c log₂ c. Gives the same values as [`mutual_information`] up to
-/// rounding (the unit tests compare them).
+/// The same estimate for many pairs of one neighbourhood, without allocating. Every variable is
+/// quantised once into one bitset per bucket (bit j set when sample j falls in the bucket), and
+/// its marginal entropy computed once. A joint count is then the population count of the AND of
+/// two bitsets: `(B_x − 1)(B_y − 1)` sweeps of n/64 words for a pair whose variables fill B_x and
+/// B_y buckets (the last row and column follow from the marginal counts), instead of one
+/// histogram increment per sample. The counts are exact integers, so the estimate is the same
+/// whatever the instruction set ([`super::cpu`]). Entropies use a table of c·log₂ c:
+/// H = log₂ n − (1/n) Σ c log₂ c, summed in bucket order. Gives the same values as
+/// [`mutual_information`] up to rounding (the unit tests compare them).
 #[derive(Clone, Debug)]
 pub struct MiWorkspace {
     buckets: usize,
     vars: usize,
     n: usize,
-    /// Bucket codes, variable-major with stride `n`.
+    /// 64-bit words per bitset: ⌈n / 64⌉.
+    words: usize,
+    /// Bucket codes of the variable being loaded.
     codes: Vec<u8>,
+    /// Bitsets, variable-major, then bucket: `masks[(v · B + b) · words ..][..words]`.
+    masks: Vec<u64>,
+    /// Samples per bucket, `counts[v · B + b]`.
+    counts: Vec<u32>,
     /// Entropy of each variable.
     entropy: Vec<f64>,
     /// Whether a variable fills more than one bucket (otherwise every μ with it is 0).
     varies: Vec<bool>,
     /// c · log₂ c for c = 0, 1, ...
     xlogx: Vec<f64>,
-    hist: Vec<u32>,
+    /// Joint counts of the last pair, `B × B`.
+    joint: Vec<u32>,
+    level: Level,
+    /// Peng's unit buckets ([`super::mi_unit`]) instead of `B` over the range.
+    unit: bool,
+    /// Unit buckets: the states of each variable, variable-major (`n` each), their number,
+    /// and scratch.
+    states: Vec<u16>,
+    count: Vec<usize>,
+    table: Vec<u32>,
 }
 
 impl MiWorkspace {
+    /// A workspace for `buckets` buckets per variable, on the best instruction set of this CPU.
     pub fn new(buckets: usize) -> MiWorkspace {
+        Self::with_level(buckets, Level::detect())
+    }
+
+    /// A workspace that uses instruction-set level `level` (one of [`Level::available`]).
+    pub fn with_level(buckets: usize, level: Level) -> MiWorkspace {
         assert!((2..=MAX_BUCKETS).contains(&buckets));
         MiWorkspace {
             buckets,
             vars: 0,
             n: 0,
+            words: 0,
             codes: Vec::new(),
+            masks: Vec::new(),
+            counts: Vec::new(),
             entropy: Vec::new(),
             varies: Vec::new(),
             xlogx: vec![0.0],
-            hist: vec![0; 4 * buckets * buckets],
+            joint: vec![0; buckets * buckets],
+            level,
+            unit: false,
+            states: Vec::new(),
+            count: Vec::new(),
+            table: Vec::new(),
         }
     }
 
-    /// Quantises `vars` variables of `n` samples each, `values[v * stride .. v * stride + n]`.
-    pub fn load(&mut self, values: &[f32], vars: usize, stride: usize, n: usize) {
-        assert!(n <= stride && values.len() >= vars * stride);
+    /// A workspace with Peng's unit buckets ([`super::mi_unit`]).
+    pub fn unit(level: Level) -> MiWorkspace {
+        MiWorkspace {
+            unit: true,
+            ..Self::with_level(MAX_BUCKETS, level)
+        }
+    }
+
+    /// Quantises `rows.len()` variables of `n` samples each: variable v is
+    /// `values[rows[v] * stride..][..n]`.
+    pub fn load(&mut self, values: &[f32], rows: &[usize], stride: usize, n: usize) {
+        let vars = rows.len();
+        assert!(n <= stride && rows.iter().all(|&r| values.len() >= (r + 1) * stride));
+        let b = self.buckets;
+        let words = n.div_ceil(64);
         self.vars = vars;
         self.n = n;
-        self.codes.resize(vars * n, 0);
+        self.words = words;
+        self.codes.resize(n, 0);
+        self.masks.resize(vars * b * words, 0);
+        self.counts.resize(vars * b, 0);
         self.entropy.resize(vars, 0.0);
         self.varies.resize(vars, false);
         while self.xlogx.len() <= n {
             let c = self.xlogx.len() as f64;
             self.xlogx.push(c * c.log2());
         }
-        let b = self.buckets;
+        if self.unit {
+            self.states.resize(vars * n, 0);
+            self.count.resize(vars, 0);
+        }
         for v in 0..vars {
-            let codes = &mut self.codes[v * n..(v + 1) * n];
-            let populated = quantize(&values[v * stride..v * stride + n], b, codes);
+            let values = &values[rows[v] * stride..rows[v] * stride + n];
+            let masks = &mut self.masks[v * b * words..(v + 1) * b * words];
+            let counts = &mut self.counts[v * b..(v + 1) * b];
+            if self.unit {
+                let states = &mut self.states[v * n..(v + 1) * n];
+                let p = mi_unit::quantize_unit(values, states, &mut self.table);
+                self.count[v] = p;
+                let mut all = vec![0u32; p];
+                for &c in states.iter() {
+                    all[c as usize] += 1;
+                }
+                if p <= b {
+                    for (c, &s) in self.codes.iter_mut().zip(states.iter()) {
+                        *c = s as u8;
+                    }
+                    self.level.bitsets(&self.codes, b, words, masks);
+                    counts.fill(0);
+                    counts[..p].copy_from_slice(&all);
+                }
+                self.varies[v] = p > 1;
+                self.entropy[v] = if p > 1 {
+                    entropy_from(&self.xlogx, &all, n)
+                } else {
+                    0.0
+                };
+                continue;
+            }
+            let populated = match self.level.quantize_bitsets(values, b, words, masks, counts) {
+                Some(populated) => populated,
+                None => {
+                    let populated = quantize(values, b, &mut self.codes);
+                    self.level.bitsets(&self.codes, b, words, masks);
+                    counts.fill(0);
+                    for &c in &self.codes {
+                        counts[c as usize] += 1;
+                    }
+                    populated
+                }
+            };
             self.varies[v] = populated > 1;
             self.entropy[v] = if populated > 1 {
-                let mut counts = [0u32; MAX_BUCKETS];
-                for &c in codes.iter() {
-                    counts[c as usize] += 1;
-                }
-                self.entropy_from(&counts[..b])
+                entropy_from(&self.xlogx, counts, n)
             } else {
                 0.0
             };
         }
-    }
-
-    fn entropy_from(&self, counts: &[u32]) -> f64 {
-        if self.n == 0 {
-            return 0.0;
-        }
-        let s: f64 = counts.iter().map(|&c| self.xlogx[c as usize]).sum();
-        let n = self.n as f64;
-        (n.log2() - s / n).max(0.0)
     }
 
     /// Entropy in bits of variable `v`.
@@ -213,32 +294,52 @@ impl MiWorkspace {
         if !self.varies[x] || !self.varies[y] {
             return 0.0;
         }
-        let (n, b) = (self.n, self.buckets);
-        let bb = b * b;
-        let hist = &mut self.hist[..4 * bb];
-        hist.fill(0);
-        let cx = &self.codes[x * n..(x + 1) * n];
-        let cy = &self.codes[y * n..(y + 1) * n];
-        let mut ix = cx.chunks_exact(4);
-        let mut iy = cy.chunks_exact(4);
-        for (a, c) in (&mut ix).zip(&mut iy) {
-            hist[a[0] as usize * b + c[0] as usize] += 1;
-            hist[bb + a[1] as usize * b + c[1] as usize] += 1;
-            hist[2 * bb + a[2] as usize * b + c[2] as usize] += 1;
-            hist[3 * bb + a[3] as usize * b + c[3] as usize] += 1;
+        if self.unit && (self.count[x] > self.buckets || self.count[y] > self.buckets) {
+            // A wide variable: its joint histogram counted directly, summed row-major.
+            let n = self.n;
+            let (px, py) = (self.count[x], self.count[y]);
+            let (sx, sy) = (
+                &self.states[x * n..(x + 1) * n],
+                &self.states[y * n..(y + 1) * n],
+            );
+            let mut joint = std::mem::take(&mut self.table);
+            mi_unit::joint_counts(sx, sy, px, py, &mut joint);
+            let s: f64 = joint.iter().map(|&c| self.xlogx[c as usize]).sum();
+            self.table = joint;
+            let nf = n as f64;
+            let h = (nf.log2() - s / nf).max(0.0);
+            return (self.entropy[x] + self.entropy[y] - h).max(0.0);
         }
-        for (&a, &c) in ix.remainder().iter().zip(iy.remainder()) {
-            hist[a as usize * b + c as usize] += 1;
-        }
-        let mut s = 0.0;
-        for k in 0..bb {
-            let c = hist[k] + hist[bb + k] + hist[2 * bb + k] + hist[3 * bb + k];
-            s += self.xlogx[c as usize];
-        }
-        let nf = n as f64;
+        let (b, words) = (self.buckets, self.words);
+        let set = |v: usize| &self.masks[v * b * words..(v + 1) * b * words];
+        let count = |v: usize| &self.counts[v * b..(v + 1) * b];
+        self.level.joint_counts(
+            JointInput {
+                mx: set(x),
+                my: set(y),
+                cx: count(x),
+                cy: count(y),
+                buckets: b,
+                words,
+            },
+            &mut self.joint,
+        );
+        // Σ c log₂ c over the joint histogram, in bucket order (zeros add exactly 0).
+        let s: f64 = self.joint.iter().map(|&c| self.xlogx[c as usize]).sum();
+        let nf = self.n as f64;
         let joint = (nf.log2() - s / nf).max(0.0);
         (self.entropy[x] + self.entropy[y] - joint).max(0.0)
     }
+}
+
+/// H = log₂ n − (1/n) Σ c log₂ c in bits, from bucket counts of n samples.
+fn entropy_from(xlogx: &[f64], counts: &[u32], n: usize) -> f64 {
+    if n == 0 {
+        return 0.0;
+    }
+    let s: f64 = counts.iter().map(|&c| xlogx[c as usize]).sum();
+    let n = n as f64;
+    (n.log2() - s / n).max(0.0)
 }
 
 #[cfg(test)]
@@ -264,7 +365,7 @@ mod tests {
             values[2048 + j] = 3.0; // constant
         }
         let mut ws = MiWorkspace::new(5);
-        ws.load(&values, 3, 1024, n);
+        ws.load(&values, &[0, 1, 2], 1024, n);
         let x = &values[..n];
         let y = &values[1024..1024 + n];
         let z = &values[2048..2048 + n];
@@ -274,6 +375,50 @@ mod tests {
         assert_eq!(ws.mi(0, 2), 0.0);
         assert_eq!(mutual_information(x, z, 5), 0.0);
         assert!((ws.mi(0, 0) - ws.entropy(0)).abs() < 1e-9);
+    }
+
+    /// Every instruction-set path gives the same bits, for sample counts on and off a multiple
+    /// of 64, every bucket count, and variables that fill one, some or all buckets.
+    #[test]
+    fn every_instruction_set_gives_the_same_bits() {
+        let levels = Level::available();
+        let mut st = 11u64;
+        for n in [1, 63, 64, 65, 700, 1283] {
+            let vars = 5;
+            let mut values = vec![0.0f32; vars * n];
+            for j in 0..n {
+                let a = lcg(&mut st);
+                values[j] = a;
+                values[n + j] = a * a + 0.2 * lcg(&mut st);
+                values[2 * n + j] = lcg(&mut st);
+                values[3 * n + j] = if a < 0.3 { 1.0 } else { 2.0 };
+                values[4 * n + j] = -1.0;
+            }
+            for buckets in [2, 5, 8, 16] {
+                let all: Vec<Vec<u64>> = levels
+                    .iter()
+                    .map(|&level| {
+                        let mut ws = MiWorkspace::with_level(buckets, level);
+                        ws.load(&values, &[0, 1, 2, 3, 4], n, n);
+                        let mut bits = Vec::new();
+                        for x in 0..vars {
+                            bits.push(ws.entropy(x).to_bits());
+                            for y in 0..vars {
+                                bits.push(ws.mi(x, y).to_bits());
+                            }
+                        }
+                        bits
+                    })
+                    .collect();
+                for (level, bits) in levels.iter().zip(&all) {
+                    assert_eq!(bits, &all[0], "{level:?}, n {n}, {buckets} buckets");
+                }
+                let mut ws = MiWorkspace::new(buckets);
+                ws.load(&values, &[0, 1, 2, 3, 4], n, n);
+                let plain = mutual_information(&values[..n], &values[n..2 * n], buckets);
+                assert!((ws.mi(0, 1) - plain).abs() < 1e-9, "n {n}, {buckets} buckets");
+            }
+        }
     }
 
     #[test]

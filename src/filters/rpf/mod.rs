@@ -23,28 +23,57 @@
 //! one core, Table 5.3), so a multi-threaded host implementation that is simple to check is the
 //! better trade. The renderer only has to copy the sample vectors back.
 //!
+//! # Speed (issue 14: ≤ 40 s per 512 × 512 frame at 8 spp on 2 cores, results unchanged)
+//!
+//! Per pixel and iteration the work is: ~M random draws (12,100 at b = 55), an acceptance test
+//! of every distinct drawn sample, the gather and standardisation of N (~2,400 samples at
+//! b = 55 on Cornell diffuse), 26 variables bucketed and ~190 mutual informations, and eq. 5.18
+//! for the pixel's samples over N. Each step has a plain path and an AVX-512 path chosen at
+//! run time ([`cpu::Level`]); every path gives the same bytes (tests/rpf_levels.rs compares
+//! them, and the golden images of the commits that made them fast are bit-identical to
+//! before):
+//!
+//! * draws: 16 at a time on speculation, hashed at their stream positions (`draws.rs`);
+//! * acceptance test: exact f32 intervals on 64-byte feature lines, prefetched ([`select`]);
+//! * gather: 16 × 16 transposes of the feature and sample lines ([`gather`]);
+//! * standardisation: four rows' f64 sums side by side, each in the plain order
+//!   ([`preprocess::standardize_rows`]);
+//! * mutual information: buckets as bitsets, joint counts by population count (`bitsets.rs`);
+//! * eq. 5.18: the pixel's samples in f64 lanes, glibc's `expf` reproduced bit for bit
+//!   ([`kernel`]).
+//!
+//! Measured side by side on the loaded 2-core build machine: results/README.md ("RPF speed").
+//!
 //! # Determinism
 //!
 //! The random numbers of a pixel are a counter-based hash of (seed, pixel, iteration)
 //! ([`preprocess::PixelRng`]); nothing depends on thread ids or on the order pixels are done
 //! in, and each pixel's sums run in a fixed order. The same seed gives the same bytes with any
-//! number of threads (tests/rpf.rs).
+//! number of threads (tests/rpf.rs) and on any instruction-set level (tests/rpf_levels.rs).
 //!
 //! # Memory
 //!
 //! The sample vectors need 26 · 4 · spp · W · H bytes ([`samples::memory_bytes`];
 //! [`samples::check_memory`] says before allocating whether they fit and how many spp or rows
-//! would). The filter adds two colours per sample (24 bytes) and, per thread, scratch for the
-//! largest neighbourhood (≈ 29 · 4 · 2 · M bytes); allocations that fail are errors, not
+//! would). The filter adds two colours and two 64-byte lines per sample (24 + 128 bytes:
+//! [`select::FeatureLine`], [`gather::RestLine`]) and, per thread, scratch for the
+//! largest neighbourhood (≈ 51 · 4 · 1.5 · M bytes); allocations that fail are errors, not
 //! aborts.
 
+mod bitsets;
+pub mod cpu;
+mod draws;
+pub mod gather;
+pub mod kernel;
 pub mod mi;
+pub mod mi_unit;
 pub mod preprocess;
+mod run;
+pub mod select;
 pub mod weights;
 
 mod filter;
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
@@ -52,14 +81,12 @@ use anyhow::{Context as _, Result, bail};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Auto, FilterKind, FilterRun, PreparedFilter};
-use crate::gpu::Gpu;
+use super::Auto;
 use crate::imaging::RgbImage;
-use crate::layout::outputs::{Output, OutputSet};
-use crate::render::{Frame, FrameInfo, SceneInfo};
 use crate::scene::Setting;
 pub use crate::stats::samples::{self, SampleSet, check_memory, memory_bytes};
 pub use filter::PixelInfo;
+pub use run::{Progress, Rpf, RpfRun, progress_bar_callback};
 pub use weights::Weights;
 
 /// σ²_8 of eq. 5.17 for indoor scenes ("noisy").
@@ -87,6 +114,16 @@ pub enum RangeColors {
     Original,
 }
 
+/// How Alg. 7 buckets a variable (see [`mi`], [`mi_unit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MiBucketing {
+    /// `mi_buckets` equal buckets over the variable's range in N.
+    Range,
+    /// Peng's: one bucket per standard deviation (the standardised value rounded).
+    Unit,
+}
+
 crate::filter_settings! {
     /// Parameters of RPF (thesis ch. 5).
     pub struct RpfSettings, flags "rpf-" {
@@ -101,6 +138,10 @@ crate::filter_settings! {
         /// Histogram buckets per variable for the mutual information (Alg. 7; 2 to 16), as in
         /// the NVIDIA reference implementation.
         pub mi_buckets: usize = 5,
+        /// Buckets of Alg. 7: "range" (`mi_buckets` equal buckets over each variable's range
+        /// in N) or "unit" (one per standard deviation of the standardised values: Peng's
+        /// rounding, the code Sen & Darabi cite; `mi_buckets` is then unused).
+        pub mi_bucketing: MiBucketing = MiBucketing::Range,
         /// M = ⌊b² · spp · sample_fraction⌋ samples considered per pixel (§5.1.2: ½).
         pub sample_fraction: f32 = 0.5,
         /// Standard deviations a world position may lie from the pixel's mean (Alg. 6 line 8:
@@ -114,6 +155,10 @@ crate::filter_settings! {
         /// Colours of the range term of eq. 5.2: "current" (the previous iteration's) or
         /// "original".
         pub range_colors: RangeColors = RangeColors::Current,
+        /// Side of the final box filter in pixels: 1, the mean of each pixel's filtered
+        /// samples (§5.1.4); 3, those means box-filtered over 3 × 3 pixels as well (§3.1.1's
+        /// box filter, the other reading of "each pixel is box-filtered").
+        pub final_box: u32 = 1,
     }
 }
 
@@ -167,6 +212,12 @@ impl RpfSettings {
                 bail!("RPF {name} must be at least 1 standard deviation, got {v}");
             }
         }
+        if !matches!(self.final_box, 1 | 3) {
+            bail!(
+                "RPF final_box must be 1 (each pixel's samples) or 3 (3 x 3 pixels), got {}",
+                self.final_box
+            );
+        }
         if !(self.tolerance_floor >= 0.0 && self.tolerance_floor.is_finite()) {
             bail!(
                 "RPF tolerance_floor must be finite and not negative, got {}",
@@ -174,50 +225,6 @@ impl RpfSettings {
             );
         }
         Ok(())
-    }
-}
-
-/// Where a running filter is (for progress bars).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Progress {
-    /// 0-based iteration.
-    pub iteration: usize,
-    pub iterations: usize,
-    pub box_size: u32,
-    /// Rows of this iteration done.
-    pub rows_done: u32,
-    pub rows: u32,
-}
-
-impl Progress {
-    /// Fraction of the whole filter done, weighting iterations by b² (their cost).
-    pub fn fraction(&self, box_sizes: &[u32]) -> f64 {
-        let cost = |b: &u32| (*b as f64).powi(2);
-        let total: f64 = box_sizes.iter().map(cost).sum();
-        let before: f64 = box_sizes[..self.iteration.min(box_sizes.len())]
-            .iter()
-            .map(cost)
-            .sum();
-        let this = cost(&self.box_size) * self.rows_done as f64 / self.rows.max(1) as f64;
-        ((before + this) / total.max(1.0)).min(1.0)
-    }
-}
-
-/// A progress callback that drives an indicatif bar of length 1000.
-pub fn progress_bar_callback(
-    bar: &indicatif::ProgressBar,
-    box_sizes: &[u32],
-) -> impl Fn(Progress) + Sync {
-    let bar = bar.clone();
-    let sizes = box_sizes.to_vec();
-    move |p: Progress| {
-        bar.set_position((p.fraction(&sizes) * 1000.0) as u64);
-        bar.set_message(format!(
-            "RPF iteration {}/{} (box {})",
-            p.iteration + 1,
-            p.iterations,
-            p.box_size
-        ));
     }
 }
 
@@ -249,6 +256,17 @@ pub fn filter_with_progress(
     settings: &RpfSettings,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<RpfOutput> {
+    filter_at_level(set, settings, cpu::Level::detect(), progress)
+}
+
+/// [`filter_with_progress`] on instruction-set level `level` (one of
+/// [`cpu::Level::available`]); every level gives the same bytes (tests/rpf.rs).
+pub fn filter_at_level(
+    set: &SampleSet,
+    settings: &RpfSettings,
+    level: cpu::Level,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<RpfOutput> {
     settings.validate()?;
     set.validate().context("RPF input")?;
     let need = working_memory_bytes(set.width, set.height, set.spp, settings);
@@ -267,6 +285,8 @@ pub fn filter_with_progress(
     }
     let (w, h, spp) = (set.width as usize, set.height as usize, set.spp as usize);
     let count = set.samples.len();
+    let lines = feature_lines(set)?;
+    let mut rest = rest_lines(set)?;
     let mut current = try_vec(count, "the RPF sample colours")?;
     current.extend(set.samples.iter().map(|s| s.color));
     let mut next = try_vec(count, "the RPF filtered colours")?;
@@ -275,11 +295,16 @@ pub fn filter_with_progress(
     let mut stats = Vec::with_capacity(iterations);
     for (t, &b) in settings.box_sizes.iter().enumerate() {
         let start = Instant::now();
-        let it = filter::Iteration::new(set, &current, settings, t as u32, b);
+        if t > 0 {
+            rest.par_iter_mut()
+                .zip(&current)
+                .for_each(|(line, &c)| line.set_current(c));
+        }
+        let it = filter::Iteration::new(set, &lines, &rest, level, settings, t as u32, b);
         let rows_done = AtomicU32::new(0);
         let neighbours = AtomicU64::new(0);
         next.par_chunks_mut(w * spp).enumerate().for_each_init(
-            || filter::Scratch::new(settings.mi_buckets),
+            || filter::Scratch::new(settings, level),
             |scratch, (y, row)| {
                 let mut sum = 0u64;
                 for x in 0..w {
@@ -322,12 +347,16 @@ pub fn filter_with_progress(
             })
         })
         .collect();
+    let mut image = RgbImage {
+        width: set.width,
+        height: set.height,
+        pixels,
+    };
+    if settings.final_box == 3 {
+        image = filter::box3(&image);
+    }
     Ok(RpfOutput {
-        image: RgbImage {
-            width: set.width,
-            height: set.height,
-            pixels,
-        },
+        image,
         iterations: stats,
     })
 }
@@ -358,13 +387,15 @@ pub fn analyze_pixel(
             set.height
         );
     }
-    let current: Vec<[f32; 3]> = set.samples.iter().map(|s| s.color).collect();
-    let it = filter::Iteration::new(set, &current, settings, iteration as u32, b);
+    let lines = feature_lines(set)?;
+    let rest = rest_lines(set)?;
+    let level = cpu::Level::detect();
+    let it = filter::Iteration::new(set, &lines, &rest, level, settings, iteration as u32, b);
     Ok(filter::analyze_pixel(&it, x, y))
 }
 
-/// Bytes RPF allocates besides the sample vectors: two colours per sample plus per-thread
-/// scratch for the largest neighbourhood.
+/// Bytes RPF allocates besides the sample vectors: two colours and two lines per sample
+/// plus per-thread scratch for the largest neighbourhood.
 pub fn working_memory_bytes(width: u32, height: u32, spp: u32, settings: &RpfSettings) -> u64 {
     let samples = width as u64 * height as u64 * spp as u64;
     let n = settings
@@ -373,11 +404,41 @@ pub fn working_memory_bytes(width: u32, height: u32, spp: u32, settings: &RpfSet
         .map(|&b| filter::max_neighbours(b, spp, settings.sample_fraction))
         .max()
         .unwrap_or(0) as u64;
-    // Scratch rows grow by half again (filter.rs): rows of 29 + 18 + 1 floats, 26 bucket
-    // codes, a current colour and an index per neighbour.
+    // Scratch rows grow by half again (filter.rs): per neighbour, rows of 32 + 18 + 1 floats,
+    // 26 variables' bucket bits (up to 16 buckets: 2 bytes each), a bucket code, a current
+    // colour, its index and a candidate index.
     let n = n + n / 2 + 32;
-    let per_thread = n * (4 * (26 + 3 + 18 + 1) + 26 + 12 + 4);
-    samples * 24 + per_thread * rayon::current_num_threads() as u64
+    let per_thread = n * (4 * (gather::ROWS as u64 + 18 + 1) + 26 * 2 + 1 + 12 + 8);
+    let lines = std::mem::size_of::<select::FeatureLine>() + std::mem::size_of::<gather::RestLine>();
+    samples * (24 + lines as u64)
+        + per_thread * rayon::current_num_threads() as u64
+}
+
+/// The features of every sample, one cache line each ([`select`]).
+fn feature_lines(set: &SampleSet) -> Result<Vec<select::FeatureLine>> {
+    lines_of(set, "feature", select::FeatureLine::of)
+}
+
+/// The other elements and the current colour of every sample, one cache line each
+/// ([`gather`]).
+fn rest_lines(set: &SampleSet) -> Result<Vec<gather::RestLine>> {
+    lines_of(set, "sample", gather::RestLine::of)
+}
+
+fn lines_of<T: Send>(
+    set: &SampleSet,
+    what: &str,
+    of: impl Fn(&crate::layout::SampleVector) -> T + Sync + Send,
+) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(set.samples.len()).map_err(|_| {
+        anyhow::anyhow!(
+            "cannot allocate {} for the RPF {what} lines",
+            samples::human_bytes(set.samples.len() as u64 * std::mem::size_of::<T>() as u64)
+        )
+    })?;
+    v.par_extend(set.samples.par_iter().map(of));
+    Ok(v)
 }
 
 fn try_vec(n: usize, what: &str) -> Result<Vec<[f32; 3]>> {
@@ -389,92 +450,4 @@ fn try_vec(n: usize, what: &str) -> Result<Vec<[f32; 3]>> {
         )
     })?;
     Ok(v)
-}
-
-/// RPF in the registry.
-pub struct Rpf;
-
-impl FilterKind for Rpf {
-    type Settings = RpfSettings;
-    const NAME: &'static str = "rpf";
-    const SUMMARY: &'static str =
-        "Random Parameter Filtering, thesis ch. 5 (on the host; slow, reads every sample)";
-
-    fn check(s: &RpfSettings) -> Result<()> {
-        s.validate()
-    }
-
-    /// σ²_8 on auto follows the scene's indoor/outdoor setting (§5.1.4).
-    fn specialise(s: &mut RpfSettings, scene: &SceneInfo) -> Vec<String> {
-        if !s.sigma2_8.is_auto() {
-            return Vec::new();
-        }
-        let v = sigma2_8_for(scene.setting);
-        s.sigma2_8 = Auto::Set(v);
-        vec![format!(
-            "sigma2_8 = {v}: the scene is {} (§5.1.4)",
-            match scene.setting {
-                Setting::Indoor => "indoors",
-                Setting::Outdoor => "outdoors",
-            }
-        )]
-    }
-
-    /// Every sample's vector (§5.1.1).
-    fn needs(_: &RpfSettings) -> OutputSet {
-        OutputSet::of(&[Output::Samples])
-    }
-
-    fn prepare(
-        s: &RpfSettings,
-        _frame: &FrameInfo,
-        _gpu: &Arc<Gpu>,
-    ) -> Result<Box<dyn PreparedFilter>> {
-        Ok(Box::new(RpfRun {
-            settings: s.clone(),
-            progress: false,
-        }))
-    }
-}
-
-/// RPF ready to run: it runs on the host, on the frame's sample vectors.
-pub struct RpfRun {
-    settings: RpfSettings,
-    progress: bool,
-}
-
-impl PreparedFilter for RpfRun {
-    fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
-        let start = Instant::now();
-        frame.require(Rpf::needs(&self.settings), "Random Parameter Filtering")?;
-        let set = SampleSet::from_frame(frame, Default::default())?;
-        let image = if self.progress {
-            let bar = indicatif::ProgressBar::new(1000);
-            bar.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{spinner} {msg:32} [{elapsed_precise}] {bar:30} ETA {eta}",
-                )
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-            );
-            let callback = progress_bar_callback(&bar, &self.settings.box_sizes);
-            let out = filter_with_progress(&set, &self.settings, &callback);
-            bar.finish_and_clear();
-            out?.image
-        } else {
-            filter(&set, &self.settings)?
-        };
-        Ok(FilterRun {
-            image,
-            wall_time: start.elapsed(),
-            kernel_time: None,
-        })
-    }
-
-    fn interactive(&self) -> bool {
-        false
-    }
-
-    fn show_progress(&mut self, on: bool) {
-        self.progress = on;
-    }
 }

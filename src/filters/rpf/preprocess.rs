@@ -38,6 +38,7 @@
 //!   `(x − μ_N) / σ_N` (population σ, f64); an element that is the same for every sample of N
 //!   (σ_N = 0) becomes 0 for all of them instead of 0/0.
 
+use super::cpu::Level;
 use crate::layout::SampleVector;
 
 /// Number of scene features (Table 5.1): world1, normal1, world2, normal2, texture1.
@@ -67,8 +68,9 @@ pub fn is_world_position(k: usize) -> bool {
 #[derive(Clone, Debug)]
 pub struct PixelRng(u64);
 
+/// SplitMix64's output function.
 #[inline]
-fn mix64(mut z: u64) -> u64 {
+pub(super) fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)
@@ -85,6 +87,12 @@ impl PixelRng {
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         mix64(self.0)
+    }
+
+    /// The counter, for generators that compute many values of the stream at once (value k
+    /// after this is `mix64(counter + k · golden)`, k = 1, 2, ...).
+    pub(super) fn raw(&mut self) -> &mut u64 {
+        &mut self.0
     }
 
     /// Uniform in [0, 1) with 53 random bits.
@@ -113,6 +121,10 @@ pub struct OffsetTable {
     /// gives `alias[k]`.
     keep: Vec<u64>,
     alias: Vec<u32>,
+    /// The table in u32 for at most 64 offsets (boxes up to 63): keep clamped to u32::MAX,
+    /// which changes nothing because a column that keeps itself always (2^32) is its own
+    /// alias.
+    small: Option<([u32; 64], [u32; 64])>,
 }
 
 impl OffsetTable {
@@ -150,13 +162,34 @@ impl OffsetTable {
                 small.push(l);
             }
         }
+        let small = (n <= 64).then(|| {
+            let mut k32 = [0u32; 64];
+            let mut a32 = [0u32; 64];
+            for k in 0..n {
+                debug_assert!(keep[k] < 1 << 32 || alias[k] == k as u32);
+                k32[k] = keep[k].min(u32::MAX as u64) as u32;
+                a32[k] = alias[k];
+            }
+            (k32, a32)
+        });
         OffsetTable {
             half,
             sigma,
             mass,
+            small,
             keep,
             alias,
         }
+    }
+
+    /// The alias table: `(keep, alias)` of [`Self::sample`].
+    pub(super) fn alias_table(&self) -> (&[u64], &[u32]) {
+        (&self.keep, &self.alias)
+    }
+
+    /// [`Self::alias_table`] in u32 for at most 64 offsets.
+    pub(super) fn small_table(&self) -> Option<&([u32; 64], [u32; 64])> {
+        self.small.as_ref()
     }
 
     /// Mass of offset `d` (normalised over the box).
@@ -237,93 +270,6 @@ impl FeatureGate {
     }
 }
 
-/// What [`select`] needs besides the pixel.
-pub struct Selection<'a> {
-    pub samples: &'a [SampleVector],
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    pub table: &'a OffsetTable,
-    /// Draws after the pixel's own samples: M − spp.
-    pub draws: usize,
-    pub kappa_world: f64,
-    pub kappa_other: f64,
-    pub floor: f64,
-}
-
-/// Alg. 6 lines 1-14: fills `out` with the sample indices of N: the pixel's own samples first,
-/// then the accepted neighbours in memory order.
-/// `visited` is scratch for the duplicate test (resized and cleared here).
-pub fn select(
-    sel: &Selection<'_>,
-    x: u32,
-    y: u32,
-    rng: &mut PixelRng,
-    visited: &mut Vec<u64>,
-    out: &mut Vec<u32>,
-) {
-    let spp = sel.spp as usize;
-    let pixel = y as usize * sel.width as usize + x as usize;
-    let first = pixel * spp;
-    out.clear();
-    out.extend((first..first + spp).map(|i| i as u32));
-    let half = sel.table.half;
-    let (xlo, xhi) = (
-        (-half).max(-(x as i32)),
-        half.min(sel.width as i32 - 1 - x as i32),
-    );
-    let (ylo, yhi) = (
-        (-half).max(-(y as i32)),
-        half.min(sel.height as i32 - 1 - y as i32),
-    );
-    if (xlo == 0 && xhi == 0 && ylo == 0 && yhi == 0) || sel.draws == 0 {
-        return; // no pixel in the box but P itself
-    }
-    let gate = FeatureGate::new(
-        &sel.samples[first..first + spp],
-        sel.kappa_world,
-        sel.kappa_other,
-        sel.floor,
-    );
-    let side = 2 * half as usize + 1;
-    let words = (side * side * spp).div_ceil(64);
-    visited.clear();
-    visited.resize(words, 0);
-    // Draw first, marking each drawn sample in `visited` (a repeat sets a bit that is already
-    // set: "we ignore it"); then test every drawn sample once, in memory order, which gives
-    // the same set N as testing them in the order drawn but reads the samples row by row.
-    for _ in 0..sel.draws {
-        // Offsets outside the image and (0, 0) are drawn again (conditioning the Gaussian on
-        // the box minus P inside the image). The box minus P holds a pixel of the image here,
-        // and every offset of the box has a positive mass, so this ends.
-        let (dx, dy) = loop {
-            let dx = sel.table.sample(rng.next_u64());
-            let dy = sel.table.sample(rng.next_u64());
-            if (xlo..=xhi).contains(&dx) && (ylo..=yhi).contains(&dy) && (dx != 0 || dy != 0) {
-                break (dx, dy);
-            }
-        };
-        let s = rng.below(sel.spp) as usize;
-        let key = ((dy + half) as usize * side + (dx + half) as usize) * spp + s;
-        visited[key / 64] |= 1u64 << (key % 64);
-    }
-    for (word, &bits) in visited.iter().enumerate() {
-        let mut bits = bits;
-        while bits != 0 {
-            let key = word * 64 + bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let (cell, s) = (key / spp, key % spp);
-            let dy = (cell / side) as i32 - half;
-            let dx = (cell % side) as i32 - half;
-            let q = (y as i32 + dy) as usize * sel.width as usize + (x as i32 + dx) as usize;
-            let index = q * spp + s;
-            if gate.accepts(&sel.samples[index]) {
-                out.push(index as u32);
-            }
-        }
-    }
-}
-
 /// Sum in f64 over four fixed lanes (a fixed order, so deterministic, but not one long chain).
 fn sum_f64(values: &[f32], f: impl Fn(f64) -> f64) -> f64 {
     let mut acc = [0.0f64; 4];
@@ -358,6 +304,89 @@ pub fn standardize(values: &mut [f32]) -> (f64, f64) {
         values.fill(0.0);
     }
     (mean, sigma)
+}
+
+/// [`standardize`] for the rows `which` of `n` values, `rows[r * cap..][..n]`. On AVX-512 the
+/// rows go four at a time: each row's sums keep [`sum_f64`]'s four lanes and order (so the
+/// bytes are the same), and the four rows' chains run side by side instead of one waiting on
+/// the next addition.
+pub fn standardize_rows(level: Level, rows: &mut [f32], cap: usize, which: &[usize], n: usize) {
+    assert!(n <= cap && which.iter().all(|&r| rows.len() >= (r + 1) * cap));
+    #[cfg(target_arch = "x86_64")]
+    if level == Level::Avx512 {
+        // SAFETY: the CPU has AVX-512 F (`Level::detect`).
+        return unsafe { standardize_rows_avx512(rows, cap, which, n) };
+    }
+    let _ = level;
+    for &r in which {
+        standardize(&mut rows[r * cap..r * cap + n]);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn standardize_rows_avx512(rows: &mut [f32], cap: usize, which: &[usize], n: usize) {
+    use std::arch::x86_64::*;
+    if n == 0 {
+        return;
+    }
+    let (chunks, nf) = (n / 4, n as f64);
+    // Σ f(v) over row r with sum_f64's lanes: four lanes over whole chunks of 4, the rest
+    // added to lane 0 in order, then (l0 + l1) + (l2 + l3).
+    let sums = |rows: &[f32], group: [usize; 4], mean: [f64; 4], square: bool| -> [f64; 4] {
+        let mut acc = [_mm256_setzero_pd(); 4];
+        let means = mean.map(|m| _mm256_set1_pd(m));
+        for c in 0..chunks {
+            for k in 0..4 {
+                // SAFETY: 4 values at 4c + 3 < n ≤ cap in row group[k].
+                let x = unsafe { _mm_loadu_ps(rows.as_ptr().add(group[k] * cap + 4 * c)) };
+                let mut v = _mm256_cvtps_pd(x);
+                if square {
+                    let t = _mm256_sub_pd(v, means[k]);
+                    v = _mm256_mul_pd(t, t);
+                }
+                acc[k] = _mm256_add_pd(acc[k], v);
+            }
+        }
+        std::array::from_fn(|k| {
+            let mut lanes = [0.0f64; 4];
+            // SAFETY: 4 doubles.
+            unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), acc[k]) };
+            for &v in &rows[group[k] * cap + 4 * chunks..group[k] * cap + n] {
+                let v = v as f64;
+                lanes[0] += if square { (v - mean[k]) * (v - mean[k]) } else { v };
+            }
+            (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
+        })
+    };
+    let count = which.len();
+    for first in (0..count).step_by(4) {
+        // A last group of fewer than 4 rows repeats its last row (computed, not stored twice).
+        let group: [usize; 4] = std::array::from_fn(|k| which[(first + k).min(count - 1)]);
+        let mean = sums(rows, group, [0.0; 4], false).map(|s| s / nf);
+        let var = sums(rows, group, mean, true).map(|s| s / nf);
+        for k in 0..(count - first).min(4) {
+            let row = &mut rows[group[k] * cap..group[k] * cap + n];
+            let sigma = var[k].sqrt();
+            if !(sigma > 0.0 && sigma.is_finite()) {
+                row.fill(0.0);
+                continue;
+            }
+            let (m, inv) = (_mm512_set1_pd(mean[k]), _mm512_set1_pd(1.0 / sigma));
+            let mut eights = row.chunks_exact_mut(8);
+            for e in &mut eights {
+                // SAFETY: 8 floats, unaligned.
+                unsafe {
+                    let x = _mm512_cvtps_pd(_mm256_loadu_ps(e.as_ptr()));
+                    let y = _mm512_cvtpd_ps(_mm512_mul_pd(_mm512_sub_pd(x, m), inv));
+                    _mm256_storeu_ps(e.as_mut_ptr(), y);
+                }
+            }
+            for v in eights.into_remainder() {
+                *v = ((*v as f64 - mean[k]) * (1.0 / sigma)) as f32;
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@
 //! | kernels/render/sampling.cl   | [`sampling`]                 |
 //! | kernels/render/camera.cl     | [`sampling::camera_ray`]     |
 //! | kernels/render/textures.cl, materials.cl, lights.cl, film.cl, pathtrace.cl | [`pathtrace`] |
+//! | kernels/render/shadows.cl, bandlimit.cl | [`shadows`], [`crate::render::shadows::bandlimit`] |
 //!
 //! The ray queries of kernels/arrays/trace.cl and kernels/geometry.cl are mirrored by
 //! [`crate::arrays::trace`] and [`crate::geometry`], which the host also uses (autofocus).
@@ -16,3 +17,4 @@
 pub mod pathtrace;
 pub mod rng;
 pub mod sampling;
+pub mod shadows;

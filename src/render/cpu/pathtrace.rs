@@ -224,7 +224,8 @@ fn select_light(s: &SceneArrays, u: f32) -> usize {
 
 pub const SHADOW_RAY_SHORTEN: f32 = 0.9999;
 
-/// kernels/render/lights.cl sample_direct_light.
+/// kernels/render/lights.cl sample_direct_light: the estimate, and the index of the light
+/// chosen.
 pub fn sample_direct_light(
     s: &SceneArrays,
     surface_p: Vec3,
@@ -233,9 +234,27 @@ pub fn sample_direct_light(
     key: u32,
     bounce: u32,
     rays: &mut u32,
+) -> (Vec3, u32) {
+    let index = select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT));
+    (
+        direct_from(s, index, surface_p, ng, ns, key, bounce, rays),
+        index as u32,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn direct_from(
+    s: &SceneArrays,
+    index: usize,
+    surface_p: Vec3,
+    ng: Vec3,
+    ns: Vec3,
+    key: u32,
+    bounce: u32,
+    rays: &mut u32,
 ) -> Vec3 {
     let p = offset_ray_origin(surface_p, ng, s.params.scene_size);
-    let light = &s.lights[select_light(s, rng_uniform(key, bounce, DIM_LIGHT_SELECT))];
+    let light = &s.lights[index];
     let r1 = rng_uniform(key, bounce, DIM_LIGHT_U);
     let r2 = rng_uniform(key, bounce, DIM_LIGHT_V);
     let (dir, dist, inv_pdf);
@@ -297,6 +316,9 @@ pub struct PathSample {
     pub albedo: Vec3,
     pub albedo2: Vec3,
     pub direction: Vec3,
+    /// The light the path brought to its first surface straight from the shadow light, when
+    /// that surface is the pixel centre's receiver.
+    pub shadow_direct: Vec3,
 }
 
 impl PathSample {
@@ -310,6 +332,7 @@ impl PathSample {
             albedo: Vec3::ZERO,
             albedo2: Vec3::ZERO,
             direction: Vec3::ZERO,
+            shadow_direct: Vec3::ZERO,
         }
     }
 
@@ -336,6 +359,23 @@ impl PathSample {
     }
 }
 
+/// Whose shadow terms a path sample records (kernels/render/pathtrace.cl): the light's, when
+/// the first hit is on `object`, the pixel centre's receiver.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowTarget {
+    /// Index into the light list; u32::MAX: none.
+    pub light: u32,
+    /// The receiver's object (kernels/render/shadows.cl `hit_object`); NaN: none.
+    pub object: f32,
+}
+
+impl ShadowTarget {
+    pub const NONE: ShadowTarget = ShadowTarget {
+        light: u32::MAX,
+        object: f32::NAN,
+    };
+}
+
 /// Algorithm 1 for one sample (kernels/render/pathtrace.cl trace_path).
 pub fn trace_path(
     s: &SceneArrays,
@@ -344,6 +384,7 @@ pub fn trace_path(
     y: u32,
     key: u32,
     rays: &mut u32,
+    target: ShadowTarget,
 ) -> PathSample {
     let params = &s.params;
     let mut ps = PathSample::empty();
@@ -351,7 +392,10 @@ pub fn trace_path(
     let mut throughput = Vec3::ONE;
     let mut count_emission = true;
     let mut want_albedo2 = true;
+    let mut on_receiver = false;
     let has_lights = params.light_count > 0;
+    let shadow_light = target.light;
+    let shadow = (shadow_light < params.light_count).then(|| &s.lights[shadow_light as usize]);
     for bounce in 0..params.max_vertices {
         if bounce >= params.rr_depth {
             if !opt.russian_roulette {
@@ -373,6 +417,13 @@ pub fn trace_path(
         if m.kind == MATERIAL_EMITTER {
             if count_emission && sf.entering {
                 ps.add_light(bounce, throughput * m.emission.xyz());
+                let light = match hit.prim {
+                    Prim::Triangle(k) => s.tri_shading[k as usize].light,
+                    Prim::Sphere(i) => s.spheres[i as usize].light,
+                };
+                if bounce == 1 && on_receiver && light >= 0 && light as u32 == shadow_light {
+                    ps.shadow_direct += throughput * m.emission.xyz();
+                }
             }
             if bounce == 0 {
                 ps.depth = hit.t;
@@ -390,9 +441,19 @@ pub fn trace_path(
             ps.albedo2 = albedo;
             want_albedo2 = false;
         }
+        if shadow.is_some()
+            && bounce == 0
+            && m.kind == MATERIAL_DIFFUSE
+            && super::shadows::hit_object(s, &hit) == target.object
+        {
+            on_receiver = true;
+        }
         if has_lights && opt.next_event_estimation && m.kind == MATERIAL_DIFFUSE {
-            let li = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, rays);
+            let (li, chosen) = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, rays);
             ps.add_light(bounce + 1, throughput * albedo * (1.0 / PI) * li);
+            if bounce == 0 && on_receiver && chosen == shadow_light {
+                ps.shadow_direct += throughput * albedo * (1.0 / PI) * li;
+            }
         }
         let sc = scatter(s, &sf, d, albedo, key, bounce);
         if bounce == 0 && !sc.absorbed {
@@ -416,6 +477,7 @@ pub fn trace_path(
             ps.direct *= k;
             ps.indirect *= k;
             ps.total *= k;
+            ps.shadow_direct *= k;
         }
     }
     ps
@@ -446,7 +508,7 @@ pub fn render(
             for k in 0..count {
                 let sample = sample_base + k;
                 let key = rng_sample_key(s.params.seed, pixel as u32, sample);
-                let x16 = trace_path(s, opt, x, y, key, &mut rays).to_array();
+                let x16 = trace_path(s, opt, x, y, key, &mut rays, ShadowTarget::NONE).to_array();
                 let n = (sample - range_first + 1) as f32;
                 for (i, (m, v)) in mean.iter_mut().zip(x16).enumerate() {
                     if i == DEPTH_LANE {

@@ -49,15 +49,22 @@ pub fn sample_triangle(r1: f32, r2: f32) -> Vec2 {
     Vec2::new(1.0 - s, r2 * s)
 }
 
-/// The camera ray of pixel (x, y) for the sample whose key is `key` (kernels/render/camera.cl).
-pub fn camera_ray(p: &SceneParams, x: u32, y: u32, key: u32) -> (Vec3, Vec3) {
-    let jx = rng_uniform(key, 0, DIM_PIXEL_X);
-    let jy = rng_uniform(key, 0, DIM_PIXEL_Y);
+/// The unit direction from the lens centre through the point (x + jx, y + jy) of the image
+/// (kernels/render/camera.cl `pinhole_direction`).
+pub fn pinhole_direction(p: &SceneParams, x: u32, y: u32, jx: f32, jy: f32) -> Vec3 {
     let (w, h) = (p.image_width as f32, p.image_height as f32);
     let sx = (2.0 * (x as f32 + jx) / w - 1.0) * p.tan_half_fov * (w / h);
     let sy = (1.0 - 2.0 * (y as f32 + jy) / h) * p.tan_half_fov;
     let forward = p.camera_forward.xyz();
-    let mut dir = (forward + sx * p.camera_right.xyz() + sy * p.camera_up.xyz()).normalize();
+    (forward + sx * p.camera_right.xyz() + sy * p.camera_up.xyz()).normalize()
+}
+
+/// The camera ray of pixel (x, y) for the sample whose key is `key` (kernels/render/camera.cl).
+pub fn camera_ray(p: &SceneParams, x: u32, y: u32, key: u32) -> (Vec3, Vec3) {
+    let jx = rng_uniform(key, 0, DIM_PIXEL_X);
+    let jy = rng_uniform(key, 0, DIM_PIXEL_Y);
+    let forward = p.camera_forward.xyz();
+    let mut dir = pinhole_direction(p, x, y, jx, jy);
     let mut o = p.camera_origin.xyz();
     if p.lens_radius > 0.0 {
         let focus = o + dir * (p.focal_distance / dir.dot(forward));

@@ -10,6 +10,7 @@ pub mod airplane;
 pub mod builder;
 pub mod conference;
 pub mod cube;
+pub mod grid;
 pub mod textures;
 
 use glam::{Vec2, Vec3};
@@ -17,13 +18,14 @@ use glam::{Vec2, Vec3};
 use crate::scene::mesh::MeshPart;
 
 /// Names accepted by `[[mesh]] generator`.
-pub const MESH_GENERATORS: &[&str] = &["quad", "box", "airplane", "conference_room"];
+pub const MESH_GENERATORS: &[&str] = &["quad", "box", "grid", "airplane", "conference_room"];
 
 /// The mesh a generator makes, or None for an unknown name.
 pub fn generate_mesh(name: &str, seed: u64) -> Option<Vec<MeshPart>> {
     match name {
         "quad" => Some(vec![quad()]),
         "box" => Some(vec![cube::unit_box()]),
+        "grid" => Some(vec![grid::grid()]),
         "airplane" => Some(airplane::airplane(seed)),
         "conference_room" => Some(conference::conference_room(seed)),
         _ => None,

@@ -114,9 +114,12 @@ impl Resolver<'_> {
                     }
                 },
             };
+            // Every part is an object of its own (AAF's slope fill stays within one).
+            let object = triangles.last().map_or(0, |t| t.object + 1);
             let (s, r) = append_part(
                 part,
                 material,
+                object,
                 &linear,
                 &normal_matrix,
                 translate,
@@ -143,6 +146,7 @@ impl Resolver<'_> {
 fn append_part(
     part: &MeshPart,
     material: u32,
+    object: u32,
     linear: &Mat3,
     normal_matrix: &Mat3,
     translate: Vec3,
@@ -182,7 +186,13 @@ fn append_part(
                 .filter(|u| u.is_finite())
                 .unwrap_or(Vec2::ZERO)
         });
-        out.push(Triangle { p, n, uv, material });
+        out.push(Triangle {
+            p,
+            n,
+            uv,
+            material,
+            object,
+        });
     }
     (skipped, repaired)
 }

@@ -86,7 +86,8 @@ impl Accumulator {
                     | Merge::DepthShift
                     | Merge::WelfordSums
                     | Merge::WelfordState
-                    | Merge::HitMeans => State::Lanes {
+                    | Merge::HitMeans
+                    | Merge::Identical => State::Lanes {
                         floats,
                         v: vec![0.0; pixels * floats],
                     },
@@ -128,7 +129,7 @@ impl Accumulator {
             Merge::Means | Merge::DepthShift | Merge::WelfordState | Merge::HitMeans => {
                 own[lane] as f64
             }
-            Merge::WelfordSums | Merge::PerSample => {
+            Merge::WelfordSums | Merge::PerSample | Merge::Identical => {
                 unreachable!("{} holds no means", id.decl().name)
             }
         }
@@ -173,11 +174,13 @@ impl Accumulator {
             Merge::DepthShift => lane == K_MEAN,
             Merge::WelfordState => W_DIRECTION.contains(&lane),
             Merge::HitMeans => lane < 3,
-            Merge::WelfordSums | Merge::PerSample => false,
+            Merge::WelfordSums | Merge::PerSample | Merge::Identical => false,
         }
     }
 
-    pub(super) fn fold(&mut self, piece: &Piece) {
+    /// Folds one piece in. Fails when a buffer that every part holds identically
+    /// ([`Merge::Identical`]) differs from the parts folded before it.
+    pub(super) fn fold(&mut self, piece: &Piece) -> anyhow::Result<()> {
         let info = &piece.info;
         for t in 0..info.tile.pixels() {
             let p = info.tile.image_pixel(t, self.width);
@@ -238,6 +241,28 @@ impl Accumulator {
                                     v[W_COMPENSATION + lane] = *c;
                                 }
                             }
+                            Merge::Identical if px.na == 0 => {
+                                for (v, &o) in v.iter_mut().zip(own) {
+                                    *v = o as f64;
+                                }
+                            }
+                            Merge::Identical => {
+                                // Bitwise: NaN lanes (no receiver) must agree too.
+                                if v.iter()
+                                    .zip(own)
+                                    .any(|(&v, &o)| (v as f32).to_bits() != o.to_bits())
+                                {
+                                    anyhow::bail!(
+                                        "the parts' {} differ at pixel ({}, {}), which every \
+                                         part computes the same way: they were rendered with \
+                                         different settings of the filter that asked for it \
+                                         (e.g. --aaf-sparse-spp); render them again with one",
+                                        id.decl().name,
+                                        p as u32 % self.width,
+                                        p as u32 / self.width
+                                    );
+                                }
+                            }
                             Merge::Means | Merge::DepthShift | Merge::PerSample => {}
                         }
                     }
@@ -245,6 +270,7 @@ impl Accumulator {
             }
             self.count[p] += px.nb;
         }
+        Ok(())
     }
 
     /// The buffers, rounded to float, and F.depth = K + mean(x − K) formed as film.cl forms it.
@@ -266,7 +292,8 @@ impl Accumulator {
                 *o = *x as f32;
             }
             match id.decl().merge {
-                Merge::Means => {
+                // F.depth; other buffers of means (ShadowTerms) have no depth lane.
+                Merge::Means if *id == BufferId::FilterVectors => {
                     if let Some(d) = self.lanes(BufferId::DepthShifts) {
                         for p in 0..pixels {
                             let k = d[p * 2 + K] as f32;
@@ -274,11 +301,13 @@ impl Accumulator {
                         }
                     }
                 }
-                Merge::DepthShift
+                Merge::Means
+                | Merge::DepthShift
                 | Merge::WelfordSums
                 | Merge::WelfordState
                 | Merge::HitMeans
-                | Merge::PerSample => {}
+                | Merge::PerSample
+                | Merge::Identical => {}
             }
             out.push((*id, h));
         }

@@ -246,7 +246,7 @@ impl Plan {
         let mut acc = Accumulator::new(&self.identity);
         for i in 0..self.order.len() {
             let (f, k) = self.order[i];
-            acc.fold(&self.files[f].read_piece(k)?);
+            acc.fold(&self.files[f].read_piece(k)?)?;
             progress(i + 1);
         }
         let id = &self.identity;

@@ -1,0 +1,30 @@
+// AAF soft shadows' frequency analysis (Wang 2013 §3.2; Mehta et al. 2012): the filter width
+// beta of eq. 3.4 and the sample count n of eq. 3.5, shared by the adaptive sampling pass
+// (kernels/render/shadows.cl) and the filter (kernels/filters/aaf_shadows.cl).
+// src/render/shadows/bandlimit.rs is the same code in Rust and says why each term is what it is.
+#ifndef NOISEFREE_BANDLIMIT_CL
+#define NOISEFREE_BANDLIMIT_CL
+
+#include "render/sampling.cl"
+
+// Slopes below this are treated as this (an occluder touching the light), so s1 / s2 stays
+// finite or +inf, never NaN.
+#define AAF_MIN_SLOPE 1.0e-30f
+
+// Eq. 3.4 with its second term in metres (as printed, d1 / (d2max d) is in 1/m; d d1 / d2max =
+// d (1 + s2) is what the authors' code uses): beta = (1/3) max(sigma s2, d (1 + s2)).
+inline float aaf_beta(float sigma, float pixel_size, float s2) {
+    return fmax(sigma * s2, pixel_size * (1.0f + s2)) * (1.0f / 3.0f);
+}
+
+// Eq. 3.5: n = 4 (1 + s1/s2)^2 ((2/s2) sqrt(A_p/A_l) + (1 + s2)^-1)^2 with A_p = d^2 and
+// A_l = pi R^2 (the sphere's silhouette disk).
+inline float aaf_sample_count(float s1, float s2, float pixel_size, float light_radius) {
+    float s = fmax(s2, AAF_MIN_SLOPE);
+    float ratio = pixel_size / (light_radius * sqrt(PI_F));
+    float a = 1.0f + s1 / s;
+    float b = 2.0f / s * ratio + 1.0f / (1.0f + s);
+    return 4.0f * a * a * b * b;
+}
+
+#endif

@@ -1,0 +1,213 @@
+//! The AAF soft-shadow filter on the device (kernels/filters/aaf_shadows.cl): prepare, the
+//! pass along rows, the pass along columns, compose.
+
+use std::ops::Range;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result, bail};
+use ocl::{Buffer, Kernel};
+
+use super::AafShadowSettings;
+use crate::filters::{FilterRun, PreparedFilter};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
+use crate::layout::outputs::{BufferId, Output, OutputSet};
+use crate::layout::{AafShadowParams, Float4};
+use crate::render::Frame;
+
+/// The filter's kernels and buffers for one image size and light.
+struct Passes {
+    prepare: Kernel,
+    rows: Kernel,
+    columns: Kernel,
+    compose: Kernel,
+    _params: [Buffer<AafShadowParams>; 2],
+    _guide: Buffer<Float4>,
+    _visibility: [Buffer<f32>; 2],
+    image: Buffer<Float4>,
+}
+
+/// The AAF soft-shadow filter, built for an image size and a light (none: the image passes
+/// through untouched).
+pub struct AafShadowKernel {
+    gpu: Arc<Gpu>,
+    passes: Option<Passes>,
+    width: u32,
+    height: u32,
+    /// Half width of eq. 3.7's 1-D passes, pixels: the rows a band's pixels read beyond it.
+    radius: u32,
+}
+
+impl AafShadowKernel {
+    /// `light`: the filtered sphere light's centre and radius, or None.
+    pub fn new(
+        gpu: Arc<Gpu>,
+        settings: &AafShadowSettings,
+        light: Option<[f32; 4]>,
+        width: u32,
+        height: u32,
+    ) -> Result<AafShadowKernel> {
+        settings.validate()?;
+        if width == 0 || height == 0 {
+            bail!("the image must be at least 1x1 pixels, got {width}x{height}");
+        }
+        let passes = match light {
+            Some(l) => Some(Passes::new(&gpu, settings, l, width, height)?),
+            None => None,
+        };
+        Ok(AafShadowKernel {
+            gpu,
+            passes,
+            width,
+            height,
+            radius: settings.radius,
+        })
+    }
+
+    /// Filters `frame` (width × height, with the shadow output unless there is no light) and
+    /// reads the image back; the kernel time sums the four launches.
+    pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter_rows(frame, 0..self.height)
+    }
+
+    /// Filters the pixels of `rows` only (one band of a frame split across devices): the
+    /// prepare pass and the pass along rows run on the band widened by `radius` rows, which
+    /// the pass along columns reads, so the band's pixels get the bytes that filtering the
+    /// whole frame gives them. The image's other rows are black.
+    pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
+        let start = Instant::now();
+        let h = self.height;
+        let rows = rows.start.min(h)..rows.end.min(h);
+        let widened = rows.start.saturating_sub(self.radius)..(rows.end + self.radius).min(h);
+        frame.check_size(self.width, self.height, "the aaf-shadows filter")?;
+        let Some(p) = &mut self.passes else {
+            let mut image = frame.beauty()?;
+            let w = self.width as usize;
+            for (y, row) in image.pixels.chunks_mut(w).enumerate() {
+                if !rows.contains(&(y as u32)) {
+                    row.fill([0.0; 3]);
+                }
+            }
+            return Ok(FilterRun {
+                image,
+                wall_time: start.elapsed(),
+                kernel_time: Some(Duration::ZERO),
+            });
+        };
+        frame.require(
+            OutputSet::of(&[Output::Colour, Output::Shadows]),
+            "the aaf-shadows filter",
+        )?;
+        let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
+        let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
+        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
+        for k in [&p.prepare, &p.rows, &p.columns, &p.compose] {
+            k.set_arg("pixels", pixels)?;
+        }
+        p.compose.set_arg("fv", fv)?;
+        p.compose.set_arg("terms", terms)?;
+        let mut kernel_time = Duration::ZERO;
+        for (k, band, what) in [
+            (&p.prepare, &widened, "the AAF prepare pass"),
+            (&p.rows, &widened, "the AAF pass along rows"),
+            (&p.columns, &rows, "the AAF pass along columns"),
+            (&p.compose, &rows, "the AAF compose pass"),
+        ] {
+            // SAFETY: every buffer is owned by self or the frame, both alive until the event
+            // completes (we wait on it here), and sized for width x height pixels.
+            let event = unsafe { enqueue_rows(k, self.width, h, band.clone(), what)? };
+            kernel_time += event_duration(&event)?;
+        }
+        Ok(FilterRun {
+            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
+            wall_time: start.elapsed(),
+            kernel_time: Some(kernel_time),
+        })
+    }
+}
+
+impl Passes {
+    fn new(
+        gpu: &Gpu,
+        s: &AafShadowSettings,
+        light: [f32; 4],
+        width: u32,
+        height: u32,
+    ) -> Result<Passes> {
+        let program = gpu.program("filters/aaf_shadows.cl", &[], "")?;
+        let n = width as usize * height as usize;
+        let params = [
+            gpu.upload(&[s.params(light, width, height, 0)])?,
+            gpu.upload(&[s.params(light, width, height, 1)])?,
+        ];
+        let guide = gpu.zeroed::<Float4>(n, "AAF guide")?;
+        let visibility = [
+            gpu.zeroed::<f32>(n, "AAF visibility")?,
+            gpu.zeroed::<f32>(n, "AAF visibility")?,
+        ];
+        let image = gpu.zeroed::<Float4>(n, "AAF image")?;
+        let size = [width as usize, height as usize];
+        let kernel = |name: &str| {
+            let mut b = Kernel::builder();
+            b.program(&program)
+                .name(name)
+                .queue(gpu.queue.clone())
+                .global_work_size(size);
+            b
+        };
+        let none = None::<&Buffer<u8>>;
+        let prepare = kernel("aaf_prepare")
+            .arg_named("p", &params[0])
+            .arg_named("pixels", none)
+            .arg(&guide)
+            .arg(&visibility[0])
+            .build()
+            .context("creating the AAF prepare kernel")?;
+        let pass = |axis: usize, from: &Buffer<f32>, to: &Buffer<f32>| {
+            kernel("aaf_pass")
+                .arg_named("p", &params[axis])
+                .arg_named("pixels", none)
+                .arg(&guide)
+                .arg(from)
+                .arg(to)
+                .build()
+                .context("creating an AAF pass kernel")
+        };
+        let rows = pass(0, &visibility[0], &visibility[1])?;
+        let columns = pass(1, &visibility[1], &visibility[0])?;
+        let compose = kernel("aaf_compose")
+            .arg_named("p", &params[0])
+            .arg_named("fv", none)
+            .arg_named("terms", none)
+            .arg_named("pixels", none)
+            .arg(&guide)
+            .arg(&visibility[0])
+            .arg(&image)
+            .build()
+            .context("creating the AAF compose kernel")?;
+        Ok(Passes {
+            prepare,
+            rows,
+            columns,
+            compose,
+            _params: params,
+            _guide: guide,
+            _visibility: visibility,
+            image,
+        })
+    }
+}
+
+impl PreparedFilter for AafShadowKernel {
+    fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter(frame)
+    }
+
+    fn reach(&self) -> Option<u32> {
+        Some(self.radius)
+    }
+
+    fn run_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
+        self.filter_rows(frame, rows)
+    }
+}

@@ -1,0 +1,229 @@
+//! Axis-aligned filtering of soft shadows (B. Wang, "A Fast Filter for Physically-Based
+//! Rendering", UCB 2013, ch. 3, after Mehta, Wang, Ramamoorthi 2012): settings here, the
+//! OpenCL passes of kernels/filters/aaf_shadows.cl in `device.rs`, their plain Rust reference
+//! in `reference.rs`. The sampling side (sparse pass, slope fill, adaptive pass) is the
+//! renderer's shadow output, src/render/shadows; the formulas of β and n are in
+//! src/render/shadows/bandlimit.rs.
+//!
+//! The filter (eqs. 3.2, 3.3, 3.7): h(x) = r(x) Σ w h_n / Σ w, w = exp(−‖x − x′‖² / (2β(x)²)),
+//! as two 1-D passes (rows, then columns of the first pass's result), each with β of the pixel
+//! being written (the per-pass lines of eq. 3.7, not its first line's β(x′)). Normalised
+//! means, so the Gaussian's prefactor cancels. What the seed leaves open, and what is done:
+//!
+//! - **Distances** are in world space, "along the plane parallel to the light": for a sphere
+//!   light, the plane of its silhouette disk, perpendicular to the direction ℓ̂ from the
+//!   centre pixel's hit to the light's centre: ‖Δ‖² − (Δ·ℓ̂)².
+//! - **Rejection** ("a threshold on the acceptable difference in β values", no value given):
+//!   a neighbour counts when it is a receiver, its normal is within `normal_angle` of the
+//!   pixel's, its offset along ℓ̂ is at most `depth_tolerance` · β (the weight ignores that
+//!   offset, so without it a wall's pixels along the light direction would all weigh 1), and,
+//!   when it has slopes, |β − β′| ≤ `beta_tolerance` · max(β, β′). Relative forms, so that the
+//!   filter does not depend on the scene's scale (the authors' code uses scene-unit constants).
+//!   The defaults were chosen by measurement (tests/aaf_quality.rs `measure_rejection_
+//!   thresholds`, run by hand): on Grids and on spheres under a grid, 320 × 240, against 1024
+//!   spp, the 80 combinations of 10°/20°/45°/180°, 0.5/1/2/3/∞ and 0.25/0.5/1/∞ span RMS
+//!   0.01476-0.01571 and 0.00690-0.00710; the defaults (20°, 2, 0.5) give 0.01485 and
+//!   0.00690, within 0.6% of the best on each; no offset test is the worst on both.
+//! - **Pixels** are of three kinds: no receiver (sky, a non-diffuse surface, the light below
+//!   the horizon) keep F as rendered; a receiver without slopes (no occluded sample, none
+//!   filled in) keeps its own visibility, which is 1 (every sample reached the light), and
+//!   lends it to its neighbours; a receiver with slopes is filtered.
+//! - **Output** = F − (the light the path samples on the centre's surface brought to it
+//!   straight from this light) + r · filtered h_n, where r is the mean of the unshadowed term
+//!   over the light samples' points in the pixel (src/render/shadows): silhouettes and
+//!   textures stay anti-aliased. Everything that is not the filtered term (other lights,
+//!   indirect light, emission, glossy surfaces, another surface in the same pixel) stays as
+//!   rendered.
+//! - **One light**, chosen by `light`; the other lights' shadows stay as rendered.
+//! - **A thin lens**: the shadow samples use the ray through the pixel centre from the lens
+//!   centre (src/render/shadows), so the filtered term is in focus everywhere.
+
+mod device;
+mod reference;
+
+use std::sync::Arc;
+
+use anyhow::{Result, bail};
+
+use super::{Auto, FilterKind, PreparedFilter};
+use crate::gpu::Gpu;
+use crate::layout::outputs::{Output, OutputSet};
+use crate::layout::{AafShadowParams, Float4};
+use crate::render::shadows::bandlimit::light_sigma;
+use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
+pub use device::AafShadowKernel;
+pub use reference::{Guide, compose, pass, prepare, reference};
+
+crate::filter_settings! {
+    /// The AAF soft-shadow filter's settings: how the shadow output is sampled, and how it is
+    /// filtered.
+    pub struct AafShadowSettings, flags "aaf-" {
+        /// The sphere light whose shadows are filtered, counting from 0 in the scene's order;
+        /// auto: the first, or none when the scene has no sphere light (the image passes
+        /// through); -1: none.
+        pub light: Auto<i32> = Auto::Auto,
+        /// Light samples per pixel of the sparse pass: a square (whole strata).
+        pub sparse_spp: u32 = 9,
+        /// Most light samples per pixel after the adaptive pass (eq. 3.5 is clamped to it);
+        /// equal to sparse_spp: no adaptive sampling.
+        pub max_spp: u32 = 100,
+        /// Half width of each 1-D filter pass, pixels.
+        pub radius: u32 = 10,
+        /// Half width of the slope fill, pixels.
+        pub fill_radius: u32 = 10,
+        /// Largest angle between the normals of two pixels that share samples, degrees;
+        /// 180 or more: no normal test.
+        pub normal_angle: f32 = 20.0,
+        /// Largest offset between two pixels along the direction to the light, in units of
+        /// the written pixel's β; inf: no test.
+        pub depth_tolerance: f32 = 2.0,
+        /// Largest |β − β′| / max(β, β′) between two pixels with slopes; inf: no test.
+        pub beta_tolerance: f32 = 0.5,
+    }
+}
+
+/// Most pixels a 1-D pass reaches on either side.
+pub const MAX_RADIUS: u32 = 1024;
+
+impl AafShadowSettings {
+    pub fn validate(&self) -> Result<()> {
+        if let Auto::Set(l) = self.light
+            && l < -1
+        {
+            bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
+        }
+        self.sampling().check()?;
+        for (v, name) in [(self.radius, "radius"), (self.fill_radius, "fill_radius")] {
+            if v > MAX_RADIUS {
+                bail!("{name} is at most {MAX_RADIUS} pixels, got {v}");
+            }
+        }
+        for (v, name) in [
+            (self.normal_angle, "normal_angle"),
+            (self.depth_tolerance, "depth_tolerance"),
+            (self.beta_tolerance, "beta_tolerance"),
+        ] {
+            if !(v >= 0.0) {
+                bail!("{name} must be >= 0 (inf: no test), got {v}");
+            }
+        }
+        Ok(())
+    }
+
+    /// The sphere light filtered, if any (after specialisation; `auto` counts as the first).
+    pub fn light_index(&self) -> Option<u32> {
+        let l = self.light.or(0);
+        (l >= 0).then_some(l as u32)
+    }
+
+    /// How the renderer samples the shadow output for these settings.
+    pub fn sampling(&self) -> ShadowSampling {
+        ShadowSampling {
+            light: self.light_index().unwrap_or(0),
+            sparse_spp: self.sparse_spp,
+            max_spp: self.max_spp,
+            fill_radius: self.fill_radius,
+        }
+    }
+
+    /// The parameters of pass `axis` (0 rows, 1 columns; also prepare and compose) for the
+    /// light `light` (centre, radius) and a w × h image.
+    pub fn params(&self, light: [f32; 4], width: u32, height: u32, axis: u32) -> AafShadowParams {
+        let normal_cos = if self.normal_angle >= 180.0 {
+            -2.0
+        } else {
+            self.normal_angle.to_radians().cos()
+        };
+        AafShadowParams {
+            light: Float4(light),
+            width,
+            height,
+            radius: self.radius as i32,
+            axis,
+            sigma: light_sigma(light[3]),
+            normal_cos,
+            depth_tolerance: self.depth_tolerance,
+            beta_tolerance: self.beta_tolerance,
+        }
+    }
+}
+
+/// The AAF soft-shadow filter in the registry.
+pub struct AafShadows;
+
+impl FilterKind for AafShadows {
+    type Settings = AafShadowSettings;
+    const NAME: &'static str = "aaf-shadows";
+    const SUMMARY: &'static str = "axis-aligned filtering of one sphere light's soft shadows, \
+         with adaptive light sampling (Wang 2013 ch. 3; on the device)";
+
+    fn check(s: &AafShadowSettings) -> Result<()> {
+        s.validate()
+    }
+
+    /// `light = auto` becomes the first sphere light, or none when the scene has none.
+    fn specialise(s: &mut AafShadowSettings, scene: &SceneInfo) -> Vec<String> {
+        let count = scene.sphere_lights.len();
+        let mut notes = Vec::new();
+        if s.light.is_auto() {
+            let l = if count > 0 { 0 } else { -1 };
+            s.light = Auto::Set(l);
+            notes.push(if count > 0 {
+                format!("light = 0: the first of {count} sphere light(s)")
+            } else {
+                "light = -1: the scene has no sphere light, nothing to filter (the image \
+                 passes through)"
+                    .to_string()
+            });
+        }
+        if let Some(l) = s.light_index() {
+            match scene.sphere_lights.get(l as usize) {
+                Some(c) => notes.push(format!(
+                    "filters sphere light {l}: centre ({}, {}, {}), radius {}",
+                    c[0], c[1], c[2], c[3]
+                )),
+                None => notes.push(format!(
+                    "sphere light {l} does not exist (the scene has {count}): preparing fails"
+                )),
+            }
+        }
+        notes
+    }
+
+    /// The shadow output, when there is a light to filter.
+    fn needs(s: &AafShadowSettings) -> OutputSet {
+        match s.light_index() {
+            Some(_) => OutputSet::of(&[Output::Colour, Output::Shadows]),
+            None => OutputSet::colour(),
+        }
+    }
+
+    fn render_options(s: &AafShadowSettings, options: &mut RenderOptions) {
+        options.shadows = s.sampling();
+    }
+
+    fn prepare(
+        s: &AafShadowSettings,
+        frame: &FrameInfo,
+        gpu: &Arc<Gpu>,
+    ) -> Result<Box<dyn PreparedFilter>> {
+        let light = match s.light_index() {
+            None => None,
+            Some(l) => match frame.scene.sphere_lights.get(l as usize) {
+                Some(c) => Some(*c),
+                None => bail!(
+                    "the aaf-shadows filter is set to sphere light {l}, but the scene has {} \
+                     sphere light(s)",
+                    frame.scene.sphere_lights.len()
+                ),
+            },
+        };
+        Ok(Box::new(AafShadowKernel::new(
+            gpu.clone(),
+            s,
+            light,
+            frame.width,
+            frame.height,
+        )?))
+    }
+}

@@ -1,0 +1,262 @@
+//! AAF soft shadows, the sampling side (Wang 2013 ch. 3 §3.4, passes 1 and 2): the shadow
+//! output ([`crate::layout::outputs::Output::Shadows`]) of one sphere light, gathered when a
+//! filter asks for it (src/filters/aaf_shadows).
+//!
+//! The estimator, per pixel. The pixel's receiver is the hit of the ray through its centre
+//! (a diffuse surface; its position, normal, object and pixel size d are what the filter's
+//! weights use). The passes here trace light samples, each from its own random point x_k of
+//! the pixel that lies on the receiver's object, in directions stratified over the light's cone
+//! (uniform in solid angle, as the path tracer samples it), each weighted by l = cos θ at x_k:
+//! h_n = Σ f·l / Σ l (eq. 3.2) is the cos-weighted visible fraction of the light, and
+//! r = Σ_k r(x_k) / n, with r(x) = albedo · L sin²α cos θ_c (eq. 3.1: the light's unshadowed
+//! direct term from its centre, exact while the cone lies above the horizon), so that r · h_n
+//! is the light's shadowed direct term over the part of the pixel the receiver covers. The
+//! megakernel folds into `ShadowTerms` the light its path samples brought straight from this
+//! light to their first surface when that is the receiver's object (the next-event estimate,
+//! or the light's emission found by the first bounce without light sampling). The filter
+//! writes F − that + r · filtered h_n: everything else, including the rest of a pixel at a
+//! silhouette, stays as the path tracer rendered it.
+//!
+//! The passes run once, before the first path samples ([`super::Renderer::render_samples`]):
+//! 1. `shadow_sparse`: sparse_spp = k² samples (one per stratum) per pixel, with the nearest and
+//!    farthest occluder of every shadow ray, giving the slopes s1, s2.
+//! 2. `shadow_fill` (twice): pixels without an occluded sample take the max s1 / min s2 of the
+//!    pixels within ±fill_radius along the row, then the column, on the same object (the
+//!    authors' code; the seed does not say what a pixel without occluder gets).
+//! 3. `shadow_adaptive`: n(x) of eq. 3.5 clamped to [sparse_spp, max_spp]; the samples beyond
+//!    the sparse ones as one more square of strata ([`bandlimit::adaptive_plan`]).
+//!
+//! One point per pixel: the ray through the pixel centre from the lens centre. With a thin
+//! lens the path tracer's rays start anywhere on the lens and a pixel has no single world
+//! point, which the world-space weights need; the lens-centre ray is the documented
+//! approximation (the shadowed term is then sharp where the rest is out of focus).
+
+pub mod bandlimit;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context as _, Result, bail};
+use ocl::{Buffer, Kernel, Program};
+
+use super::DeviceScene;
+use crate::gpu::{Gpu, enqueue, event_duration};
+use crate::layout::{Float4, ShadowPixel};
+
+/// How the shadow output is sampled (the `aaf-shadows` filter's settings choose it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ShadowSampling {
+    /// The sphere light, by its place among the scene's sphere lights (which lead the light
+    /// list, so it is also its light index).
+    pub light: u32,
+    /// Samples per pixel of the sparse pass: a square, k × k strata.
+    pub sparse_spp: u32,
+    /// Largest samples per pixel after the adaptive pass (eq. 3.5 is clamped to it).
+    pub max_spp: u32,
+    /// Half width of the slope fill, pixels.
+    pub fill_radius: u32,
+}
+
+impl Default for ShadowSampling {
+    fn default() -> Self {
+        ShadowSampling {
+            light: 0,
+            sparse_spp: 9,
+            max_spp: 100,
+            fill_radius: 10,
+        }
+    }
+}
+
+impl ShadowSampling {
+    /// Checks the counts: the sparse count is a positive square, the maximum at least it.
+    pub fn check(&self) -> Result<()> {
+        let k = bandlimit::isqrt_floor(self.sparse_spp);
+        if self.sparse_spp == 0 || k * k != self.sparse_spp {
+            bail!(
+                "the sparse shadow pass takes whole strata: sparse_spp must be a square \
+                 (1, 4, 9, 16, ...), got {}",
+                self.sparse_spp
+            );
+        }
+        if self.max_spp < self.sparse_spp {
+            bail!(
+                "max_spp ({}) must be at least sparse_spp ({})",
+                self.max_spp,
+                self.sparse_spp
+            );
+        }
+        if self.max_spp > 1 << 20 {
+            bail!("max_spp is at most 2^20, got {}", self.max_spp);
+        }
+        Ok(())
+    }
+}
+
+/// The light the shadow output samples, checked against the scene (sphere lights lead the
+/// light list) and the render: the passes work on the whole image (the slope fill reaches
+/// `fill_radius` pixels across), so a tile is refused rather than filtered differently from
+/// the whole render. Sample ranges are fine: the passes depend on the pixel alone, so every
+/// range's part holds the same shadow pixels ([`crate::layout::outputs::Merge::Identical`]).
+pub(super) fn shadow_light(
+    arrays: &crate::arrays::SceneArrays,
+    sampling: &ShadowSampling,
+    tile: super::Tile,
+    frame: &crate::arrays::FrameSettings,
+) -> Result<u32> {
+    sampling.check()?;
+    if tile != super::Tile::whole(frame.width, frame.height) {
+        bail!(
+            "the shadow output (the aaf-shadows filter) needs the whole image, not a tile: its \
+             slope fill reaches across tile borders; render sample ranges (--samples A..B) \
+             instead of tiles"
+        );
+    }
+    let spheres = arrays
+        .lights
+        .iter()
+        .take_while(|l| l.kind == crate::layout::LIGHT_SPHERE)
+        .count() as u32;
+    if sampling.light >= spheres {
+        bail!(
+            "the shadow output samples sphere light {} (counting from 0), but the scene has \
+             {spheres} sphere light(s)",
+            sampling.light
+        );
+    }
+    Ok(sampling.light)
+}
+
+/// What the shadow passes spent.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ShadowStats {
+    /// Light samples over every pixel of the image, Σn / N² (pixels that are no receiver
+    /// count with 0).
+    pub average_spp: f64,
+    /// The same over the receivers only.
+    pub receiver_spp: f64,
+    pub receivers: u64,
+    pub max_spp: u32,
+    /// Rays of the three passes (camera rays and shadow rays).
+    pub rays: u64,
+    pub kernel_time: Duration,
+}
+
+/// The shadow passes of one renderer, built from its program (kernels/render/shadows.cl).
+pub(super) struct ShadowPasses {
+    sampling: ShadowSampling,
+    sparse: Kernel,
+    fill: [Kernel; 2],
+    adaptive: Kernel,
+    rays: Buffer<u32>,
+    _fill_buffer: Buffer<Float4>,
+}
+
+impl ShadowPasses {
+    /// The passes over the renderer's scene buffers and its shadow-pixel buffer `pixels`.
+    pub(super) fn new(
+        gpu: &Arc<Gpu>,
+        program: &Program,
+        size: [usize; 2],
+        sampling: ShadowSampling,
+        scene: &DeviceScene,
+        debug_counters: &Buffer<u32>,
+        pixels: &Buffer<u8>,
+    ) -> Result<ShadowPasses> {
+        sampling.check()?;
+        let n = size[0] * size[1];
+        let rays = gpu.zeroed::<u32>(n, "shadow ray count")?;
+        let fill_buffer = gpu.zeroed::<Float4>(n, "shadow slope fill")?;
+        let build = |name: &str, with_scene: bool| -> Result<ocl::builders::KernelBuilder> {
+            let mut b = Kernel::builder();
+            b.program(program)
+                .name(name)
+                .queue(gpu.queue.clone())
+                .global_work_size(size);
+            if with_scene {
+                scene.bind(&mut b);
+                b.arg_named("debug_counters", debug_counters);
+            }
+            Ok(b)
+        };
+        let k = bandlimit::isqrt_floor(sampling.sparse_spp);
+        let mut b = build("shadow_sparse", true)?;
+        b.arg_named("shadow_pixels", pixels)
+            .arg_named("shadow_rays", &rays)
+            .arg_named("light", sampling.light)
+            .arg_named("sqrt_spp", k);
+        let sparse = b.build().context("creating the sparse shadow kernel")?;
+        let fill = [0u32, 1].map(|pass| {
+            let mut b = build("shadow_fill", false)?;
+            b.arg_named("shadow_pixels", pixels)
+                .arg_named("fill", &fill_buffer)
+                .arg_named("width", size[0] as u32)
+                .arg_named("height", size[1] as u32)
+                .arg_named("radius", sampling.fill_radius as i32)
+                .arg_named("pass", pass);
+            b.build().context("creating the slope fill kernel")
+        });
+        let [f0, f1] = fill;
+        let mut b = build("shadow_adaptive", true)?;
+        b.arg_named("shadow_pixels", pixels)
+            .arg_named("shadow_rays", &rays)
+            .arg_named("light", sampling.light)
+            .arg_named("sparse_spp", sampling.sparse_spp)
+            .arg_named("max_spp", sampling.max_spp);
+        let adaptive = b.build().context("creating the adaptive shadow kernel")?;
+        Ok(ShadowPasses {
+            sampling,
+            sparse,
+            fill: [f0?, f1?],
+            adaptive,
+            rays,
+            _fill_buffer: fill_buffer,
+        })
+    }
+
+    pub(super) fn sampling(&self) -> ShadowSampling {
+        self.sampling
+    }
+
+    /// Runs the sparse pass, the slope fill and the adaptive pass; returns their rays and
+    /// kernel time.
+    pub(super) fn run(&self) -> Result<(u64, Duration)> {
+        let mut rays = 0u64;
+        let mut time = Duration::ZERO;
+        let mut counts = vec![0u32; self.rays.len()];
+        for (k, what, traces) in [
+            (&self.sparse, "the sparse shadow pass", true),
+            (&self.fill[0], "the slope fill", false),
+            (&self.fill[1], "the slope fill", false),
+            (&self.adaptive, "the adaptive shadow pass", true),
+        ] {
+            // SAFETY: every buffer argument is owned by the renderer or by self and sized for
+            // the image; we wait for the event before the next launch.
+            let event = unsafe { enqueue(k, what)? };
+            time += event_duration(&event)?;
+            if traces {
+                self.rays.read(&mut counts).enq()?;
+                rays += counts.iter().map(|&c| c as u64).sum::<u64>();
+            }
+        }
+        Ok((rays, time))
+    }
+}
+
+/// Σn / N² and the rest of [`ShadowStats`] from the shadow pixels.
+pub fn shadow_stats(pixels: &[ShadowPixel], rays: u64, kernel_time: Duration) -> ShadowStats {
+    let total: f64 = pixels.iter().map(|p| p.samples as f64).sum();
+    let receivers = pixels.iter().filter(|p| p.weight > 0.0).count() as u64;
+    ShadowStats {
+        average_spp: total / pixels.len().max(1) as f64,
+        receiver_spp: if receivers > 0 {
+            total / receivers as f64
+        } else {
+            0.0
+        },
+        receivers,
+        max_spp: pixels.iter().map(|p| p.samples as u32).max().unwrap_or(0),
+        rays,
+        kernel_time,
+    }
+}
