@@ -89,8 +89,16 @@ pub fn intersect_closest(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Optio
     best
 }
 
-/// Any hit in (0, t_max).
-pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
+/// Visits the distance of every triangle hit in (0, t_max), in BVH order, until `visit` says
+/// stop (returns true); returns whether it stopped. The traversal of [`occluded`] and
+/// [`occluder_range`] (kernels/arrays/trace.cl writes it twice: OpenCL C has no closures).
+fn triangle_hits(
+    s: &SceneArrays,
+    o: Vec3,
+    d: Vec3,
+    t_max: f32,
+    mut visit: impl FnMut(f32) -> bool,
+) -> bool {
     let inv_d = safe_inverse(d);
     let n = s.params.node_count as usize;
     let mut current = 0usize;
@@ -111,6 +119,7 @@ pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
                     if let Some((t, _, _)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
                         && t > 0.0
                         && t < t_max
+                        && visit(t)
                     {
                         return true;
                     }
@@ -123,49 +132,29 @@ pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
             current = node.skip as usize;
         }
     }
-    s.spheres
-        .iter()
-        .take(s.params.sphere_count as usize)
-        .any(|sp| ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_max).is_some_and(|t| t > 0.0))
+    false
+}
+
+/// Any hit in (0, t_max).
+pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
+    triangle_hits(s, o, d, t_max, |_| true)
+        || s.spheres
+            .iter()
+            .take(s.params.sphere_count as usize)
+            .any(|sp| {
+                ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_max).is_some_and(|t| t > 0.0)
+            })
 }
 
 /// Every hit in (0, t_max), nearest and farthest (kernels/arrays/trace.cl `occluder_range`):
 /// AAF's any-hit shadow rays that record the distance and go on. None when nothing is hit.
 pub fn occluder_range(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, f32)> {
     let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
-    let inv_d = safe_inverse(d);
-    let n = s.params.node_count as usize;
-    let mut current = 0usize;
-    while current < n {
-        let node = &s.nodes[current];
-        if ray_aabb(
-            o,
-            inv_d,
-            0.0,
-            t_max,
-            v3(&node.bounds_min),
-            v3(&node.bounds_max),
-        ) {
-            if node.leaf != 0 {
-                let first = (node.leaf & LEAF_FIRST_MASK) as usize;
-                let count = (node.leaf >> LEAF_COUNT_SHIFT) as usize;
-                for g in &s.tri_geom[first..first + count] {
-                    if let Some((t, _, _)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
-                        && t > 0.0
-                        && t < t_max
-                    {
-                        lo = lo.min(t);
-                        hi = hi.max(t);
-                    }
-                }
-                current = node.skip as usize;
-            } else {
-                current += 1;
-            }
-        } else {
-            current = node.skip as usize;
-        }
-    }
+    triangle_hits(s, o, d, t_max, |t| {
+        lo = lo.min(t);
+        hi = hi.max(t);
+        false
+    });
     for sp in s.spheres.iter().take(s.params.sphere_count as usize) {
         let c = v3(&sp.center);
         if let Some(t0) = ray_sphere(o, d, c, sp.radius, 0.0, t_max).filter(|&t| t > 0.0) {
