@@ -234,25 +234,28 @@ fn method_selects_the_compared_methods() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// Runs `bench --quick --study STUDY` from the source tree into `out` (its references cached
+/// under `out` too) and checks that it succeeded.
+fn quick_study(study: &str, out: &std::path::Path) {
+    let run = noisefree()
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["bench", "--quick", "-q", "--study", study, "--out"])
+        .arg(out)
+        .arg("--cache")
+        .arg(out.join("cache"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "bench --study {study}: {stderr}");
+}
+
 /// `bench --study aaf-shadows --quick` (Wang 2013 Fig. 3.6 at 64 × 64): its table, report and
 /// figures, and the seed's claim in small: adaptive AAF's error is that of Monte Carlo at more
 /// light samples than it spent.
 #[test]
 fn quick_aaf_shadows_study_reproduces_the_claim_in_small() {
     let out = tempdir("bench-aaf");
-    let run = noisefree()
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["bench", "--quick", "-q", "--study", "aaf-shadows", "--out"])
-        .arg(&out)
-        .args(["--cache"])
-        .arg(out.join("cache"))
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(
-        run.status.success(),
-        "bench --study aaf-shadows failed: {stderr}"
-    );
+    quick_study("aaf-shadows", &out);
     let csv = std::fs::read_to_string(out.join("aaf-shadows.csv")).unwrap();
     // 3 Monte Carlo, 2 fixed, 1 adaptive rows.
     assert_eq!(csv.lines().count(), 1 + 6, "{csv}");
@@ -278,14 +281,7 @@ fn quick_aaf_shadows_study_reproduces_the_claim_in_small() {
 #[test]
 fn path_density_study_completes_with_well_formed_results() {
     let out = tempdir("bench-path-density");
-    let run = noisefree()
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["bench", "--quick", "-q", "--study", "path-density", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(run.status.success(), "bench --study path-density: {stderr}");
+    quick_study("path-density", &out);
     let csv = std::fs::read_to_string(out.join("path_density.csv")).unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
