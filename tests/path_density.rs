@@ -440,3 +440,20 @@ fn a_coloured_grid_keeps_its_black_lines() {
         }
     }
 }
+
+/// One prepared kernel filters frame after frame (the viewer's use): its buffers, kept from
+/// run to run and reused for fewer samples, give the bytes and densities of a fresh kernel's.
+#[test]
+fn a_kernel_reused_across_frames_gives_a_fresh_kernels_bytes() {
+    let p = params(10);
+    let mut k = PathDensityKernel::new(gpu(), p).unwrap();
+    for (w, h, spp) in [(12, 9, 8), (12, 9, 3), (12, 9, 8), (7, 5, 6)] {
+        let s = noisy(w, h, spp);
+        let out = k.run(&frame_of(&s)).unwrap();
+        let (image, densities) = run_device(&s, p);
+        assert_eq!(out.image.pixels, image.pixels, "{w}x{h}, {spp} spp");
+        let d = k.densities().unwrap();
+        assert_eq!(d.sigma.len(), (w * h * spp) as usize);
+        assert_eq!((d.sigma, d.weight), (densities.sigma, densities.weight));
+    }
+}

@@ -15,13 +15,42 @@ use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{Float2, Float4};
 use crate::render::Frame;
 
-/// The three kernels, built for one k; buffers are sized per frame on use.
+/// The three kernels, built for one k, and their per-sample buffers.
 pub struct PathDensityKernel {
     gpu: Arc<Gpu>,
     program: Program,
     params: PathDensityParams,
-    /// The last run's per-sample σ and weights, read back only when asked for.
-    last: Option<(Buffer<f32>, Buffer<f32>)>,
+    /// Allocated on the first run for every sample the frame can store, and kept: a
+    /// progressive render (the viewer) filters every frame, and its stored samples only grow
+    /// up to the capacity.
+    scratch: Option<Scratch>,
+    /// Samples of the last run (its σ and weights are the first `last` of the scratch's).
+    last: Option<usize>,
+}
+
+/// The per-sample intermediates (Lab colour, film position, σ, weight) and the image.
+struct Scratch {
+    samples: usize,
+    pixels: usize,
+    lab: Buffer<Float4>,
+    xy: Buffer<Float2>,
+    sigma: Buffer<f32>,
+    weight: Buffer<f32>,
+    out: Buffer<Float4>,
+}
+
+impl Scratch {
+    fn new(gpu: &Gpu, samples: usize, pixels: usize) -> Result<Scratch> {
+        Ok(Scratch {
+            samples,
+            pixels,
+            lab: gpu.zeroed::<Float4>(samples, "path-density Lab")?,
+            xy: gpu.zeroed::<Float2>(samples, "path-density positions")?,
+            sigma: gpu.zeroed::<f32>(samples, "path-density sigma")?,
+            weight: gpu.zeroed::<f32>(samples, "path-density weights")?,
+            out: gpu.zeroed::<Float4>(pixels, "path-density image")?,
+        })
+    }
 }
 
 /// What one run produced.
@@ -40,6 +69,7 @@ impl PathDensityKernel {
             gpu,
             program,
             params,
+            scratch: None,
             last: None,
         })
     }
@@ -74,11 +104,17 @@ impl PathDensityKernel {
         }
         let frame_spp = self.params.frame_spp_for(spp);
         let sv = frame.device(&self.gpu, BufferId::SampleVectors)?;
-        let lab = self.gpu.zeroed::<Float4>(count, "path-density Lab")?;
-        let xy = self.gpu.zeroed::<Float2>(count, "path-density positions")?;
-        let sigma = self.gpu.zeroed::<f32>(count, "path-density sigma")?;
-        let weight = self.gpu.zeroed::<f32>(count, "path-density weights")?;
-        let out = self.gpu.zeroed::<Float4>(pixels, "path-density image")?;
+        if self
+            .scratch
+            .as_ref()
+            .is_none_or(|b| b.samples < count || b.pixels != pixels)
+        {
+            self.scratch = None;
+            let room = count.max(pixels * capacity as usize);
+            self.scratch = Some(Scratch::new(&self.gpu, room, pixels)?);
+        }
+        let b = self.scratch.as_ref().expect("allocated above");
+        let (lab, xy, sigma, weight, out) = (&b.lab, &b.xy, &b.sigma, &b.weight, &b.out);
         let p = &self.params;
         let k_lab = self
             .kernel("pd_lab", count)
@@ -86,14 +122,14 @@ impl PathDensityKernel {
             .arg(count as u32)
             .arg(spp)
             .arg(capacity)
-            .arg(&lab)
-            .arg(&xy)
+            .arg(lab)
+            .arg(xy)
             .build()
             .context("creating pd_lab")?;
         let k_density = self
             .kernel("pd_density", count)
-            .arg(&lab)
-            .arg(&xy)
+            .arg(lab)
+            .arg(xy)
             .arg(w)
             .arg(h)
             .arg(spp)
@@ -103,21 +139,21 @@ impl PathDensityKernel {
             .arg(p.shrink())
             .arg(p.keep)
             .arg(p.reject)
-            .arg(&sigma)
-            .arg(&weight)
+            .arg(sigma)
+            .arg(weight)
             .build()
             .context("creating pd_density")?;
         let k_rec = self
             .kernel("pd_reconstruct", pixels)
             .arg(sv)
-            .arg(&lab)
-            .arg(&weight)
+            .arg(lab)
+            .arg(weight)
             .arg(w)
             .arg(h)
             .arg(spp)
             .arg(capacity)
             .arg(frame_spp)
-            .arg(&out)
+            .arg(out)
             .build()
             .context("creating pd_reconstruct")?;
         let mut kernel_time = Duration::ZERO;
@@ -132,8 +168,8 @@ impl PathDensityKernel {
             let e = unsafe { enqueue(k, what)? };
             kernel_time += event_duration(&e)?;
         }
-        let image = read_rgb(&out, w, h)?;
-        self.last = Some((sigma, weight));
+        let image = read_rgb(out, w, h)?;
+        self.last = Some(count);
         Ok(DeviceRun {
             image,
             kernel_time,
@@ -143,13 +179,13 @@ impl PathDensityKernel {
 
     /// The last run's σ and weights per stored sample (pixel-major), read back.
     pub fn densities(&self) -> Result<Densities> {
-        let Some((s, w)) = &self.last else {
+        let (Some(count), Some(b)) = (self.last, &self.scratch) else {
             bail!("the path-density filter has not run yet");
         };
-        let mut sigma = vec![0.0f32; s.len()];
-        let mut weight = vec![0.0f32; w.len()];
-        s.read(&mut sigma).enq().context("reading sigma back")?;
-        w.read(&mut weight).enq().context("reading weights back")?;
+        let mut sigma = vec![0.0f32; count];
+        let mut weight = vec![0.0f32; count];
+        b.sigma.read(&mut sigma).enq().context("reading sigma back")?;
+        b.weight.read(&mut weight).enq().context("reading weights back")?;
         Ok(Densities { sigma, weight })
     }
 }
