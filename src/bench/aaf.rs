@@ -118,10 +118,13 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
             let frame = r.frame();
             let run = c.prepare(frame.info(), &ctx.gpu)?.run(&frame)?;
             let filter_time = run.kernel_time.unwrap_or(run.wall_time);
-            let map = crate::stats::aov::aov_pictures(&frame, 0.0)?
-                .into_iter()
-                .find(|(name, _)| *name == "shadow_spp")
-                .map(|(_, bytes)| bytes);
+            // The spp map of one adaptive row (max 100, the default) as a picture.
+            let map = if method == "aaf-adaptive" && setting == 100 {
+                let [(_, spp), _] = crate::stats::aov::shadow_pictures(&frame)?;
+                Some(spp)
+            } else {
+                None
+            };
             let secs = r.kernel_time_total + filter_time;
             (run.image, AAF_PATH_SPP, stats.average_spp, secs, map)
         };
@@ -131,7 +134,7 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
         let rays = light_spp + if method == "mc" { 0.0 } else { path_spp as f64 };
         row.extend([light_spp, rays, mse, mse.sqrt(), seconds.as_secs_f64()].map(num));
         t.push(row)?;
-        if let Some(bytes) = spp_map.filter(|_| method == "aaf-adaptive" && setting == 100) {
+        if let Some(bytes) = spp_map {
             let p = ctx.out.join(format!("aaf-spp-{}.png", study.name));
             write_rgb8_png(&p, &bytes, s.width, s.height)?;
         }
@@ -173,18 +176,20 @@ fn report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<()>
     let reference_spp = sizes(ctx).reference_spp;
     let at = (scene, size);
     let mc = curve(t, at, "mc", "light_spp");
+    let mc_time = curve(t, at, "mc", "seconds");
     let mut md = format!(
         "# AAF soft shadows against Monte Carlo (Wang 2013 Fig. 3.6)\n\n\
          `noisefree bench --study aaf-shadows`: Grids at {}, each render against the {}-spp \
          reference (MSE in linear RGB). AAF renders take 16 path samples per pixel for the \
          rest of the image plus the light samples of the shadow passes; `light_spp` counts \
          the latter (the seed's axis: Σn / N² for the adaptive rows), `shadow_rays_spp` both. \
-         `mc_spp_equal` is the Monte Carlo spp of equal MSE (log-log interpolation of the \
-         Monte Carlo rows, slope −1 beyond them: marked *), and `ratio` it over light_spp and \
-         over shadow_rays_spp. Seconds: kernel time of the render, the shadow passes and \
-         the filter.\n\n\
-         | method | setting | light spp | shadow rays spp | RMS | seconds | MC spp at equal MSE | ratio (light) | ratio (rays) |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+         \"MC spp at equal MSE\" is the Monte Carlo spp of equal MSE (log-log interpolation of \
+         the Monte Carlo rows, slope −1 beyond them: marked *), the ratios it over light spp \
+         and over shadow rays spp, and \"MC seconds at equal MSE\" Monte Carlo's time for that \
+         MSE, interpolated the same way. Seconds: kernel time of the render, the shadow passes \
+         and the filter.\n\n\
+         | method | setting | light spp | shadow rays spp | RMS | seconds | MC spp at equal MSE | ratio (light) | ratio (rays) | MC seconds at equal MSE |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
         size, reference_spp
     );
     for r in t
@@ -202,6 +207,14 @@ fn report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<()>
         } else {
             loglog_where(&mc, mse)
         };
+        let time = if r["method"] == "mc" {
+            None
+        } else {
+            loglog_where(&mc_time, mse)
+        };
+        let time = time.map_or(String::new(), |(x, ex)| {
+            format!("{x:.3}{}", if ex { "*" } else { "" })
+        });
         let (eq, ratio_l, ratio_r) = match equal {
             Some((x, extrapolated)) => (
                 format!("{x:.0}{}", if extrapolated { "*" } else { "" }),
@@ -211,7 +224,7 @@ fn report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<()>
             None => ("".into(), "".into(), "".into()),
         };
         md.push_str(&format!(
-            "| {} | {} | {:.1} | {:.1} | {} | {} | {eq} | {ratio_l} | {ratio_r} |\n",
+            "| {} | {} | {:.1} | {:.1} | {} | {} | {eq} | {ratio_l} | {ratio_r} | {time} |\n",
             r["method"], r["setting"], light, rays, r["rms"], r["seconds"]
         ));
     }

@@ -281,28 +281,31 @@ pub fn aov_pictures(frame: &Frame, exposure: f32) -> Result<Vec<(&'static str, V
         }
     }
     if frame.outputs().contains(Output::Shadows) {
-        // AAF's shadow output: the light samples per pixel (the spp map, colour-mapped from 0
-        // to the most any pixel took) and the noisy visibility h_n (grey; black where no
-        // receiver).
-        let px: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
-        let most = px.iter().map(|p| p.samples).fold(0.0f32, f32::max).max(1.0);
-        let spp: Vec<u8> = px
-            .iter()
-            .flat_map(|p| colormap((p.samples / most) as f64))
-            .collect();
-        let visibility: Vec<u8> = px
-            .iter()
-            .flat_map(|p| {
-                let v = if p.weight > 0.0 {
-                    p.visible / p.weight
-                } else {
-                    0.0
-                };
-                [(v.clamp(0.0, 1.0) * 255.0).round() as u8; 3]
-            })
-            .collect();
-        out.push(("shadow_spp", spp));
-        out.push(("shadow_visibility", visibility));
+        out.extend(shadow_pictures(frame)?);
     }
     Ok(out)
+}
+
+/// AAF's shadow output as pictures: `shadow_spp`, the light samples per pixel (the spp map,
+/// colour-mapped from 0 to the most any pixel took), and `shadow_visibility`, the noisy
+/// visibility h_n (grey; black where no receiver). The frame must hold the shadow output.
+pub fn shadow_pictures(frame: &Frame) -> Result<[(&'static str, Vec<u8>); 2]> {
+    let px: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
+    let most = px.iter().map(|p| p.samples).fold(0.0f32, f32::max).max(1.0);
+    let spp: Vec<u8> = px
+        .iter()
+        .flat_map(|p| colormap((p.samples / most) as f64))
+        .collect();
+    let visibility: Vec<u8> = px
+        .iter()
+        .flat_map(|p| {
+            let v = if p.weight > 0.0 {
+                p.visible / p.weight
+            } else {
+                0.0
+            };
+            [(v.clamp(0.0, 1.0) * 255.0).round() as u8; 3]
+        })
+        .collect();
+    Ok([("shadow_spp", spp), ("shadow_visibility", visibility)])
 }
