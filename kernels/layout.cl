@@ -285,6 +285,30 @@ typedef struct __attribute__((aligned(16))) {
 #define SHADOW_PIXEL_UNSHADOWED 20
 #define SHADOW_PIXEL_FLOATS 24
 
+// Sheared filtering of soft shadows (Yan et al. 2015 §3.1, issue 16): the 4-D light field
+// of the pixel centre's receiver, l × l visibility samples on a jittered grid over the
+// filtered sphere light's square [−R, R]² in one global frame (kernels/render/
+// light_field.cl), and the screen directions of the light's two axes (Fig. 5a).
+typedef struct __attribute__((aligned(16))) {
+    float samples[16]; // Visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the light's  first axis y1, b along y2); lanes from l² on are 0.
+    float jitter[2]; // The pixel's jitter j ∈ [0, 1)²: point (a, b) is at y = R (2 (a + j) / l − 1).
+    float dir1[2]; // Unit screen direction (pixels) in which the receiver's x1 grows with x2 fixed.
+    float dir2[2]; // The same for x2 with x1 fixed.
+    float scale[2]; // World x1 per pixel along dir1, world x2 per pixel along dir2 (0: not defined).
+    float count; // l² for a receiver, 0 for none.
+    float pad0;
+    float pad1;
+    float pad2;
+} LightFieldPixel;
+// Float lanes of LightFieldPixel (offset / 4).
+#define LIGHT_FIELD_PIXEL_SAMPLES 0
+#define LIGHT_FIELD_PIXEL_JITTER 16
+#define LIGHT_FIELD_PIXEL_DIR1 18
+#define LIGHT_FIELD_PIXEL_DIR2 20
+#define LIGHT_FIELD_PIXEL_SCALE 22
+#define LIGHT_FIELD_PIXEL_COUNT 24
+#define LIGHT_FIELD_PIXEL_FLOATS 28
+
 // Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
 typedef struct __attribute__((aligned(16))) {
     float4 light; // The filtered sphere light: centre (xyz) and radius (w).

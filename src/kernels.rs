@@ -51,6 +51,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/render/shadows.cl"),
     ),
     (
+        "render/light_field.cl",
+        include_str!("../kernels/render/light_field.cl"),
+    ),
+    (
         "render/pathtrace.cl",
         include_str!("../kernels/render/pathtrace.cl"),
     ),

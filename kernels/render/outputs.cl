@@ -6,10 +6,10 @@
 
 // Every output buffer of the megakernel, one parameter each, in table order. A
 // buffer whose output is off is bound to a one-element stand-in.
-#define RENDER_OUTPUT_PARAMS __global float* filter_vectors, __global float* depth_shifts, __global float* welford_sums, __global float* welford_state, __global float* positions, __global float* sample_vectors, __global float* shadow_terms, __global float* shadow_pixels
-#define RENDER_OUTPUT_ARGS filter_vectors, depth_shifts, welford_sums, welford_state, positions, sample_vectors, shadow_terms, shadow_pixels
+#define RENDER_OUTPUT_PARAMS __global float* filter_vectors, __global float* depth_shifts, __global float* welford_sums, __global float* welford_state, __global float* positions, __global float* sample_vectors, __global float* shadow_terms, __global float* shadow_pixels, __global float* light_field
+#define RENDER_OUTPUT_ARGS filter_vectors, depth_shifts, welford_sums, welford_state, positions, sample_vectors, shadow_terms, shadow_pixels, light_field
 
-#if !defined(OUTPUT_FEATURES) || !defined(OUTPUT_VARIANCE) || !defined(OUTPUT_POSITION) || !defined(OUTPUT_SAMPLES) || !defined(OUTPUT_SHADOWS)
+#if !defined(OUTPUT_FEATURES) || !defined(OUTPUT_VARIANCE) || !defined(OUTPUT_POSITION) || !defined(OUTPUT_SAMPLES) || !defined(OUTPUT_SHADOWS) || !defined(OUTPUT_LIGHT_FIELD)
 #error "noisefree: an output switch is missing from the build options"
 #endif
 #if OUTPUT_VARIANCE && !OUTPUT_FEATURES
@@ -17,6 +17,9 @@
 #endif
 #if OUTPUT_SAMPLES && !OUTPUT_FEATURES
 #error "noisefree: OUTPUT_SAMPLES needs OUTPUT_FEATURES (samples needs features)"
+#endif
+#if OUTPUT_LIGHT_FIELD && !OUTPUT_SHADOWS
+#error "noisefree: OUTPUT_LIGHT_FIELD needs OUTPUT_SHADOWS (light-field needs shadows)"
 #endif
 
 #endif

@@ -304,6 +304,9 @@ __kernel void shadow_adaptive(SHADOW_SCENE_PARAMS, __global float* shadow_pixels
     shadow_rays[pixel] = rays;
 }
 
+// The light-field pass of sheared filtering (Yan et al. 2015), over these passes' receivers.
+#include "render/light_field.cl"
+
 #endif
 
 #endif

@@ -51,6 +51,7 @@ pub fn all_declarations() -> Vec<Declaration> {
         declaration::<AtrousParams>(false),
         declaration::<ShadowTerms>(true),
         declaration::<ShadowPixel>(true),
+        declaration::<LightFieldPixel>(true),
         declaration::<AafShadowParams>(false),
     ]
 }

@@ -456,6 +456,30 @@ device_structs! {
         pub pad3: f32,
     }
 
+    /// Sheared filtering of soft shadows (Yan et al. 2015 §3.1, issue 16): the 4-D light field
+    /// of the pixel centre's receiver, l × l visibility samples on a jittered grid over the
+    /// filtered sphere light's square [−R, R]² in one global frame (kernels/render/
+    /// light_field.cl), and the screen directions of the light's two axes (Fig. 5a).
+    #[align(16)]
+    pub struct LightFieldPixel {
+        /// Visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the light's
+        /// first axis y1, b along y2); lanes from l² on are 0.
+        pub samples: [f32; 16],
+        /// The pixel's jitter j ∈ [0, 1)²: point (a, b) is at y = R (2 (a + j) / l − 1).
+        pub jitter: [f32; 2],
+        /// Unit screen direction (pixels) in which the receiver's x1 grows with x2 fixed.
+        pub dir1: [f32; 2],
+        /// The same for x2 with x1 fixed.
+        pub dir2: [f32; 2],
+        /// World x1 per pixel along dir1, world x2 per pixel along dir2 (0: not defined).
+        pub scale: [f32; 2],
+        /// l² for a receiver, 0 for none.
+        pub count: f32,
+        pub pad0: f32,
+        pub pad1: f32,
+        pub pad2: f32,
+    }
+
     /// Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
     #[align(16)]
     pub struct AafShadowParams {

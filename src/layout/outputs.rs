@@ -21,8 +21,8 @@
 use std::mem::{offset_of, size_of};
 
 use super::{
-    DepthShift, FilterVector, Float4, SampleVector, ShadowPixel, ShadowTerms, WelfordState,
-    WelfordSums,
+    DepthShift, FilterVector, Float4, LightFieldPixel, SampleVector, ShadowPixel, ShadowTerms,
+    WelfordState, WelfordSums,
 };
 
 /// A group of per-pixel outputs switched on together.
@@ -42,6 +42,9 @@ pub enum Output {
     /// AAF soft shadows of one sphere light (Wang 2013 ch. 3): the part of F the filtered term
     /// replaces, and the sparse + adaptive light samples of each pixel's centre receiver.
     Shadows,
+    /// Sheared filtering of soft shadows (Yan et al. 2015 §3.1): the shadow light's l² light
+    /// samples per pixel on a jittered grid (the 4-D light field) and its axes on the screen.
+    LightField,
 }
 
 /// A device buffer of the megakernel.
@@ -55,6 +58,7 @@ pub enum BufferId {
     SampleVectors,
     ShadowTerms,
     ShadowPixels,
+    LightFieldPixels,
 }
 
 /// How many elements a buffer holds.
@@ -193,6 +197,12 @@ const P_OBJECT: usize = lane(offset_of!(ShadowPixel, object));
 const P_POSITION: usize = lane(offset_of!(ShadowPixel, position));
 const P_NORMAL: usize = lane(offset_of!(ShadowPixel, normal));
 const P_UNSHADOWED: usize = lane(offset_of!(ShadowPixel, unshadowed));
+const L_SAMPLES: usize = lane(offset_of!(LightFieldPixel, samples));
+const L_JITTER: usize = lane(offset_of!(LightFieldPixel, jitter));
+const L_DIR1: usize = lane(offset_of!(LightFieldPixel, dir1));
+const L_DIR2: usize = lane(offset_of!(LightFieldPixel, dir2));
+const L_SCALE: usize = lane(offset_of!(LightFieldPixel, scale));
+const L_COUNT: usize = lane(offset_of!(LightFieldPixel, count));
 const D_MEAN: usize = lane(offset_of!(DepthShift, mean));
 
 /// The mean each lane of [`WelfordSums`] is the S_n of: (S_n lane, buffer of the mean, lane of
@@ -287,6 +297,15 @@ pub const BUFFERS: &[BufferDecl] = &[
         per: Per::Pixel,
         merge: Merge::Identical,
         doc: "AAF shadows: visibility sums, slopes and the pixel centre's hit, per pixel",
+    },
+    BufferDecl {
+        id: LightFieldPixels,
+        name: "light_field",
+        element: "LightFieldPixel",
+        element_bytes: size_of::<LightFieldPixel>(),
+        per: Per::Pixel,
+        merge: Merge::Identical,
+        doc: "sheared shadows: l x l light samples, jitter and light axes on screen, per pixel",
     },
 ];
 
@@ -409,6 +428,41 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.unshadowed.B", ShadowPixels, P_UNSHADOWED + 2),
         ],
         doc: "AAF soft shadows of one sphere light: unshadowed term, visibility sums, slopes",
+    },
+    OutputDecl {
+        output: Output::LightField,
+        name: "light-field",
+        switch: Some("OUTPUT_LIGHT_FIELD"),
+        requires: &[Output::Shadows],
+        buffers: &[LightFieldPixels],
+        channels: &[
+            ch("lightfield.f00", LightFieldPixels, L_SAMPLES + 0),
+            ch("lightfield.f01", LightFieldPixels, L_SAMPLES + 1),
+            ch("lightfield.f02", LightFieldPixels, L_SAMPLES + 2),
+            ch("lightfield.f03", LightFieldPixels, L_SAMPLES + 3),
+            ch("lightfield.f04", LightFieldPixels, L_SAMPLES + 4),
+            ch("lightfield.f05", LightFieldPixels, L_SAMPLES + 5),
+            ch("lightfield.f06", LightFieldPixels, L_SAMPLES + 6),
+            ch("lightfield.f07", LightFieldPixels, L_SAMPLES + 7),
+            ch("lightfield.f08", LightFieldPixels, L_SAMPLES + 8),
+            ch("lightfield.f09", LightFieldPixels, L_SAMPLES + 9),
+            ch("lightfield.f10", LightFieldPixels, L_SAMPLES + 10),
+            ch("lightfield.f11", LightFieldPixels, L_SAMPLES + 11),
+            ch("lightfield.f12", LightFieldPixels, L_SAMPLES + 12),
+            ch("lightfield.f13", LightFieldPixels, L_SAMPLES + 13),
+            ch("lightfield.f14", LightFieldPixels, L_SAMPLES + 14),
+            ch("lightfield.f15", LightFieldPixels, L_SAMPLES + 15),
+            ch("lightfield.jitter.U", LightFieldPixels, L_JITTER),
+            ch("lightfield.jitter.V", LightFieldPixels, L_JITTER + 1),
+            ch("lightfield.dir1.X", LightFieldPixels, L_DIR1),
+            ch("lightfield.dir1.Y", LightFieldPixels, L_DIR1 + 1),
+            ch("lightfield.dir2.X", LightFieldPixels, L_DIR2),
+            ch("lightfield.dir2.Y", LightFieldPixels, L_DIR2 + 1),
+            ch("lightfield.scale.X", LightFieldPixels, L_SCALE),
+            ch("lightfield.scale.Y", LightFieldPixels, L_SCALE + 1),
+            ch("lightfield.count", LightFieldPixels, L_COUNT),
+        ],
+        doc: "sheared soft shadows: the shadow light's 4-D light field (l x l samples per pixel)",
     },
 ];
 

@@ -44,6 +44,10 @@ pub struct SceneInfo {
     /// field existed read as none.
     #[serde(default)]
     pub sphere_lights: Vec<[f32; 4]>,
+    /// The centre of the scene's bounds: sheared shadows sample a light in the frame
+    /// perpendicular to (this -> the light's centre). Files written before: the origin.
+    #[serde(default)]
+    pub scene_centre: [f32; 3],
 }
 
 impl SceneInfo {
@@ -67,6 +71,10 @@ impl SceneInfo {
                 .filter(|l| l.kind == crate::layout::LIGHT_SPHERE)
                 .map(|l| l.p0.0)
                 .collect(),
+            scene_centre: {
+                let (lo, hi) = crate::arrays::scene_bounds(scene);
+                ((lo + hi) * 0.5).to_array()
+            },
         }
     }
 
@@ -89,6 +97,7 @@ impl SceneInfo {
             setting: Setting::Indoor,
             seed: 0,
             sphere_lights: Vec::new(),
+            scene_centre: [0.0; 3],
         }
     }
 

@@ -318,6 +318,8 @@ impl Renderer {
                 &self._scene,
                 &self.debug_counters,
                 self.buffer(BufferId::ShadowPixels),
+                self.light_field_frame()
+                    .map(|frame| (self.buffer(BufferId::LightFieldPixels), frame)),
             )?),
             None => None,
         };
@@ -533,6 +535,21 @@ impl Renderer {
     }
 
     /// One of the output buffers (a one-element stand-in when not gathered).
+    /// With the light-field output: e1, e2 of the shadow light's frame
+    /// ([`shadows::light_field::light_frame`]).
+    fn light_field_frame(&self) -> Option<[Float4; 2]> {
+        let light = self.shadow_light?;
+        if !self.outputs.contains(Output::LightField) {
+            return None;
+        }
+        let l = self.scene_info.sphere_lights.get(light as usize)?;
+        let [e1, e2, _] = shadows::light_field::light_frame(
+            glam::Vec3::new(l[0], l[1], l[2]),
+            glam::Vec3::from(self.scene_info.scene_centre),
+        );
+        Some([Float4::from_vec3(e1, 0.0), Float4::from_vec3(e2, 0.0)])
+    }
+
     fn buffer(&self, id: BufferId) -> &Buffer<u8> {
         &self
             .buffers

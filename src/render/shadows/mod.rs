@@ -32,6 +32,7 @@
 //! approximation (the shadowed term is then sharp where the rest is out of focus).
 
 pub mod bandlimit;
+pub mod light_field;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -55,6 +56,9 @@ pub struct ShadowSampling {
     pub max_spp: u32,
     /// Half width of the slope fill, pixels.
     pub fill_radius: u32,
+    /// Side l of the light-field grid of sheared filtering (with
+    /// [`crate::layout::outputs::Output::LightField`]; 1..=4), 0: none.
+    pub light_field: u32,
 }
 
 impl Default for ShadowSampling {
@@ -64,6 +68,7 @@ impl Default for ShadowSampling {
             sparse_spp: 9,
             max_spp: 100,
             fill_radius: 10,
+            light_field: 0,
         }
     }
 }
@@ -84,6 +89,14 @@ impl ShadowSampling {
                 "max_spp ({}) must be at least sparse_spp ({})",
                 self.max_spp,
                 self.sparse_spp
+            );
+        }
+        if self.light_field > light_field::MAX_SIDE {
+            bail!(
+                "the light-field grid of sheared filtering is l x l with l <= {} (Yan et al. \
+                 2015 §3.1; l² samples per pixel are kept), got l = {}",
+                light_field::MAX_SIDE,
+                self.light_field
             );
         }
         if self.max_spp > 1 << 20 {
@@ -148,12 +161,16 @@ pub(super) struct ShadowPasses {
     sparse: Kernel,
     fill: [Kernel; 2],
     adaptive: Kernel,
+    /// The light-field pass (sheared filtering), when its output is gathered.
+    light_field: Option<Kernel>,
     rays: Buffer<u32>,
     _fill_buffer: Buffer<Float4>,
 }
 
 impl ShadowPasses {
-    /// The passes over the renderer's scene buffers and its shadow-pixel buffer `pixels`.
+    /// The passes over the renderer's scene buffers and its shadow-pixel buffer `pixels`;
+    /// with `light_field` (its buffer, and the frame's e1, e2), the light-field pass too.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         gpu: &Arc<Gpu>,
         program: &Program,
@@ -162,6 +179,7 @@ impl ShadowPasses {
         scene: &DeviceScene,
         debug_counters: &Buffer<u32>,
         pixels: &Buffer<u8>,
+        light_field: Option<(&Buffer<u8>, [Float4; 2])>,
     ) -> Result<ShadowPasses> {
         sampling.check()?;
         let n = size[0] * size[1];
@@ -204,11 +222,30 @@ impl ShadowPasses {
             .arg_named("sparse_spp", sampling.sparse_spp)
             .arg_named("max_spp", sampling.max_spp);
         let adaptive = b.build().context("creating the adaptive shadow kernel")?;
+        let light_field = match light_field {
+            Some((buffer, [e1, e2])) if sampling.light_field > 0 => {
+                let mut b = build("light_field_sample", true)?;
+                b.arg_named("shadow_pixels", pixels)
+                    .arg_named("light_field", buffer)
+                    .arg_named("shadow_rays", &rays)
+                    .arg_named("light", sampling.light)
+                    .arg_named("side", sampling.light_field)
+                    .arg_named("frame_u", e1)
+                    .arg_named("frame_v", e2);
+                Some(b.build().context("creating the light-field kernel")?)
+            }
+            Some(_) => bail!(
+                "the light-field output needs its grid side (1..={}), got 0",
+                light_field::MAX_SIDE
+            ),
+            None => None,
+        };
         Ok(ShadowPasses {
             sampling,
             sparse,
             fill: [f0?, f1?],
             adaptive,
+            light_field,
             rays,
             _fill_buffer: fill_buffer,
         })
@@ -218,18 +255,25 @@ impl ShadowPasses {
         self.sampling
     }
 
-    /// Runs the sparse pass, the slope fill and the adaptive pass; returns their rays and
-    /// kernel time.
+    /// Runs the sparse pass, the light-field pass (if any), the slope fill and the adaptive
+    /// pass; returns their rays and kernel time.
     pub(super) fn run(&self) -> Result<(u64, Duration)> {
         let mut rays = 0u64;
         let mut time = Duration::ZERO;
         let mut counts = vec![0u32; self.rays.len()];
-        for (k, what, traces) in [
-            (&self.sparse, "the sparse shadow pass", true),
-            (&self.fill[0], "the slope fill", false),
-            (&self.fill[1], "the slope fill", false),
-            (&self.adaptive, "the adaptive shadow pass", true),
-        ] {
+        let light_field = self
+            .light_field
+            .as_ref()
+            .map(|k| (k, "the light-field pass", true));
+        for (k, what, traces) in [(&self.sparse, "the sparse shadow pass", true)]
+            .into_iter()
+            .chain(light_field)
+            .chain([
+                (&self.fill[0], "the slope fill", false),
+                (&self.fill[1], "the slope fill", false),
+                (&self.adaptive, "the adaptive shadow pass", true),
+            ])
+        {
             // SAFETY: every buffer argument is owned by the renderer or by self and sized for
             // the image; we wait for the event before the next launch.
             let event = unsafe { enqueue(k, what)? };
