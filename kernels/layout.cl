@@ -322,4 +322,24 @@ typedef struct __attribute__((aligned(16))) {
     float beta_tolerance; // Largest |β − β'| / max(β, β').
 } AafShadowParams;
 
+// Parameters of the sheared soft-shadow filter (kernels/filters/sheared.cl; Yan et al.
+// 2015 eqs. 3-15; src/filters/sheared).
+typedef struct __attribute__((aligned(16))) {
+    float4 light; // The filtered sphere light: centre (xyz) and radius R (w).
+    float4 axis1; // The light's axes e1, e2 (xyz; src/render/shadows/light_field.rs `light_frame`).
+    float4 axis2;
+    uint width;
+    uint height;
+    uint side; // Grid side l (l² samples per pixel).
+    uint bins; // Bins of the free light coordinate in steps 1a/2a (odd: one bin at y = 0).
+    float sigma_y; // σ_y = 2/Ω_y^max = R/2, the Gaussian light's standard deviation (eq. 4).
+    float range; // The bins cover [−range, range].
+    float normal_cos; // cos of the largest normal angle between neighbours.
+    float depth_tolerance; // Largest offset along the light direction, in units of the written pixel's σ_x.
+    int max_radius; // Most steps of a 1-D gather on either side (16: the seed's 32 px diameter).
+    float shear; // Factor on eq. 5's η (1: the shear as settled by tests/sheared_filter.rs, 0: no shear).
+    float pad0;
+    float pad1;
+} ShearedParams;
+
 #endif

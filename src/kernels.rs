@@ -72,6 +72,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/aaf_shadows.cl"),
     ),
     (
+        "filters/sheared.cl",
+        include_str!("../kernels/filters/sheared.cl"),
+    ),
+    (
         "filters/path_density.cl",
         include_str!("../kernels/filters/path_density.cl"),
     ),

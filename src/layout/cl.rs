@@ -53,6 +53,7 @@ pub fn all_declarations() -> Vec<Declaration> {
         declaration::<ShadowPixel>(true),
         declaration::<LightFieldPixel>(true),
         declaration::<AafShadowParams>(false),
+        declaration::<ShearedParams>(false),
     ]
 }
 

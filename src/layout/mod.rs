@@ -501,6 +501,37 @@ device_structs! {
         pub beta_tolerance: f32,
     }
 
+    /// Parameters of the sheared soft-shadow filter (kernels/filters/sheared.cl; Yan et al.
+    /// 2015 eqs. 3-15; src/filters/sheared).
+    #[align(16)]
+    pub struct ShearedParams {
+        /// The filtered sphere light: centre (xyz) and radius R (w).
+        pub light: Float4,
+        /// The light's axes e1, e2 (xyz; src/render/shadows/light_field.rs `light_frame`).
+        pub axis1: Float4,
+        pub axis2: Float4,
+        pub width: u32,
+        pub height: u32,
+        /// Grid side l (l² samples per pixel).
+        pub side: u32,
+        /// Bins of the free light coordinate in steps 1a/2a (odd: one bin at y = 0).
+        pub bins: u32,
+        /// σ_y = 2/Ω_y^max = R/2, the Gaussian light's standard deviation (eq. 4).
+        pub sigma_y: f32,
+        /// The bins cover [−range, range].
+        pub range: f32,
+        /// cos of the largest normal angle between neighbours.
+        pub normal_cos: f32,
+        /// Largest offset along the light direction, in units of the written pixel's σ_x.
+        pub depth_tolerance: f32,
+        /// Most steps of a 1-D gather on either side (16: the seed's 32 px diameter).
+        pub max_radius: i32,
+        /// Factor on eq. 5's η (1: the shear as settled by tests/sheared_filter.rs, 0: no shear).
+        pub shear: f32,
+        pub pad0: f32,
+        pub pad1: f32,
+    }
+
     /// Parameters of one pass of the edge-avoiding a-trous filter (Dammertz et al. 2010).
     #[align(16)]
     pub struct AtrousParams {

@@ -1,0 +1,248 @@
+//! Sheared filtering of soft shadows (L.-Q. Yan, S. U. Mehta, R. Ramamoorthi, F. Durand,
+//! "Fast 4D Sheared Filtering for Interactive Rendering of Distribution Effects", ACM TOG 2015;
+//! seed 002, digest /work/shared/notes/seeds-aaf-sheared.md §3; issue 16), for one sphere
+//! light: the eq. 4-5 analysis in `shear.rs`, the OpenCL steps of kernels/filters/sheared.cl
+//! in `device.rs`, their plain Rust reference (and eq. 9's brute force) in `reference.rs`. The
+//! sampling side is the renderer's light-field output (src/render/shadows/light_field.rs),
+//! gathered with AAF's shadow output (receiver, d1, r(x), slopes, slope fill).
+//!
+//! What the seed leaves open, and what is done:
+//! - **The light** (§3.2: a Gaussian of σ_y over a square of side 4σ_y): our sphere is sampled
+//!   on the l × l jittered grid over the square [−R, R]² of one global frame perpendicular to
+//!   (scene centre → light centre), every point traced (a neighbour may need it after the
+//!   shear), and weighted by the Gaussian w_y of σ_y = R/2 (the silhouette disk's per-axis
+//!   standard deviation; digest §3.4, the FAITHFUL option). The disk indicator is not
+//!   separable in (y1, y2), which steps 1a-2b need; the Gaussian is. So the filtered term is
+//!   the shadow of a Gaussian light of the disk's second moment, not of the uniform disk: the
+//!   penumbra's shape differs slightly (its width does not).
+//! - **Samples per pixel**: the AAF sparse pass runs with `sparse_spp` (1 by default: the
+//!   receiver, d1 and r(x)), no adaptive pass, and the light field adds l² (default l = 3, as
+//!   CAMEL's 9 spp, §6); the slopes come from both (§3.1).
+//! - **Slope fill**: AAF's ±`fill_radius` separable max s1 / min s2 fill on the same object
+//!   with radius 2 (the seed's "5×5 slope smoothing" for pixels without occluder hits).
+//! - **Bins** (eq. 12: "~4l bins, 16"): `bins` (odd, default 17, so one bin sits at y = 0 and
+//!   η = 0 reads exactly the unsheared light) over [−2R, 2R]: a sheared light centre beyond
+//!   2R (4σ_y) is skipped, its weight being at most e^{-2} of the peak at the nearest sample.
+//! - **Normalisation** (digest (ii)): every step carries a weight channel, divided at the end.
+//! - **σ_x and η of which pixel** (digest (iii)): the pixel being written, in 1b and 2b.
+//! - **Walks**: 1b walks the screen image of the receiver's x1 axis (dir1; the major axis
+//!   moves one pixel per step) and measures Δx1 = (p′ − p)·e1 in world units; 2b likewise.
+//! - **Rejection** (§5: "far in world space" or normals > 20°): normals within `normal_angle`,
+//!   offset along the light direction within `depth_tolerance` σ_x (AAF's test with β → σ_x).
+//! - **Pixels**: no receiver: F as rendered; a receiver without slopes: its own samples (radius
+//!   0), lent to neighbours; with slopes: filtered. Output = F − the light's part the path
+//!   samples put there + r · filtered visibility (AAF's compose pass, reused).
+//! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 112 B per pixel
+//!   plus the filter's 2 · bins · 4 floats of step 1a and 2 · 2 · bins of steps 1b/2a;
+//!   refused before allocation when it does not fit the device.
+
+mod device;
+pub mod reference;
+pub mod shear;
+
+use std::sync::Arc;
+
+use anyhow::{Result, bail};
+
+use super::{Auto, FilterKind, PreparedFilter};
+use crate::gpu::Gpu;
+use crate::layout::outputs::{Output, OutputSet};
+use crate::layout::{Float4, LightFieldPixel, ShearedParams};
+use crate::render::shadows::light_field::{MAX_SIDE, light_frame};
+use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
+pub use device::{Intermediates, STEPS, ShearedKernel};
+
+crate::filter_settings! {
+    /// The sheared soft-shadow filter's settings: the light-field grid and the filter.
+    pub struct ShearedSettings, flags "sheared-" {
+        /// The sphere light whose shadows are filtered, counting from 0; auto: the first, or
+        /// none when the scene has none (the image passes through); -1: none.
+        pub light: Auto<i32> = Auto::Auto,
+        /// Side l of the light-field grid (l² samples per pixel, l <= 4).
+        pub side: u32 = 3,
+        /// Samples per pixel of AAF's sparse pass (a square): receiver, d1, r(x), slopes.
+        pub sparse_spp: u32 = 1,
+        /// Half width of the slope fill, pixels (2: the seed's 5x5).
+        pub fill_radius: u32 = 2,
+        /// Bins of the free light coordinate in steps 1a and 2a (odd, 3..=33).
+        pub bins: u32 = 17,
+        /// Most steps of a 1-D gather on either side (16: the seed's 32 px diameter).
+        pub max_radius: u32 = 16,
+        /// Largest angle between the normals of two pixels that share samples, degrees;
+        /// 180 or more: no normal test.
+        pub normal_angle: f32 = 20.0,
+        /// Largest offset between two pixels along the direction to the light, in units of
+        /// the written pixel's sigma_x; inf: no test.
+        pub depth_tolerance: f32 = 2.0,
+        /// Factor on eq. 5's shear eta (1: as settled; 0: axis-aligned; -1: the other sign).
+        pub shear: f32 = 1.0,
+    }
+}
+
+impl ShearedSettings {
+    pub fn validate(&self) -> Result<()> {
+        if let Auto::Set(l) = self.light
+            && l < -1
+        {
+            bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
+        }
+        if self.side == 0 || self.side > MAX_SIDE {
+            bail!(
+                "side is the light-field grid's l, 1..={MAX_SIDE} (Yan et al. 2015: l <= 4), \
+                 got {}",
+                self.side
+            );
+        }
+        if self.bins < 3 || self.bins > 33 || self.bins % 2 == 0 {
+            bail!("bins must be odd, 3..=33 (one bin at y = 0), got {}", self.bins);
+        }
+        if self.max_radius > 1024 || self.fill_radius > 1024 {
+            bail!("max_radius and fill_radius are at most 1024 pixels");
+        }
+        for (v, name) in [
+            (self.normal_angle, "normal_angle"),
+            (self.depth_tolerance, "depth_tolerance"),
+        ] {
+            if !(v >= 0.0) {
+                bail!("{name} must be >= 0 (inf: no test), got {v}");
+            }
+        }
+        if !self.shear.is_finite() {
+            bail!("shear must be finite, got {}", self.shear);
+        }
+        self.sampling().check()
+    }
+
+    /// The sphere light filtered, if any (`auto` counts as the first).
+    pub fn light_index(&self) -> Option<u32> {
+        let l = self.light.or(0);
+        (l >= 0).then_some(l as u32)
+    }
+
+    /// How the renderer samples: AAF's sparse pass and fill, no adaptive pass, the grid.
+    pub fn sampling(&self) -> ShadowSampling {
+        ShadowSampling {
+            light: self.light_index().unwrap_or(0),
+            sparse_spp: self.sparse_spp,
+            max_spp: self.sparse_spp,
+            fill_radius: self.fill_radius,
+            light_field: self.side,
+        }
+    }
+
+    /// The filter's parameters for light `light` (centre, radius) in a scene centred at
+    /// `scene_centre`, on a w × h image.
+    pub fn params(
+        &self,
+        light: [f32; 4],
+        scene_centre: [f32; 3],
+        width: u32,
+        height: u32,
+    ) -> ShearedParams {
+        let [e1, e2, _] = light_frame(
+            glam::Vec3::new(light[0], light[1], light[2]),
+            glam::Vec3::from(scene_centre),
+        );
+        let normal_cos = if self.normal_angle >= 180.0 {
+            -2.0
+        } else {
+            self.normal_angle.to_radians().cos()
+        };
+        ShearedParams {
+            light: Float4(light),
+            axis1: Float4::from_vec3(e1, 0.0),
+            axis2: Float4::from_vec3(e2, 0.0),
+            width,
+            height,
+            side: self.side,
+            bins: self.bins,
+            sigma_y: 0.5 * light[3],
+            range: 2.0 * light[3],
+            normal_cos,
+            depth_tolerance: self.depth_tolerance,
+            max_radius: self.max_radius as i32,
+            shear: self.shear,
+            pad0: 0.0,
+            pad1: 0.0,
+        }
+    }
+
+    /// Device bytes of the light field and the filter's buffers for a w × h image: O(N² l²)
+    /// (the light field's lanes are fixed at 16 samples; steps 1a-2a grow with the bins).
+    pub fn memory_bytes(&self, width: u32, height: u32) -> u64 {
+        let n = width as u64 * height as u64;
+        let per_pixel = std::mem::size_of::<LightFieldPixel>() as u64
+            + 4 * (reference::p_floats(self.bins) + 2 * reference::g_floats(self.bins)) as u64
+            + 16 // guide
+            + 4 // visibility
+            + 16; // image
+        n * per_pixel
+    }
+}
+
+/// The sheared soft-shadow filter in the registry.
+pub struct Sheared;
+
+impl FilterKind for Sheared {
+    type Settings = ShearedSettings;
+    const NAME: &'static str = "sheared";
+    const SUMMARY: &'static str = "4-D sheared filtering of one sphere light's soft shadows \
+         from l x l light samples per pixel (Yan et al. 2015; on the device)";
+
+    fn check(s: &ShearedSettings) -> Result<()> {
+        s.validate()
+    }
+
+    fn specialise(s: &mut ShearedSettings, scene: &SceneInfo) -> Vec<String> {
+        let count = scene.sphere_lights.len();
+        let mut notes = Vec::new();
+        if s.light.is_auto() {
+            let l = if count > 0 { 0 } else { -1 };
+            s.light = Auto::Set(l);
+            notes.push(if count > 0 {
+                format!("light = 0: the first of {count} sphere light(s)")
+            } else {
+                "light = -1: the scene has no sphere light, nothing to filter (the image \
+                 passes through)"
+                    .to_string()
+            });
+        }
+        notes
+    }
+
+    fn needs(s: &ShearedSettings) -> OutputSet {
+        match s.light_index() {
+            Some(_) => OutputSet::of(&[Output::Colour, Output::Shadows, Output::LightField]),
+            None => OutputSet::colour(),
+        }
+    }
+
+    fn render_options(s: &ShearedSettings, options: &mut RenderOptions) {
+        options.shadows = s.sampling();
+    }
+
+    fn prepare(
+        s: &ShearedSettings,
+        frame: &FrameInfo,
+        gpu: &Arc<Gpu>,
+    ) -> Result<Box<dyn PreparedFilter>> {
+        let light = match s.light_index() {
+            None => None,
+            Some(l) => match frame.scene.sphere_lights.get(l as usize) {
+                Some(c) => Some((*c, frame.scene.scene_centre)),
+                None => bail!(
+                    "the sheared filter is set to sphere light {l}, but the scene has {} \
+                     sphere light(s)",
+                    frame.scene.sphere_lights.len()
+                ),
+            },
+        };
+        Ok(Box::new(ShearedKernel::new(
+            gpu.clone(),
+            s,
+            light,
+            frame.width,
+            frame.height,
+        )?))
+    }
+}
