@@ -257,8 +257,9 @@ fn quick_aaf_shadows_study_reproduces_the_claim_in_small() {
     let out = tempdir("bench-aaf");
     quick_study("aaf-shadows", &out);
     let csv = std::fs::read_to_string(out.join("aaf-shadows.csv")).unwrap();
-    // 3 Monte Carlo, 2 fixed, 1 adaptive rows.
-    assert_eq!(csv.lines().count(), 1 + 6, "{csv}");
+    // 3 Monte Carlo, 2 fixed, 1 adaptive rows; sheared at l = 3 with the shear, without it
+    // and with the other sign.
+    assert_eq!(csv.lines().count(), 1 + 9, "{csv}");
     for png in ["aaf-shadows-grids.png", "aaf-shadows-time-grids.png"] {
         let bytes = std::fs::read(out.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert_eq!(&bytes[1..4], b"PNG");
@@ -272,6 +273,16 @@ fn quick_aaf_shadows_study_reproduces_the_claim_in_small() {
     let ratio: f64 = cells[8].parse().unwrap_or_else(|_| panic!("{row}"));
     // Measured 1.26 (24 light spp ~ Monte Carlo at 30); bound 1.1.
     assert!(ratio > 1.1, "{row}");
+    // The sheared rows against AAF at equal quality (issue 16).
+    for method in ["sheared", "sheared-no-shear", "sheared-other-sign"] {
+        assert!(
+            md.lines()
+                .filter(|l| l.starts_with(&format!("| {method} |")))
+                .count()
+                == 2,
+            "{method}: a row in each table: {md}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&out);
 }
 

@@ -326,10 +326,11 @@ fn close(a: &[f32], b: &[f32], what: &str) {
     for (x, y) in a.iter().zip(b) {
         let e = (x - y).abs() / x.abs().max(y.abs()).max(1.0);
         worst = worst.max(e);
-        far += (e > 1e-4) as usize;
+        far += (e > 1e-5) as usize;
     }
-    eprintln!("{what}: worst relative difference {worst:e}, {far} above 1e-4");
-    // exp/length of two libraries: measured at most 1e-6 relative; bound 1e-4, none above.
+    eprintln!("{what}: worst relative difference {worst:e}, {far} above 1e-5");
+    // exp/length of two libraries: measured at most 2.3e-7 relative; bound 1e-5 (as the AAF
+    // tests), none above.
     assert_eq!(far, 0, "{what}");
 }
 

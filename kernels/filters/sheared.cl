@@ -110,12 +110,15 @@ __kernel void sheared_1a(__constant const ShearedParams* p, __global const float
     float j1 = lf[LIGHT_FIELD_PIXEL_JITTER];
     for (uint c = 0u; c < bins; ++c) {
         float yc = sheared_bin_centre(c, bins, p->range);
+        // w_y of column a, the same for every row (l <= 4).
+        float wy[4];
+        for (uint a = 0u; a < l; ++a)
+            wy[a] = sheared_gauss(sheared_grid(a, j1, l, p->light.w) - yc, inv);
         for (uint b = 0u; b < l; ++b) {
             float v = 0.0f, w = 0.0f;
             for (uint a = 0u; a < l; ++a) {
-                float wy = sheared_gauss(sheared_grid(a, j1, l, p->light.w) - yc, inv);
-                v += lf[LIGHT_FIELD_PIXEL_SAMPLES + b * l + a] * wy;
-                w += wy;
+                v += lf[LIGHT_FIELD_PIXEL_SAMPLES + b * l + a] * wy[a];
+                w += wy[a];
             }
             o[c * 4u + b] = v;
             o[bins * 4u + c * 4u + b] = w;
@@ -197,11 +200,15 @@ __kernel void sheared_2a(__constant const ShearedParams* p, __global const float
     }
     __global const float* src = in + (size_t)i * (2u * bins);
     float inv = fmin(1.0f / (2.0f * p->sigma_y * p->sigma_y), FLT_MAX);
+    // w_y between two bins depends on their offset only: 2 bins - 1 values (bins <= 33).
+    float table[65];
+    float spacing = 2.0f * p->range / (float)(bins - 1u);
+    for (int d = 0; d < 2 * (int)bins - 1; ++d)
+        table[d] = sheared_gauss((float)(d - ((int)bins - 1)) * spacing, inv);
     for (uint c = 0u; c < bins; ++c) {
-        float yc = sheared_bin_centre(c, bins, p->range);
         float v = 0.0f, w = 0.0f;
         for (uint c2 = 0u; c2 < bins; ++c2) {
-            float wy = sheared_gauss(sheared_bin_centre(c2, bins, p->range) - yc, inv);
+            float wy = table[(int)c2 - (int)c + (int)bins - 1];
             v += src[c2] * wy;
             w += src[bins + c2] * wy;
         }

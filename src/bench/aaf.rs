@@ -11,6 +11,11 @@
 //! - **AAF, adaptive**: the same with the sparse pass at 9 and eq. 3.5's n(x) clamped to a
 //!   maximum, the average spent Σn / N² on the x axis.
 //!
+//! - **Sheared** (Yan et al. 2015, issue 16): the same 16 path samples, AAF's sparse pass at 1
+//!   sample and the l × l light field (l = 2, 3, 4), filtered by `sheared`; `light_spp` is
+//!   1 + l² over the receivers (Σ / N²). Two more rows at l = 3 with η = 0 (no shear) and
+//!   η of the other sign check the shear's sign on a real scene.
+//!
 //! The seed counts only the light samples of AAF (its renders have no path samples); ours keep
 //! 16 path samples per pixel for silhouettes and other light, each with a shadow ray, so the
 //! table gives both counts and the Monte Carlo spp of equal MSE for both. Every row has its
@@ -18,23 +23,31 @@
 
 use anyhow::{Result, bail};
 
-use super::curves::loglog_where;
+use super::curves::{loglog_at, loglog_where};
 use super::plot::{Chart, Series, line_chart};
 use super::study::{STUDY_SEED, StudyScene, reference_image, sizes};
 use super::table::{ResultTable, num};
 use super::{Context, bar};
 use crate::filters::Configured;
 use crate::filters::aaf_shadows::{AafShadowSettings, AafShadows};
+use crate::filters::sheared::{STEPS, Sheared, ShearedKernel, ShearedSettings};
 use crate::imaging::write_rgb8_png;
-use crate::layout::outputs::{Output, OutputSet};
+use crate::layout::LightFieldPixel;
+use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::metrics::mse_rgb;
 use crate::render::Renderer;
 
 /// Path samples per pixel of the AAF renders (the rest of the image, and the replaced term).
 const AAF_PATH_SPP: u32 = 16;
 
-/// One render of the study: (method, setting, path spp, shadow sampling).
-fn plan(quick: bool) -> Vec<(&'static str, u32, AafShadowSettings)> {
+/// The filter of a row: AAF's settings (also Monte Carlo's, unused) or the sheared filter's.
+enum Cell {
+    Aaf(AafShadowSettings),
+    Sheared(ShearedSettings),
+}
+
+/// One render of the study: (method, setting, filter).
+fn plan(quick: bool) -> Vec<(&'static str, u32, Cell)> {
     let aaf = |sparse, max| AafShadowSettings {
         sparse_spp: sparse,
         max_spp: max,
@@ -47,11 +60,11 @@ fn plan(quick: bool) -> Vec<(&'static str, u32, AafShadowSettings)> {
         &[4, 8, 16, 32, 64, 128, 256]
     };
     for &spp in mc {
-        v.push(("mc", spp, AafShadowSettings::default()));
+        v.push(("mc", spp, Cell::Aaf(AafShadowSettings::default())));
     }
     let fixed: &[u32] = if quick { &[4, 16] } else { &[4, 9, 16, 36, 64] };
     for &n in fixed {
-        v.push(("aaf-fixed", n, aaf(n, n)));
+        v.push(("aaf-fixed", n, Cell::Aaf(aaf(n, n))));
     }
     let max: &[u32] = if quick {
         &[36]
@@ -59,8 +72,21 @@ fn plan(quick: bool) -> Vec<(&'static str, u32, AafShadowSettings)> {
         &[16, 36, 64, 100, 196, 400]
     };
     for &m in max {
-        v.push(("aaf-adaptive", m, aaf(9, m)));
+        v.push(("aaf-adaptive", m, Cell::Aaf(aaf(9, m))));
     }
+    let sheared = |side, shear| {
+        Cell::Sheared(ShearedSettings {
+            side,
+            shear,
+            ..Default::default()
+        })
+    };
+    let sides: &[u32] = if quick { &[3] } else { &[2, 3, 4] };
+    for &l in sides {
+        v.push(("sheared", l, sheared(l, 1.0)));
+    }
+    v.push(("sheared-no-shear", 3, sheared(3, 0.0)));
+    v.push(("sheared-other-sign", 3, sheared(3, -1.0)));
     v
 }
 
@@ -93,7 +119,7 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
     let reference = reference_image(ctx, &path, &s)?;
     let cells = plan(ctx.quick);
     let pb = bar(ctx, cells.len() as u64, "aaf-shadows");
-    for (method, setting, settings) in cells {
+    for (method, setting, cell) in cells {
         let key = vec![
             study.name.clone(),
             size.clone(),
@@ -111,11 +137,21 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
             let img = r.frame().beauty()?;
             (img, setting, setting as f64, r.kernel_time_total, None)
         } else {
-            let c = Configured::typed::<AafShadows>(settings, &study.info)?;
+            let c = match cell {
+                Cell::Aaf(a) => Configured::typed::<AafShadows>(a, &study.info)?,
+                Cell::Sheared(sh) => Configured::typed::<Sheared>(sh, &study.info)?,
+            };
             let mut r = aaf_renderer(ctx, &study, &s, &c)?;
             r.render_samples(AAF_PATH_SPP)?;
             let (_, stats) = r.shadow_stats().expect("the shadow output");
             let frame = r.frame();
+            // The light field's l² samples of every receiver, over the image (Σ / N²).
+            let field_spp = if frame.outputs().contains(Output::LightField) {
+                let lf: &[LightFieldPixel] = frame.host_slice(BufferId::LightFieldPixels)?;
+                lf.iter().map(|p| p.count as f64).sum::<f64>() / lf.len().max(1) as f64
+            } else {
+                0.0
+            };
             let run = c.prepare(frame.info(), &ctx.gpu)?.run(&frame)?;
             let filter_time = run.kernel_time.unwrap_or(run.wall_time);
             // The spp map of one adaptive row (max 100, the default) as a picture.
@@ -126,7 +162,11 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
                 None
             };
             let secs = r.kernel_time_total + filter_time;
-            (run.image, AAF_PATH_SPP, stats.average_spp, secs, map)
+            if method == "sheared" && setting == 3 {
+                sheared_steps(ctx, &frame, &s)?;
+            }
+            let light = stats.average_spp + field_spp;
+            (run.image, AAF_PATH_SPP, light, secs, map)
         };
         let mse = mse_rgb(&img, &reference)?;
         let mut row = key;
@@ -144,6 +184,44 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
     report(ctx, &t, &study.name, &size)
 }
 
+/// sheared-steps.md: the kernel time of each step of the sheared filter (l = 3) on `frame`,
+/// filtered once more by its own kernel, and its memory.
+fn sheared_steps(
+    ctx: &Context,
+    frame: &crate::render::Frame,
+    s: &super::study::Sizes,
+) -> Result<()> {
+    let settings = ShearedSettings::default();
+    let info = &frame.info().scene;
+    let light = (info.sphere_lights[0], info.scene_centre);
+    let mut k = ShearedKernel::new(ctx.gpu.clone(), &settings, Some(light), s.width, s.height)?;
+    k.filter(frame)?;
+    let times = k.step_times();
+    let total: f64 = times.iter().map(|t| t.as_secs_f64()).sum();
+    let mut md = format!(
+        "# Sheared filter: kernel time per step (l = 3, {} x {}, one run)\n\n\
+         | step | ms | share |\n|---|---|---|\n",
+        s.width, s.height
+    );
+    for (name, t) in STEPS.iter().zip(times) {
+        let ms = t.as_secs_f64() * 1e3;
+        md.push_str(&format!(
+            "| {name} | {ms:.2} | {:.0}% |
+",
+            100.0 * t.as_secs_f64() / total
+        ));
+    }
+    md.push_str(&format!(
+        "\nTotal {:.2} ms. Memory of the light field and the filter's buffers: {} B per pixel, \
+         {:.1} MiB here (O(N² l²): `ShearedSettings::memory_bytes`).\n",
+        total * 1e3,
+        settings.memory_bytes(1, 1),
+        settings.memory_bytes(s.width, s.height) as f64 / (1u64 << 20) as f64
+    ));
+    std::fs::write(ctx.out.join("sheared-steps.md"), md)?;
+    Ok(())
+}
+
 /// A renderer gathering what `c` (aaf-shadows) needs, its shadow sampling set.
 fn aaf_renderer(
     ctx: &Context,
@@ -156,6 +234,49 @@ fn aaf_renderer(
     debug_assert!(o.outputs.contains(Output::Shadows));
     c.adjust_render(&mut o);
     Renderer::with_arrays(ctx.gpu.clone(), &study.scene, study.arrays.clone(), &o)
+}
+
+/// The sheared rows against adaptive AAF: AAF's light spp and seconds at the row's MSE
+/// (log-log interpolation of the AAF rows, slope −1 beyond them: *), their ratios to the
+/// row's, and AAF's RMS at the row's light spp over the row's RMS (Fig. 9 of Yan et al.).
+fn sheared_section(t: &ResultTable, at: (&str, &str)) -> String {
+    let aaf = curve(t, at, "aaf-adaptive", "light_spp");
+    let aaf_time = curve(t, at, "aaf-adaptive", "seconds");
+    let mut md = String::from(
+        "\n## Sheared filtering against adaptive AAF at equal quality (Yan et al. 2015)\n\n\
+         | method | l | light spp | RMS | seconds | AAF light spp at equal MSE | sample ratio | \
+         AAF seconds at equal MSE | time ratio | AAF RMS at equal light spp / RMS |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let star = |ex: bool| if ex { "*" } else { "" };
+    for r in t
+        .records()
+        .iter()
+        .filter(|r| r["scene"] == at.0 && r["size"] == at.1 && r["method"].starts_with("sheared"))
+    {
+        let (Ok(light), Ok(mse), Ok(secs)) = (
+            r["light_spp"].parse::<f64>(),
+            r["mse_rgb"].parse::<f64>(),
+            r["seconds"].parse::<f64>(),
+        ) else {
+            continue;
+        };
+        let spp = loglog_where(&aaf, mse).map_or((String::new(), String::new()), |(x, ex)| {
+            (format!("{x:.1}{}", star(ex)), format!("{:.2}", x / light))
+        });
+        let time = loglog_where(&aaf_time, mse)
+            .map_or((String::new(), String::new()), |(x, ex)| {
+                (format!("{x:.3}{}", star(ex)), format!("{:.2}", x / secs))
+            });
+        let rms = loglog_at(&aaf, light, -1.0).map_or(String::new(), |(m, ex)| {
+            format!("{:.2}{}", (m / mse).sqrt(), star(ex))
+        });
+        md.push_str(&format!(
+            "| {} | {} | {light:.1} | {} | {} | {} | {} | {} | {} | {rms} |\n",
+            r["method"], r["setting"], r["rms"], r["seconds"], spp.0, spp.1, time.0, time.1
+        ));
+    }
+    md
 }
 
 /// The curves of one method from the table: (x, MSE) by `x_column`, sorted by x.
@@ -234,12 +355,14 @@ fn report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<()>
          (the adaptive row with max 100: samples per pixel, colour-mapped from 0 to the most \
          any pixel took).\n"
     ));
+    md.push_str(&sheared_section(t, at));
     std::fs::write(ctx.out.join("aaf-shadows.md"), md)?;
     let rms = |c: Vec<(f64, f64)>| c.into_iter().map(|(x, m)| (x, m.sqrt())).collect();
     let methods = [
         ("mc", "Monte Carlo"),
         ("aaf-fixed", "AAF, not adaptive"),
         ("aaf-adaptive", "AAF, adaptive (sparse 9)"),
+        ("sheared", "sheared (l = 2, 3, 4)"),
     ];
     let series = |x: &str| -> Vec<Series> {
         methods

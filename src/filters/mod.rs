@@ -43,9 +43,9 @@ builtin_filters! {
     atrous::Atrous, // the edge-avoiding à-trous wavelet filter (Dammertz et al. 2010)
     bmfr::Bmfr,     // blockwise feature regression (single-frame BMFR, Koskela et al. 2019)
     aaf_shadows::AafShadows, // axis-aligned filtering of soft shadows (Wang 2013 ch. 3)
-    sheared::Sheared, // 4-D sheared filtering of soft shadows (Yan et al. 2015)
     path_density::PathDensity, // the path-density outlier filter (DeCoro 2009 ch. 5)
     trimmed::Trimmed, // α-trimmed means of the samples (DeCoro 2009 §5.2 baselines)
+    sheared::Sheared, // 4-D sheared filtering of soft shadows (Yan et al. 2015)
 }
 
 /// A filter, as its module declares it. Implement this; the registry sees it as a [`Filter`].

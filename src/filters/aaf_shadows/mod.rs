@@ -123,7 +123,7 @@ impl AafShadowSettings {
             sparse_spp: self.sparse_spp,
             max_spp: self.max_spp,
             fill_radius: self.fill_radius,
-            light_field: 0,
+            ..ShadowSampling::default()
         }
     }
 

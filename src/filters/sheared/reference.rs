@@ -79,13 +79,16 @@ pub fn step_1a(p: &ShearedParams, field: &[LightFieldPixel], guide: &[Guide]) ->
             }
             for c in 0..bins {
                 let yc = bin_centre(c as u32, p.bins, p.range);
+                // w_y of column a, the same for every row.
+                let mut wy = [0f32; 4];
+                for a in 0..l {
+                    wy[a as usize] = gauss(grid_coordinate(a, lf.jitter[0], l, radius_l) - yc, inv);
+                }
                 for b in 0..l {
                     let (mut v, mut w) = (0f32, 0f32);
                     for a in 0..l {
-                        let y = grid_coordinate(a, lf.jitter[0], l, radius_l);
-                        let wy = gauss(y - yc, inv);
-                        v += lf.samples[(b * l + a) as usize] * wy;
-                        w += wy;
+                        v += lf.samples[(b * l + a) as usize] * wy[a as usize];
+                        w += wy[a as usize];
                     }
                     o[c * 4 + b as usize] = v;
                     o[bins * 4 + c * 4 + b as usize] = w;
@@ -187,11 +190,15 @@ pub fn step_2a(p: &ShearedParams, guide: &[Guide], g1b: &[f32]) -> Vec<f32> {
                 return;
             }
             let src = &g1b[i * 2 * bins..(i + 1) * 2 * bins];
+            // w_y between two bins depends on their offset only: 2 bins - 1 values.
+            let spacing = 2.0 * p.range / (bins - 1) as f32;
+            let table: Vec<f32> = (0..2 * bins as i32 - 1)
+                .map(|d| gauss((d - (bins as i32 - 1)) as f32 * spacing, inv))
+                .collect();
             for c in 0..bins {
-                let yc = bin_centre(c as u32, p.bins, p.range);
                 let (mut v, mut w) = (0f32, 0f32);
                 for c2 in 0..bins {
-                    let wy = gauss(bin_centre(c2 as u32, p.bins, p.range) - yc, inv);
+                    let wy = table[c2 + bins - 1 - c];
                     v += src[c2] * wy;
                     w += src[bins + c2] * wy;
                 }

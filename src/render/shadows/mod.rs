@@ -57,7 +57,9 @@ pub struct ShadowSampling {
     /// Half width of the slope fill, pixels.
     pub fill_radius: u32,
     /// Side l of the light-field grid of sheared filtering (with
-    /// [`crate::layout::outputs::Output::LightField`]; 1..=4), 0: none.
+    /// [`crate::layout::outputs::Output::LightField`]; 1..=4; 3 by default, Yan et al.'s
+    /// 9 spp, so that a render gathering every filter's outputs without their sampling
+    /// choices still has one).
     pub light_field: u32,
 }
 
@@ -68,7 +70,7 @@ impl Default for ShadowSampling {
             sparse_spp: 9,
             max_spp: 100,
             fill_radius: 10,
-            light_field: 0,
+            light_field: 3,
         }
     }
 }
