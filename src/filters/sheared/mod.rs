@@ -36,6 +36,20 @@
 //!   plus the filter's 2 · bins · 4 floats of step 1a and 2 · 2 · bins of steps 1b/2a;
 //!   refused before allocation when it does not fit the device.
 
+//!
+//! **Measured, and what is wrong with it** (issue 16; `bench --study aaf-shadows`): on Grids
+//! at 256² the filter does not reach adaptive AAF (results/pocl-cpu/aaf-shadows.md). Two
+//! causes were measured (by hand, 96-128² renders against 1024 spp):
+//! - the light field on the plane disk through the light's centre, perpendicular to the
+//!   global e3, is not the sphere's cone where the light is large and near (Grids: R = 0.8 at
+//!   1.5-4.5 from the receivers): over the pixels with slopes its mean visibility is 0.382
+//!   against 0.416 for AAF's cone samples (64 spp); on a floor under a small light
+//!   (R/d ≈ 0.13) the two agree to 0.03%. The Gaussian weighting adds less (its visibility
+//!   differs from the uniform disk's by 0.0116 RMS over the image);
+//! - receivers whose 1 + l² samples all reach the light count as lit (visibility 1, not
+//!   filtered) though many lie in penumbrae; AAF's fill of radius 10 and 9 sparse samples find
+//!   slopes for more of them (sparse 9 + fill 10 took the 128² RMS from 0.0635 to 0.0506).
+
 mod device;
 pub mod reference;
 pub mod shear;

@@ -123,6 +123,45 @@ fn neighbour(p: &ShearedParams, x: i32, y: i32, s: Vec2, k: i32) -> Option<usize
         .then(|| (qy * p.width as i32 + qx) as usize)
 }
 
+/// The gather of steps 1b (`axis` 0) and 2b (`axis` 1) around pixel `i` (a receiver): every
+/// accepted neighbour j along the screen image of x_axis, with its w_x(x′ − x) and the bin of
+/// y = η (x − x′) (skipped beyond the bins), in walk order.
+fn gather(
+    p: &ShearedParams,
+    shadow: &[ShadowPixel],
+    field: &[LightFieldPixel],
+    guide: &[Guide],
+    i: usize,
+    axis: usize,
+    mut visit: impl FnMut(usize, f32, u32),
+) {
+    let g = guide[i];
+    let (x, y) = ((i as u32 % p.width) as i32, (i as u32 / p.width) as i32);
+    let (px, lf) = (&shadow[i], &field[i]);
+    let (dir, e) = if axis == 0 {
+        (lf.dir1, p.axis1.xyz())
+    } else {
+        (lf.dir2, p.axis2.xyz())
+    };
+    let (s, world) = step(dir, lf.scale[axis]);
+    let r = radius(g[SIGMA], world, p.max_radius);
+    let inv_x = (1.0 / (2.0 * g[SIGMA] * g[SIGMA])).min(f32::MAX);
+    let pos = Vec3::from(px.position);
+    for k in -r..=r {
+        let Some(j) = neighbour(p, x, y, s, k) else {
+            continue;
+        };
+        if k != 0 && !accepts(p, px, &g, &shadow[j], &guide[j]) {
+            continue;
+        }
+        let dx = (Vec3::from(shadow[j].position) - pos).dot(e);
+        let wx = gauss(dx, inv_x);
+        if let Some(c) = bin_of(g[ETA] * -dx, p.bins, p.range) {
+            visit(j, wx, c);
+        }
+    }
+}
+
 /// `sheared_1b` (eq. 13): the gather along x1. Each neighbour x1′ gives the bin of
 /// y1 = η (x1 − x1′) of its step-1a output, weighted by w_x(x1′ − x1); its rows land in the
 /// bin nearest their own y2′ (its own jitter).
@@ -140,29 +179,10 @@ pub fn step_1b(
     out.par_chunks_mut(g_floats(p.bins))
         .enumerate()
         .for_each(|(i, o)| {
-            let g = guide[i];
-            if g[KIND] == NONE {
+            if guide[i][KIND] == NONE {
                 return;
             }
-            let (x, y) = ((i as u32 % p.width) as i32, (i as u32 / p.width) as i32);
-            let (px, lf) = (&shadow[i], &field[i]);
-            let (s, world) = step(lf.dir1, lf.scale[0]);
-            let r = radius(g[SIGMA], world, p.max_radius);
-            let inv_x = (1.0 / (2.0 * g[SIGMA] * g[SIGMA])).min(f32::MAX);
-            let pos = Vec3::from(px.position);
-            let e1 = p.axis1.xyz();
-            for k in -r..=r {
-                let Some(j) = neighbour(p, x, y, s, k) else {
-                    continue;
-                };
-                if k != 0 && !accepts(p, px, &g, &shadow[j], &guide[j]) {
-                    continue;
-                }
-                let dx = (Vec3::from(shadow[j].position) - pos).dot(e1);
-                let wx = gauss(dx, inv_x);
-                let Some(c1) = bin_of(g[ETA] * -dx, p.bins, p.range) else {
-                    continue;
-                };
+            gather(p, shadow, field, guide, i, 0, |j, wx, c1| {
                 let src = &p1a[j * stride..(j + 1) * stride];
                 for b in 0..l {
                     let y2 = grid_coordinate(b, field[j].jitter[1], l, radius_l);
@@ -173,7 +193,7 @@ pub fn step_1b(
                     o[c2 as usize] += wx * src[at];
                     o[bins + c2 as usize] += wx * src[bins * 4 + at];
                 }
-            }
+            });
         });
     out
 }
@@ -223,34 +243,15 @@ pub fn step_2b(
     (0..guide.len())
         .into_par_iter()
         .map(|i| {
-            let g = guide[i];
-            if g[KIND] == NONE {
+            if guide[i][KIND] == NONE {
                 return 0.0;
             }
-            let (x, y) = ((i as u32 % p.width) as i32, (i as u32 / p.width) as i32);
-            let (px, lf) = (&shadow[i], &field[i]);
-            let (s, world) = step(lf.dir2, lf.scale[1]);
-            let r = radius(g[SIGMA], world, p.max_radius);
-            let inv_x = (1.0 / (2.0 * g[SIGMA] * g[SIGMA])).min(f32::MAX);
-            let pos = Vec3::from(px.position);
-            let e2 = p.axis2.xyz();
             let (mut v, mut w) = (0f32, 0f32);
-            for k in -r..=r {
-                let Some(j) = neighbour(p, x, y, s, k) else {
-                    continue;
-                };
-                if k != 0 && !accepts(p, px, &g, &shadow[j], &guide[j]) {
-                    continue;
-                }
-                let dx = (Vec3::from(shadow[j].position) - pos).dot(e2);
-                let wx = gauss(dx, inv_x);
-                let Some(c) = bin_of(g[ETA] * -dx, p.bins, p.range) else {
-                    continue;
-                };
+            gather(p, shadow, field, guide, i, 1, |j, wx, c| {
                 v += wx * q2a[j * 2 * bins + c as usize];
                 w += wx * q2a[j * 2 * bins + bins + c as usize];
-            }
-            if w > 0.0 { v / w } else { own_mean(p, lf) }
+            });
+            if w > 0.0 { v / w } else { own_mean(p, &field[i]) }
         })
         .collect()
 }
