@@ -290,7 +290,7 @@ typedef struct __attribute__((aligned(16))) {
 // filtered sphere light's square [−R, R]² in one global frame (kernels/render/
 // light_field.cl), and the screen directions of the light's two axes (Fig. 5a).
 typedef struct __attribute__((aligned(16))) {
-    float samples[16]; // Visibility × light of grid point (a, b) at lane b·l + a (a along the light's first  axis y1, b along y2): f cos θ / cos θ_c, f ∈ {0, 1}; lanes from l² on are 0.
+    float samples[16]; // Visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the light's  first axis y1, b along y2); lanes from l² on are 0.
     float jitter[2]; // The pixel's jitter j ∈ [0, 1)²: point (a, b) is at y = R (2 (a + j) / l − 1).
     float dir1[2]; // Unit screen direction (pixels) in which the receiver's x1 grows with x2 fixed.
     float dir2[2]; // The same for x2 with x1 fixed.

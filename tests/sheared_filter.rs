@@ -368,12 +368,9 @@ fn every_device_step_matches_its_rust_reference() {
     close(&step_2a(&p, &dev.guide, &dev.g1b), &dev.q2a, "2a");
     let vis = step_2b(&p, shadow, field, &dev.guide, &dev.q2a);
     close(&vis, &dev.visibility, "2b");
-    // Normalised means of samples f cos / cos_c in [0, the largest sample].
-    let most = field.iter().flat_map(|p| p.samples).fold(0f32, f32::max);
     assert!(
         vis.iter()
-            .all(|v| v.is_finite() && (0.0..=most * (1.0 + 1e-6)).contains(v)),
-        "{most}"
+            .all(|v| v.is_finite() && (0.0..=1.0 + 1e-6).contains(v))
     );
     // Compose: AAF's, with the sheared visibility.
     let aaf_guide: Vec<AafGuide> = dev

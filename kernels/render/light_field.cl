@@ -9,7 +9,6 @@
 //   j in [0,1)^2 (one jitter per pixel, §3.1): y = R (2 (a + j) / l - 1). Steps 1b and 2b need
 //   one (y1, y2) frame shared by neighbours (digest §3.4): a per-receiver frame (the disk
 //   perpendicular to the receiver-to-centre direction, as AAF uses) would break the shear.
-// - Samples are f cos(theta) / cos(theta_c) (0 when occluded or below the horizon).
 // - Every grid point is traced, also those outside the sphere's disk: f is the visibility of
 //   that point of the light's plane, which a neighbour needs after the shear moves it onto its
 //   light (Yan et al. sample the square of their Gaussian light the same way). Whether a point
@@ -77,12 +76,6 @@ __kernel void light_field_sample(SHADOW_SCENE_PARAMS, __global float* shadow_pix
     float3 e1 = frame_u.xyz, e2 = frame_v.xyz;
     float3 o = offset_ray_origin(r.p, r.ng, params->scene_size);
     float dc = length(c - o);
-    // The integrand is visibility x light (§3.1): f cos(theta) / cos(theta_c), so that r (which
-    // has cos(theta_c), kernels/render/shadows.cl shadow_unshadowed) times its mean is the
-    // light's shadowed direct term (the cosine varies across a large, low light: on Grids
-    // leaving it out made the mean visibility of penumbrae 8% too dark).
-    float cos_c = dot(r.ns, (c - o) / dc);
-    float inv_cos_c = cos_c > 0.0f ? 1.0f / cos_c : 0.0f;
     uint key = rng_sample_key(params->seed, pixel, SHADOW_SAMPLE_BASE + 2u);
     float j1 = rng_uniform(key, 0u, DIM_LIGHT_U), j2 = rng_uniform(key, 0u, DIM_LIGHT_V);
     float inv = 1.0f / (float)side;
@@ -110,8 +103,7 @@ __kernel void light_field_sample(SHADOW_SCENE_PARAMS, __global float* shadow_pix
                     s2 = fmin(s2, dc / (dc - t_near) - 1.0f);
                     s1 = fmax(s1, dc / (dc - t_far) - 1.0f);
                 } else {
-                    // 1 where r is 0 (the centre below the horizon): finite, and unused.
-                    f = cos_c > 0.0f ? fmax(dot(r.ns, dir), 0.0f) * inv_cos_c : 1.0f;
+                    f = 1.0f;
                 }
             }
             lf[LIGHT_FIELD_PIXEL_SAMPLES + b * side + a] = f;

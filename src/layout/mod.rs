@@ -462,8 +462,8 @@ device_structs! {
     /// light_field.cl), and the screen directions of the light's two axes (Fig. 5a).
     #[align(16)]
     pub struct LightFieldPixel {
-        /// Visibility × light of grid point (a, b) at lane b·l + a (a along the light's first
-        /// axis y1, b along y2): f cos θ / cos θ_c, f ∈ {0, 1}; lanes from l² on are 0.
+        /// Visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the light's
+        /// first axis y1, b along y2); lanes from l² on are 0.
         pub samples: [f32; 16],
         /// The pixel's jitter j ∈ [0, 1)²: point (a, b) is at y = R (2 (a + j) / l − 1).
         pub jitter: [f32; 2],

@@ -70,8 +70,6 @@ pub fn light_field(
             let [e1, e2] = frame;
             let o = offset_ray_origin(r.sf.p, r.sf.ng, s.params.scene_size);
             let dc = (c - o).length();
-            let cos_c = r.sf.ns.dot((c - o) / dc);
-            let inv_cos_c = if cos_c > 0.0 { 1.0 / cos_c } else { 0.0 };
             let key = rng_sample_key(s.params.seed, pixel as u32, SHADOW_SAMPLE_BASE + 2);
             let (j1, j2) = (
                 rng_uniform(key, 0, DIM_LIGHT_U),
@@ -103,13 +101,7 @@ pub fn light_field(
                                     s2 = s2.min(dc / (dc - t_near) - 1.0);
                                     s1 = s1.max(dc / (dc - t_far) - 1.0);
                                 }
-                                None => {
-                                    f = if cos_c > 0.0 {
-                                        r.sf.ns.dot(dir).max(0.0) * inv_cos_c
-                                    } else {
-                                        1.0
-                                    }
-                                }
+                                None => f = 1.0,
                             }
                         }
                     }
