@@ -22,7 +22,7 @@ use noisefree::layout::{Float4, LightFieldPixel, ShadowPixel, ShadowTerms, Shear
 use noisefree::render::Renderer;
 use noisefree::scene::Scene;
 
-/// A synthetic light field: a w × h receiver plane z = 0 of pixels d apart (x1 = x, x2 = y),
+/// A synthetic light field (one argument per quantity the tests vary): a w × h receiver plane z = 0 of pixels d apart (x1 = x, x2 = y),
 /// a light of radius `radius` at height `height` above the origin, l × l samples per pixel
 /// with jitter from `jitter(pixel)`, visibility from `f(receiver point, light point)`, and
 /// slopes s_min = s_max = `slope`.
@@ -32,6 +32,7 @@ struct Synthetic {
     field: Vec<LightFieldPixel>,
 }
 
+#[allow(clippy::too_many_arguments)]
 fn synthetic(
     w: u32,
     h: u32,

@@ -85,9 +85,8 @@ fn the_light_field_pass_matches_its_rust_reference() {
             }
             receivers += (device[k].count > 0.0) as usize;
             occluded += (device[k].count > 0.0
-                && device[k].samples[..(side * side) as usize]
-                    .iter()
-                    .any(|&f| f == 0.0)) as usize;
+                && device[k].samples[..(side * side) as usize].contains(&0.0))
+                as usize;
         }
         eprintln!(
             "l = {side}: {close} of {} pixels agree (to {worst:e}); {receivers} receivers, \

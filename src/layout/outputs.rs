@@ -436,7 +436,7 @@ pub const OUTPUTS: &[OutputDecl] = &[
         requires: &[Output::Shadows],
         buffers: &[LightFieldPixels],
         channels: &[
-            ch("lightfield.f00", LightFieldPixels, L_SAMPLES + 0),
+            ch("lightfield.f00", LightFieldPixels, L_SAMPLES),
             ch("lightfield.f01", LightFieldPixels, L_SAMPLES + 1),
             ch("lightfield.f02", LightFieldPixels, L_SAMPLES + 2),
             ch("lightfield.f03", LightFieldPixels, L_SAMPLES + 3),

@@ -111,7 +111,7 @@ impl ShearedSettings {
                 self.side
             );
         }
-        if self.bins < 3 || self.bins > 33 || self.bins % 2 == 0 {
+        if self.bins < 3 || self.bins > 33 || self.bins.is_multiple_of(2) {
             bail!("bins must be odd, 3..=33 (one bin at y = 0), got {}", self.bins);
         }
         if self.max_radius > 1024 || self.fill_radius > 1024 {
