@@ -2,6 +2,7 @@
 //! 1a, 1b, 2a, 2b, then AAF's compose pass (kernels/filters/aaf_shadows.cl `aaf_compose`,
 //! which reads the kind from the same guide lane).
 
+use std::ops::Range;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -12,7 +13,7 @@ use super::ShearedSettings;
 use super::reference::{g_floats, p_floats};
 use crate::filters::aaf_shadows::AafShadowSettings;
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue, event_duration, read_rgb_rows};
+use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AafShadowParams, Float4, ShearedParams};
 use crate::render::Frame;
@@ -47,6 +48,8 @@ pub struct ShearedKernel {
     passes: Option<Passes>,
     width: u32,
     height: u32,
+    /// Most steps of a 1-D gather: the rows 1b and 2b each read beyond a band.
+    max_radius: u32,
     step_times: [Duration; 6],
 }
 
@@ -75,6 +78,7 @@ impl ShearedKernel {
             passes,
             width,
             height,
+            max_radius: settings.max_radius,
             step_times: [Duration::ZERO; 6],
         })
     }
@@ -87,11 +91,30 @@ impl ShearedKernel {
     /// Filters `frame` (width × height, with the light-field output unless there is no light)
     /// and reads the image back.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
+        self.filter_rows(frame, 0..self.height)
+    }
+
+    /// Filters the pixels of `rows` only (one band of a frame split across devices): 2b reads
+    /// q up to max_radius rows away (a step moves at most one row), 1b reads p and the guide
+    /// up to max_radius rows further, so prepare and 1a run on the band widened by twice that,
+    /// 1b and 2a by once, and the band's pixels get the bytes of the whole frame's filtering.
+    /// The image's other rows are black.
+    pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
+        let h = self.height;
+        let rows = rows.start.min(h)..rows.end.min(h);
+        let widen = |r: u32| rows.start.saturating_sub(r)..(rows.end + r).min(h);
+        let (wide, wider) = (widen(self.max_radius), widen(2 * self.max_radius));
         frame.check_size(self.width, self.height, "the sheared filter")?;
         let Some(p) = &mut self.passes else {
+            let mut image = frame.beauty()?;
+            for (y, row) in image.pixels.chunks_mut(self.width as usize).enumerate() {
+                if !rows.contains(&(y as u32)) {
+                    row.fill([0.0; 3]);
+                }
+            }
             return Ok(FilterRun {
-                image: frame.beauty()?,
+                image,
                 wall_time: start.elapsed(),
                 kernel_time: Some(Duration::ZERO),
             });
@@ -113,15 +136,17 @@ impl ShearedKernel {
         compose.set_arg("fv", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
         compose.set_arg("terms", frame.device(&self.gpu, BufferId::ShadowTerms)?)?;
         let mut total = Duration::ZERO;
+        let bands = [&wider, &wider, &wide, &wide, &rows, &rows];
         for (n, k) in p.kernels.iter().enumerate() {
             // SAFETY: every buffer is owned by self or the frame, both alive until the event
-            // completes (enqueue waits), and sized for width x height pixels.
-            let event = unsafe { enqueue(k, STEPS[n])? };
+            // completes (enqueue_rows waits), and sized for width x height pixels.
+            let event =
+                unsafe { enqueue_rows(k, self.width, h, bands[n].clone(), STEPS[n])? };
             self.step_times[n] = event_duration(&event)?;
             total += self.step_times[n];
         }
         Ok(FilterRun {
-            image: read_rgb_rows(&p.image, self.width, self.height, 0..self.height)?,
+            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
             wall_time: start.elapsed(),
             kernel_time: Some(total),
         })
@@ -253,5 +278,13 @@ impl Passes {
 impl PreparedFilter for ShearedKernel {
     fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
         self.filter(frame)
+    }
+
+    fn reach(&self) -> Option<u32> {
+        Some(2 * self.max_radius)
+    }
+
+    fn run_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
+        self.filter_rows(frame, rows)
     }
 }
