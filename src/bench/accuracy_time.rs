@@ -48,8 +48,9 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         pb.set_message(format!("accuracy against time: {name}"));
         let reference = reference_image(ctx, path, &s)?;
         let methods = study.methods()?;
-        let chains = study.chains()?;
-        for candidate in Candidate::all(&methods, &chains, oidn.as_ref())
+        let mut extra = study.chains()?;
+        extra.push(study.bmfr_fit()?);
+        for candidate in Candidate::all(&methods, &extra, oidn.as_ref())
             .into_iter()
             .filter(|c| ctx.wants(&c.label()))
         {

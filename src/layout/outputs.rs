@@ -42,6 +42,10 @@ pub enum Output {
     /// AAF soft shadows of one sphere light (Wang 2013 ch. 3): the part of F the filtered term
     /// replaces, and the sparse + adaptive light samples of each pixel's centre receiver.
     Shadows,
+    /// The mean light (direct + indirect) of the pixel's odd-numbered samples alone: with F
+    /// it splits the pixel's samples into two independent half buffers (even and odd, as in
+    /// NFOR, Bitterli et al. 2016), whose difference estimates the variance of F's light.
+    Halves,
 }
 
 /// A device buffer of the megakernel.
@@ -55,6 +59,7 @@ pub enum BufferId {
     SampleVectors,
     ShadowTerms,
     ShadowPixels,
+    OddHalves,
 }
 
 /// How many elements a buffer holds.
@@ -86,7 +91,8 @@ pub enum Merge {
     /// compensation of each S_n, which is rewritten from the merged S_n (the part of the
     /// double-precision sum that its float does not hold).
     WelfordState,
-    /// xyz: means over the samples whose camera ray hit a surface; w: how many did (a count).
+    /// xyz: means over a subset of the pixel's samples (those whose camera ray hit a surface;
+    /// the odd-numbered ones); w: how many there are (a count).
     HitMeans,
     /// One element per sample: each part's samples go to their sample numbers.
     PerSample,
@@ -288,6 +294,15 @@ pub const BUFFERS: &[BufferDecl] = &[
         merge: Merge::Identical,
         doc: "AAF shadows: visibility sums, slopes and the pixel centre's hit, per pixel",
     },
+    BufferDecl {
+        id: OddHalves,
+        name: "odd_halves",
+        element: "float4",
+        element_bytes: size_of::<Float4>(),
+        per: Per::Pixel,
+        merge: Merge::HitMeans,
+        doc: "mean light of the odd-numbered samples per pixel (rgb) and how many (w)",
+    },
 ];
 
 /// Every output. The AOV file lists the channels in this order.
@@ -409,6 +424,20 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.unshadowed.B", ShadowPixels, P_UNSHADOWED + 2),
         ],
         doc: "AAF soft shadows of one sphere light: unshadowed term, visibility sums, slopes",
+    },
+    OutputDecl {
+        output: Output::Halves,
+        name: "halves",
+        switch: Some("OUTPUT_HALVES"),
+        requires: &[Output::Colour],
+        buffers: &[OddHalves],
+        channels: &[
+            ch("odd.R", OddHalves, 0),
+            ch("odd.G", OddHalves, 1),
+            ch("odd.B", OddHalves, 2),
+            ch("odd.samples", OddHalves, 3),
+        ],
+        doc: "mean light of the odd-numbered samples (with F: the two half buffers)",
     },
 ];
 
@@ -616,7 +645,9 @@ mod tests {
                 b.name
             );
         }
-        assert_eq!(Positions.decl().element_bytes, 16, "HitMeans is xyz + w");
+        for b in BUFFERS.iter().filter(|b| b.merge == Merge::HitMeans) {
+            assert_eq!(b.element_bytes, 16, "{}: HitMeans is xyz + w", b.name);
+        }
     }
 
     #[test]
