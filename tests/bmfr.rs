@@ -269,7 +269,10 @@ fn odd_half_is_the_mean_of_the_odd_numbered_samples() {
     let scene = bundled_scene("cornell_glossy");
     let (w, h) = (24, 20);
     let whole = render(&scene, w, h, 6, 4);
-    let odd: Vec<Float4> = whole.host_slice::<Float4>(BufferId::OddHalves).unwrap().to_vec();
+    let odd: Vec<Float4> = whole
+        .host_slice::<Float4>(BufferId::OddHalves)
+        .unwrap()
+        .to_vec();
     let singles: Vec<RgbImage> = [1, 3, 5]
         .iter()
         .map(|&first| {
@@ -327,11 +330,23 @@ fn selection_keeps_the_error_falling_with_samples() {
     // Measured on PoCL (MSE-LUV): 8 spp unfiltered 77.06, fit 62.47, selected 22.69;
     // 128 spp unfiltered 11.47, fit 56.77 (the fit's bias does not fall), selected 5.38.
     let (noisy, fit, sel) = errors("cornell_glossy", 8);
-    assert!(sel < 0.45 * fit && sel < 0.35 * noisy, "8 spp: {sel} {fit} {noisy}");
+    assert!(
+        sel < 0.45 * fit && sel < 0.35 * noisy,
+        "8 spp: {sel} {fit} {noisy}"
+    );
     let (noisy, fit, sel) = errors("cornell_glossy", 128);
-    assert!(fit > 4.0 * noisy, "the fit's bias is what this test is about: {fit} {noisy}");
-    assert!(sel < 0.55 * noisy, "128 spp: {sel} against unfiltered {noisy}");
+    assert!(
+        fit > 4.0 * noisy,
+        "the fit's bias is what this test is about: {fit} {noisy}"
+    );
+    assert!(
+        sel < 0.55 * noisy,
+        "128 spp: {sel} against unfiltered {noisy}"
+    );
     let (noisy, fit, sel) = errors("cornell_diffuse", 8);
     // Diffuse, 8 spp: unfiltered 32.08, fit 12.28, selected 12.24.
-    assert!(sel < 1.02 * fit && sel < 0.4 * noisy, "diffuse: {sel} {fit} {noisy}");
+    assert!(
+        sel < 1.02 * fit && sel < 0.4 * noisy,
+        "diffuse: {sel} {fit} {noisy}"
+    );
 }
