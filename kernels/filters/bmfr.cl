@@ -26,6 +26,7 @@
 //   BMFR_DEPTH, BMFR_TEXTURE, BMFR_TEXTURE2   0/1: the optional features
 //   BMFR_NOISE, BMFR_ALBEDO_EPSILON, BMFR_PIVOT_MIN   float literals
 //   BMFR_SELECT_RADIUS                 half width of the selection's window, pixels
+//   BMFR_SELECT_SCALE                  kappa, the trust in the fit (float literal)
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -33,7 +34,8 @@
 
 #if !defined(BMFR_BLOCK) || !defined(BMFR_WG) || !defined(BMFR_GRIDS) || !defined(BMFR_DEPTH) \
     || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
-    || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)
+    || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
+    || !defined(BMFR_SELECT_SCALE)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif
 
@@ -358,8 +360,8 @@ __kernel void bmfr_residuals(__global const FilterVector* fv,
 }
 
 // bmfr_select: the window sums R (residuals) and V (variances) over the (2 r + 1)^2 pixels
-// around, row by row, and the blend y + lambda (f - y) with lambda = min(1, V / R) (1 when
-// R = 0: no estimate).
+// around, row by row, and the blend y + lambda (f - y) with lambda = min(1, kappa V / R) (1
+// when R = 0: no estimate).
 __kernel void bmfr_select(__global const FilterVector* fv,
                           uint width, uint height,
                           __global const float2* residuals,
@@ -379,7 +381,7 @@ __kernel void bmfr_select(__global const FilterVector* fv,
             sum_v += e.y;
         }
     }
-    float lambda = sum_r > 0.0f ? fmin(1.0f, sum_v / sum_r) : 1.0f;
+    float lambda = sum_r > 0.0f ? fmin(1.0f, BMFR_SELECT_SCALE * sum_v / sum_r) : 1.0f;
     __global const FilterVector* f = fv + i;
     float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
                              f->direct[2] + f->indirect[2]);

@@ -69,6 +69,7 @@ impl BmfrKernel {
             ("BMFR_ALBEDO_EPSILON", format!("{ALBEDO_EPSILON:e}f")),
             ("BMFR_PIVOT_MIN", format!("{PIVOT_MIN:e}f")),
             ("BMFR_SELECT_RADIUS", s.select_radius.to_string()),
+            ("BMFR_SELECT_SCALE", format!("{:e}f", s.select_scale as f32)),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))

@@ -107,7 +107,9 @@ crate::filter_settings! {
         /// half buffers estimate (select.rs), so the error keeps falling with spp.
         pub select: bool = true,
         /// Half width of the window the selection's estimates are summed over, pixels.
-        pub select_radius: u32 = 3,
+        pub select_radius: u32 = 2,
+        /// κ, the trust in the fit: the blend weight is min(1, κ V / R) (select.rs).
+        pub select_scale: f64 = 2.0,
     }
 }
 
@@ -140,6 +142,12 @@ impl BmfrSettings {
             bail!(
                 "the bmfr select_radius must be at most {MAX_SELECT_RADIUS} pixels, got {}",
                 self.select_radius
+            );
+        }
+        if !(self.select_scale >= 1.0 && self.select_scale <= 100.0) {
+            bail!(
+                "the bmfr select_scale must be a number in [1, 100], got {}",
+                self.select_scale
             );
         }
         if !(self.noise >= 0.0 && self.noise <= 1.0) {

@@ -272,7 +272,8 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
             .map(|i| {
                 let xy = ((i as u32 % w) as i32, (i as u32 / w) as i32);
                 let r = s.select_radius as i32;
-                select::select(&fv[i], &residuals, (w, h), xy, r, pixels[i])
+                let scale = s.select_scale as f32;
+                select::select(&fv[i], &residuals, (w, h), xy, r, scale, pixels[i])
             })
             .collect()
     } else {
