@@ -79,7 +79,7 @@ crate::filter_settings! {
         pub abstraction: [f32; 3] = [0.0, 0.0, 0.0],
         /// Contour points drawn per pixel for eq. 3.2 (all of them when the contour has
         /// fewer).
-        pub contour_samples: u32 = 256,
+        pub contour_samples: u32 = 1024,
         /// Halton points per blur pass.
         pub blur_samples: u32 = 64,
         /// The normal rule: contour points and blur neighbours whose normal is further from
