@@ -480,3 +480,34 @@ fn registered_and_passes_through_without_a_light() {
     let names = noisefree::filters::Registry::builtin().names();
     assert!(names.contains(&"stylized-shadows"));
 }
+
+#[test]
+fn controls_follow_the_occluder_distance_on_both_sides_of_the_boundary() {
+    // The plane frame's shadowed pixels have occluder distance 1 and its lit pixels 0; d(x) is
+    // the contour points' occluder distance (1) averaged, so it is 1 on both sides of the
+    // boundary (the controls do not jump where V does), and a quadratic [0, 0, c] acts as the
+    // constant c.
+    let none = |_: u32, _: u32| false;
+    let f = plane_frame(48, 40, 0.01, &notched_disc, &none);
+    let constant = StylizedSettings {
+        inflation: [0.03, 0.0, 0.0],
+        softness: [0.02, 0.0, 0.0],
+        brightness: [0.2, 0.0, 0.0],
+        ..Default::default()
+    };
+    let quadratic = StylizedSettings {
+        inflation: [0.0, 0.0, 0.03],
+        softness: [0.0, 0.02, 0.0],
+        brightness: [0.1, 0.1, 0.0],
+        ..Default::default()
+    };
+    let (_, a) = device(&f, &constant);
+    let (_, b) = device(&f, &quadratic);
+    assert!(
+        a.occluder.iter().all(|&d| (d - 1.0).abs() < 1e-6),
+        "d(x) = 1 everywhere"
+    );
+    assert_eq!(a.matte, b.matte);
+    let cpu = reference(&f, &quadratic).unwrap();
+    assert_eq!(cpu.matte, b.matte);
+}

@@ -38,6 +38,9 @@
 //!   aaf-shadows).
 //! - With the defaults (i = 0, s = 0, b = 0, α = 0) S = V: the hard shadow of the light's
 //!   centre replaces the soft one.
+//! - **Whole frames**: D at a pixel depends on every contour point of the image, so the
+//!   filter has no bounded reach ([`PreparedFilter::reach`] is None) and runs on the merged
+//!   film when a frame is split across devices.
 
 pub mod blur;
 pub mod contour;
