@@ -163,7 +163,7 @@ __kernel void st_blur(__global const float* pixels, __constant const float* cont
         out[i] = own;
         return;
     }
-    float sigma = alpha * 0.70710678f;          // two passes of alpha / sqrt(2)
+    float sigma = alpha * M_SQRT1_2_F;          // two passes of alpha / sqrt(2)
     float3 nrm = st_lane3(px, SHADOW_PIXEL_NORMAL);
     float sum = 0.0f;
     uint kept = 0u;

@@ -78,7 +78,7 @@ pub fn pass(
             if !(alpha > 0.0) || !own.is_finite() || !in_matte(px) {
                 return own;
             }
-            let sigma = alpha * 0.707_106_78;
+            let sigma = alpha * std::f32::consts::FRAC_1_SQRT_2;
             let n = Vec3::from(px.normal);
             let (mut sum, mut kept) = (0f32, 0u32);
             for o in stencil {
