@@ -287,4 +287,21 @@ impl PreparedFilter for StylizedKernel {
     fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
         self.filter(frame)
     }
+
+    /// With a light, D at a pixel depends on every contour point of the image: no bounded
+    /// reach, whole frames only. Without one the image passes through, row by row.
+    fn reach(&self) -> Option<u32> {
+        self.passes.is_none().then_some(0)
+    }
+
+    fn run_rows(&mut self, frame: &Frame, rows: std::ops::Range<u32>) -> Result<FilterRun> {
+        let mut run = self.filter(frame)?;
+        let w = self.width as usize;
+        for (y, row) in run.image.pixels.chunks_mut(w).enumerate() {
+            if !rows.contains(&(y as u32)) {
+                row.fill([0.0; 3]);
+            }
+        }
+        Ok(run)
+    }
 }

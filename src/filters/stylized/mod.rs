@@ -40,7 +40,7 @@
 //!   centre replaces the soft one.
 //! - **Whole frames**: D at a pixel depends on every contour point of the image, so the
 //!   filter has no bounded reach ([`PreparedFilter::reach`] is None) and runs on the merged
-//!   film when a frame is split across devices.
+//!   film when a frame is split across devices (without a light it passes bands through).
 
 pub mod blur;
 pub mod contour;
