@@ -551,3 +551,35 @@ fn a_rendered_scene_scaled_by_1e_3_and_1e3_keeps_its_stylized_matte() {
         assert!(close + 3 >= m.len(), "{close}");
     }
 }
+
+#[test]
+fn a_reused_kernel_gives_a_fresh_kernels_bytes() {
+    // `filter` skips the distance step when the shadow pixels are those of its last run, and
+    // the blur when α has not changed: a progressive render re-runs only the compose. Frames
+    // alternate between two mattes and the controls change between runs; every result must
+    // be what a fresh kernel gives.
+    let none = |_: u32, _: u32| false;
+    let a = plane_frame(48, 40, 0.01, &notched_disc, &none);
+    let b = plane_frame(
+        48,
+        40,
+        0.01,
+        &|x, y| x + y > 40 || notched_disc(x, y),
+        &none,
+    );
+    let mut s = styled();
+    let mut k = StylizedKernel::new(gpu(), &s, true, 48, 40).unwrap();
+    for (step, frame) in [&a, &a, &b, &b, &a].into_iter().enumerate() {
+        if step == 3 {
+            s.inflation = [0.05, 0.0, 0.0];
+            k.set_controls(&s.controls()).unwrap();
+        }
+        if step == 4 {
+            s.abstraction = [5.0, 0.0, 0.0];
+            k.set_controls(&s.controls()).unwrap();
+        }
+        let reused = k.filter(frame).unwrap().image;
+        let (fresh, _) = device(frame, &s);
+        assert_eq!(reused.pixels, fresh.pixels, "step {step}");
+    }
+}

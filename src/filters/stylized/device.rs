@@ -41,6 +41,13 @@ pub struct StylizedKernel {
     passes: Option<Passes>,
     width: u32,
     height: u32,
+    /// The shadow pixels the last distance step read (bytes), and whether the blur is of
+    /// that distance with the current α: [`Self::filter`] re-runs a step only when its input
+    /// changed (the shadow output is computed once per render, before the path samples, so a
+    /// progressive render's frames re-run the compose alone; §3.3.3: the distance "only when
+    /// the camera or light changes").
+    last_pixels: Option<Vec<u8>>,
+    blur_current: bool,
 }
 
 impl StylizedKernel {
@@ -66,6 +73,8 @@ impl StylizedKernel {
             passes,
             width,
             height,
+            last_pixels: None,
+            blur_current: false,
         })
     }
 
@@ -132,11 +141,15 @@ impl StylizedKernel {
         let p = self.passes.as_mut().expect("checked above");
         p.contour = Some(buffer);
         p.contour_points = count;
+        self.blur_current = false;
         Ok(time)
     }
 
     /// Writes the controls (no kernel runs).
     pub fn set_controls(&mut self, c: &Controls) -> Result<()> {
+        if c.abstraction != self.settings.abstraction {
+            self.blur_current = false;
+        }
         self.settings.inflation = c.inflation;
         self.settings.softness = c.softness;
         self.settings.brightness = c.brightness;
@@ -180,6 +193,7 @@ impl StylizedKernel {
             // SAFETY: as in `distance`.
             time += event_duration(&unsafe { enqueue(&k, "a blur pass")? })?;
         }
+        self.blur_current = true;
         Ok(time)
     }
 
@@ -210,8 +224,27 @@ impl StylizedKernel {
     /// Every stage on `frame`.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
         let start = Instant::now();
-        let mut kernel_time = self.distance(frame)?;
-        kernel_time += self.blur(frame)?;
+        let mut kernel_time = Duration::ZERO;
+        let pixels = match &self.passes {
+            Some(_) => {
+                frame.require(
+                    OutputSet::of(&[Output::Colour, Output::Shadows]),
+                    "the stylized-shadows filter",
+                )?;
+                let b = frame.device(&self.gpu, BufferId::ShadowPixels)?;
+                let mut bytes = vec![0u8; b.len()];
+                b.read(&mut bytes).enq().context("reading the shadow pixels")?;
+                Some(bytes)
+            }
+            None => None,
+        };
+        if pixels.is_none() || pixels != self.last_pixels {
+            kernel_time += self.distance(frame)?;
+            self.last_pixels = pixels;
+        }
+        if !self.blur_current {
+            kernel_time += self.blur(frame)?;
+        }
         let (image, t) = self.compose(frame)?;
         Ok(FilterRun {
             image,
