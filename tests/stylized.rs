@@ -233,6 +233,16 @@ fn plane_frame(
     lit: &dyn Fn(u32, u32) -> bool,
     wall: &dyn Fn(u32, u32) -> bool,
 ) -> Frame {
+    shadow_frame(w, h, plane_pixels(w, h, step, lit, wall))
+}
+
+fn plane_pixels(
+    w: u32,
+    h: u32,
+    step: f32,
+    lit: &dyn Fn(u32, u32) -> bool,
+    wall: &dyn Fn(u32, u32) -> bool,
+) -> Vec<ShadowPixel> {
     let n = (w * h) as usize;
     let mut pixels = vec![ShadowPixel::default(); n];
     for (i, p) in pixels.iter_mut().enumerate() {
@@ -251,6 +261,12 @@ fn plane_frame(
         };
         p.unshadowed = [1.0; 3];
     }
+    pixels
+}
+
+/// A frame holding `pixels` as its shadow output (F and the replaced term 0).
+fn shadow_frame(w: u32, h: u32, pixels: Vec<ShadowPixel>) -> Frame {
+    let n = pixels.len();
     let mut scene = SceneInfo::unknown();
     scene.sphere_lights = vec![[0.0, 0.0, 10.0, 0.5]];
     Frame::on_host(
@@ -387,7 +403,7 @@ fn blur_of_a_constant_is_the_constant_and_alpha_zero_is_a_no_op() {
     let stencil = blur::stencil(0, 64);
     for value in [0.37f32, -2.5, 1e4] {
         let input = vec![value; px.len()];
-        let out = blur::pass(px, &c, &occ, &stencil, &input, 32, 24, 0.7);
+        let out = blur::pass(px, &c, &occ, &stencil, &input, 32, 24, 0.7, 4.0);
         let w = out
             .iter()
             .map(|v| (v - value).abs() / value.abs())
@@ -398,7 +414,7 @@ fn blur_of_a_constant_is_the_constant_and_alpha_zero_is_a_no_op() {
     let input: Vec<f32> = (0..px.len()).map(|k| k as f32 * 0.01).collect();
     let zero = Controls::default();
     assert_eq!(
-        blur::pass(px, &zero, &occ, &stencil, &input, 32, 24, 0.7),
+        blur::pass(px, &zero, &occ, &stencil, &input, 32, 24, 0.7, 4.0),
         input
     );
 }
@@ -582,4 +598,45 @@ fn a_reused_kernel_gives_a_fresh_kernels_bytes() {
         let (fresh, _) = device(frame, &s);
         assert_eq!(reused.pixels, fresh.pixels, "step {step}");
     }
+}
+
+#[test]
+fn a_lit_object_in_front_of_a_shadow_keeps_its_s() {
+    // Digest §1.7 item 5: the floor (z = 0, spacing 0.01) is shadowed left of column 30 and
+    // lit right of it; a lit bar floats 0.2 above it over rows 18-22, crossing the shadow.
+    // The pairs across the bar's silhouette differ in V but are 0.2 apart along the normal
+    // (20 footprints): no contour points there, so the only contour is the floor's line; the
+    // bar, 0.2 or more from it, stays lit under an inflation of 0.1, and the blur does not
+    // take the floor's D across the silhouette: its S = 1 everywhere.
+    let (w, h) = (48, 40);
+    let bar = |y: u32| (18..=22).contains(&y);
+    let none = |_: u32, _: u32| false;
+    let mut px = plane_pixels(w, h, 0.01, &move |x, y| x >= 30 || bar(y), &none);
+    for (i, p) in px.iter_mut().enumerate() {
+        if bar(i as u32 / w) {
+            p.position[2] = 0.2;
+        }
+    }
+    let f = shadow_frame(w, h, px);
+    let s = StylizedSettings {
+        inflation: [0.1, 0.0, 0.0],
+        abstraction: [2.0, 0.0, 0.0],
+        ..Default::default()
+    };
+    let (_, st) = device(&f, &s);
+    // The floor's line at column 29|30 on the 35 rows the bar does not cover.
+    assert_eq!(st.contour_points, 35);
+    for y in 18..=22u32 {
+        for x in 0..w {
+            assert_eq!(st.matte[(y * w + x) as usize], 1.0, "bar pixel ({x}, {y})");
+        }
+    }
+    // Without the gap test the silhouette pairs become contour points floating at z = 0.1:
+    // 2 rows of 30 more, and the floor shadow beside the bar would be measured from them.
+    let loose = StylizedSettings {
+        surface_gap: 1e9,
+        ..s.clone()
+    };
+    let (_, st) = device(&f, &loose);
+    assert_eq!(st.contour_points, 35 + 60);
 }

@@ -7,7 +7,8 @@
 //
 // 1. st_contour: contour points (§3.3.3 "pixels on shadow boundaries", digest §1.3 step 2):
 //    for each pixel and its right and lower neighbour, when V differs, both are matte pixels
-//    of one surface (normals within the 45° rule, world gap within `gap` pixel footprints),
+//    of one surface (normals within the 45° rule, each within `gap` pixel footprints of the
+//    other's tangent plane: not across a silhouette),
 //    the midpoint of their world positions, with the mean normal and the occluder distance
 //    of the shadowed one. Two slots per pixel; the host compacts them in pixel order.
 // 2. st_distance: eq. 3.2 with p = 8, D = (mean |x - y|^-8)^(-1/8) over N contour points
@@ -17,8 +18,9 @@
 //    the occluder distances of the contour points averaged with the same weights (m/d)^8.
 // 3. st_blur, twice: G * D (§3.3.1 Abstraction, §3.3.3 Gaussian Blur), sigma = alpha/sqrt(2)
 //    per pass, importance-sampled Gaussian offsets from Halton points (bases 2 and 3) within
-//    3 sigma (a different stretch of the sequence per pass), neighbours failing the 45° rule (or not in the matte, or with no contour: inf)
-//    skipped, the mean of the rest.
+//    3 sigma (a different stretch of the sequence per pass), neighbours failing the 45° rule,
+//    off the pixel's surface (further than `gap` footprints from its tangent plane), not in
+//    the matte or with no contour (inf) skipped, the mean of the rest.
 // 4. st_compose: eq. 3.3 with (1 - b) for the printed (1 - b)^-1, S = (1 - b) smoothstep(
 //    i - s/2, i + s/2, D) + b (a hard step D >= i at s = 0), then F - direct + r S.
 #pragma OPENCL FP_CONTRACT OFF
@@ -68,13 +70,13 @@ __kernel void st_contour(__global const float* pixels, __global float4* slots, u
         if (dot(na, nb) < normal_cos) continue;
         float3 pa = st_lane3(a, SHADOW_PIXEL_POSITION), pb = st_lane3(b, SHADOW_PIXEL_POSITION);
         float3 delta = pb - pa;
+        float3 n = na + nb;
+        n = n / sqrt(dot(n, n));
         float foot = fmax(a[SHADOW_PIXEL_PIXEL_SIZE], b[SHADOW_PIXEL_PIXEL_SIZE]);
-        if (dot(delta, delta) > (gap * foot) * (gap * foot)) continue;
+        if (fabs(dot(n, delta)) > gap * foot) continue;
         float occluder = (va == 0.0f) ? a[SHADOW_PIXEL_OCCLUDER_DISTANCE]
                                       : b[SHADOW_PIXEL_OCCLUDER_DISTANCE];
         float3 mid = (pa + pb) * 0.5f;
-        float3 n = na + nb;
-        n = n / sqrt(dot(n, n));
         slots[slot] = (float4)(mid, occluder);
         slots[slot + 1u] = (float4)(n, 1.0f);
     }
@@ -152,7 +154,7 @@ __kernel void st_distance(__global const float* pixels, __global const float4* c
 __kernel void st_blur(__global const float* pixels, __constant const float* controls,
                       __global const float* occluder, __global const float2* stencil,
                       __global const float* in, __global float* out, uint width, uint height,
-                      uint n, float normal_cos) {
+                      uint n, float normal_cos, float gap) {
     int x = (int)get_global_id(0), y = (int)get_global_id(1);
     if (x >= (int)width || y >= (int)height) return;
     int i = y * (int)width + x;
@@ -165,6 +167,8 @@ __kernel void st_blur(__global const float* pixels, __constant const float* cont
     }
     float sigma = alpha * M_SQRT1_2_F;          // two passes of alpha / sqrt(2)
     float3 nrm = st_lane3(px, SHADOW_PIXEL_NORMAL);
+    float3 pos = st_lane3(px, SHADOW_PIXEL_POSITION);
+    float plane = gap * px[SHADOW_PIXEL_PIXEL_SIZE];
     float sum = 0.0f;
     uint kept = 0u;
     for (uint k = 0u; k < n; ++k) {
@@ -176,6 +180,7 @@ __kernel void st_blur(__global const float* pixels, __constant const float* cont
         float dj = in[j];
         if (!st_in_matte(q) || !isfinite(dj)) continue;
         if (dot(nrm, st_lane3(q, SHADOW_PIXEL_NORMAL)) < normal_cos) continue;
+        if (fabs(dot(nrm, st_lane3(q, SHADOW_PIXEL_POSITION) - pos)) > plane) continue;
         sum += dj;
         kept += 1u;
     }

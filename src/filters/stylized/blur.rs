@@ -15,7 +15,11 @@
 //!   constant. The second pass takes the next n points of the sequence, so the two stencils
 //!   differ and their composition is denser than either.
 //! - **Skipped neighbours**: outside the image, not in the matte, failing the 45° rule
-//!   (§3.3.2: "in both the distance transform and blur"), or with D = ±∞ (no contour point on
+//!   (§3.3.2: "in both the distance transform and blur"), off the pixel's surface (further
+//!   than `gap` pixel footprints from its tangent plane: the seed's blur has the normal rule
+//!   only, so a lit object in front of a shadow would take the shadow's D across its
+//!   silhouette, against §3.3.2's "an unshadowed foreground object may cross a shadowed
+//!   background without artifact"), or with D = ±∞ (no contour point on
 //!   that side: an infinity would swamp the mean or give ∞ − ∞ = NaN). A pixel whose own D is
 //!   ±∞ keeps it; a pixel with no neighbour kept keeps its D; α ≤ 0 copies D (α = 0 is a no-op).
 //! - α is in **pixels** (the 3α disk is "of pixels"), so abstraction does not scale with the
@@ -66,6 +70,7 @@ pub fn pass(
     width: u32,
     height: u32,
     normal_cos: f32,
+    gap: f32,
 ) -> Vec<f32> {
     let (w, h) = (width as i32, height as i32);
     (0..w * h)
@@ -80,6 +85,8 @@ pub fn pass(
             }
             let sigma = alpha * std::f32::consts::FRAC_1_SQRT_2;
             let n = Vec3::from(px.normal);
+            let pos = Vec3::from(px.position);
+            let plane = gap * px.pixel_size;
             let (mut sum, mut kept) = (0f32, 0u32);
             for o in stencil {
                 let qx = x + (sigma * o.0[0]).round_ties_even() as i32;
@@ -91,6 +98,9 @@ pub fn pass(
                 let q = &pixels[j];
                 let dj = input[j];
                 if !in_matte(q) || !dj.is_finite() || n.dot(Vec3::from(q.normal)) < normal_cos {
+                    continue;
+                }
+                if n.dot(Vec3::from(q.position) - pos).abs() > plane {
                     continue;
                 }
                 sum += dj;

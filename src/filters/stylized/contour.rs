@@ -9,11 +9,11 @@
 //!   contour point and D ≠ 0 at every pixel (digest §1.3 step 2: "edge-midpoint samples keep
 //!   D ≠ 0 at pixel centres"); with them the hard step of eq. 3.3 at i = 0 reproduces V;
 //! - both pixels are in the matte (their centre ray hit a diffuse surface), their normals are
-//!   within the 45° rule (§3.3.2 "Normal Discontinuities"), and their world positions are at
-//!   most `gap` pixel footprints apart: a pair across a silhouette (a lit object in front of a
-//!   shadowed floor) is no boundary of any shadow, and its midpoint floats in the air. The
-//!   footprint is the pixel's size perpendicular to the view, so a gap of 8 still joins the
-//!   pixels of a surface seen 83° off its normal;
+//!   within the 45° rule (§3.3.2 "Normal Discontinuities"), and each lies on the other's
+//!   surface: the offset between them along their mean normal is at most `gap` pixel
+//!   footprints. A pair across a silhouette (a lit object in front of a shadowed floor) is no
+//!   boundary of any shadow, and its midpoint floats in the air; two pixels of one plane are
+//!   0 apart along its normal at any viewing angle, two of a curved surface nearly so;
 //! - its normal is the mean of the two, its occluder distance that of the shadowed pixel
 //!   (d(x) of §3.3.2 for the quadratic controls, spread by the distance step).
 //!
@@ -55,8 +55,10 @@ pub fn slots(pixels: &[ShadowPixel], width: u32, height: u32, normal_cos: f32, g
                 }
                 let (pa, pb) = (Vec3::from(a.position), Vec3::from(b.position));
                 let delta = pb - pa;
+                let n = na + nb;
+                let n = n / n.dot(n).sqrt();
                 let foot = a.pixel_size.max(b.pixel_size);
-                if delta.dot(delta) > (gap * foot) * (gap * foot) {
+                if n.dot(delta).abs() > gap * foot {
                     continue;
                 }
                 let occluder = if a.centre_visible == 0.0 {
@@ -65,8 +67,6 @@ pub fn slots(pixels: &[ShadowPixel], width: u32, height: u32, normal_cos: f32, g
                     b.occluder_distance
                 };
                 let mid = (pa + pb) * 0.5;
-                let n = na + nb;
-                let n = n / n.dot(n).sqrt();
                 let slot = (i * 2 + dir as usize) * 2;
                 out[slot] = Float4([mid.x, mid.y, mid.z, occluder]);
                 out[slot + 1] = Float4([n.x, n.y, n.z, 1.0]);

@@ -108,7 +108,7 @@ impl StylizedKernel {
             .arg(self.width)
             .arg(self.height)
             .arg(normal_cos)
-            .arg(s.contour_gap)
+            .arg(s.surface_gap)
             .build()
             .context("creating the contour kernel")?;
         // SAFETY: the buffers are the frame's and ours, sized for the image, alive until the
@@ -188,6 +188,7 @@ impl StylizedKernel {
                 .arg(self.height)
                 .arg(self.settings.blur_samples)
                 .arg(self.settings.normal_cos())
+                .arg(self.settings.surface_gap)
                 .build()
                 .context("creating the blur kernel")?;
             // SAFETY: as in `distance`.

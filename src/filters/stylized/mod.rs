@@ -88,9 +88,9 @@ crate::filter_settings! {
         /// The normal rule: contour points and blur neighbours whose normal is further from
         /// the pixel's are ignored, degrees (§3.3.2: 45).
         pub normal_angle: f32 = 45.0,
-        /// Two neighbouring pixels form a contour point only when their world positions are
-        /// at most this many pixel footprints apart (not across silhouettes).
-        pub contour_gap: f32 = 8.0,
+        /// Two pixels are of one surface (a contour pair, a blur neighbour) when they are at
+        /// most this many pixel footprints apart along the normal: not across silhouettes.
+        pub surface_gap: f32 = 4.0,
         /// Light samples per pixel for r, the unshadowed term (a square; r is anti-aliased
         /// over them; their visibility is not used).
         pub unshadowed_spp: u32 = 4,
@@ -130,11 +130,11 @@ impl StylizedSettings {
                 bail!("{name} takes three finite coefficients [c0, c1, c2], got {q:?}");
             }
         }
-        if !(self.normal_angle >= 0.0) || !(self.contour_gap > 0.0) {
+        if !(self.normal_angle >= 0.0) || !(self.surface_gap > 0.0) {
             bail!(
-                "normal_angle must be >= 0 degrees and contour_gap > 0, got {} and {}",
+                "normal_angle must be >= 0 degrees and surface_gap > 0, got {} and {}",
                 self.normal_angle,
-                self.contour_gap
+                self.surface_gap
             );
         }
         Ok(())
@@ -261,7 +261,7 @@ pub fn reference(frame: &Frame, s: &StylizedSettings) -> Result<Stages> {
     let pixels: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
     let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms)?;
     let normal_cos = s.normal_cos();
-    let contour = contour::compact(&contour::slots(pixels, w, h, normal_cos, s.contour_gap));
+    let contour = contour::compact(&contour::slots(pixels, w, h, normal_cos, s.surface_gap));
     let sampling = distance::Sampling::new(
         (contour.len() / 2) as u32,
         s.contour_samples,
@@ -274,7 +274,17 @@ pub fn reference(frame: &Frame, s: &StylizedSettings) -> Result<Stages> {
     let mut blurred = dist.clone();
     for pass in 0..2 {
         let stencil = blur::stencil(pass * n, n);
-        blurred = blur::pass(pixels, &controls, &occluder, &stencil, &blurred, w, h, normal_cos);
+        blurred = blur::pass(
+            pixels,
+            &controls,
+            &occluder,
+            &stencil,
+            &blurred,
+            w,
+            h,
+            normal_cos,
+            s.surface_gap,
+        );
     }
     let (matte, image) = transfer::compose(
         frame.filter_vectors()?,
