@@ -7,10 +7,10 @@
 //
 // 1. st_contour: contour points (§3.3.3 "pixels on shadow boundaries", digest §1.3 step 2):
 //    for each pixel and its right and lower neighbour, when V differs, both are matte pixels
-//    of one surface (normals within the 45° rule, each within `gap` pixel footprints of the
-//    other's tangent plane: not across a silhouette),
-//    the midpoint of their world positions, with the mean normal and the occluder distance
-//    of the shadowed one. Two slots per pixel; the host compacts them in pixel order.
+//    of one surface (normals within the 45° rule, at most `gap` pixel footprints apart along
+//    their mean normal: not across a silhouette), the midpoint of their world positions,
+//    with the mean normal and the occluder distance of the shadowed one. Two slots per
+//    pixel; the host compacts them in pixel order.
 // 2. st_distance: eq. 3.2 with p = 8, D = (mean |x - y|^-8)^(-1/8) over N contour points
 //    (stratified over the list; all of them when there are at most N), those failing the 45°
 //    rule skipped, computed as m (mean (m/d)^8)^(-1/8), m = min d (digest §1.7 item 6), and
