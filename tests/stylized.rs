@@ -640,3 +640,40 @@ fn a_lit_object_in_front_of_a_shadow_keeps_its_s() {
     let (_, st) = device(&f, &loose);
     assert_eq!(st.contour_points, 35 + 60);
 }
+
+#[test]
+fn settings_errors_name_the_setting() {
+    for (s, needle) in [
+        (
+            StylizedSettings {
+                unshadowed_spp: 3,
+                ..Default::default()
+            },
+            "unshadowed_spp",
+        ),
+        (
+            StylizedSettings {
+                contour_samples: 0,
+                ..Default::default()
+            },
+            "contour_samples",
+        ),
+        (
+            StylizedSettings {
+                softness: [f32::NAN, 0.0, 0.0],
+                ..Default::default()
+            },
+            "softness",
+        ),
+        (
+            StylizedSettings {
+                light: Auto::Set(-2),
+                ..Default::default()
+            },
+            "light",
+        ),
+    ] {
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains(needle), "{e}");
+    }
+}

@@ -110,6 +110,13 @@ impl StylizedSettings {
         {
             bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
         }
+        let k = (self.unshadowed_spp as f64).sqrt().round() as u32;
+        if self.unshadowed_spp == 0 || k * k != self.unshadowed_spp || k > 64 {
+            bail!(
+                "unshadowed_spp is a square of whole strata (1, 4, 9, ..., 4096), got {}",
+                self.unshadowed_spp
+            );
+        }
         self.sampling().check()?;
         for (v, name) in [
             (self.contour_samples, "contour_samples"),
