@@ -52,10 +52,11 @@ use std::sync::Arc;
 
 use anyhow::{Result, bail};
 
+use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
-use crate::layout::outputs::{BufferId, Output, OutputSet};
+use crate::layout::outputs::{BufferId, OutputSet};
 use crate::layout::{ShadowPixel, ShadowTerms};
 use crate::render::{Frame, FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::{DeviceStages, StylizedKernel};
@@ -105,11 +106,7 @@ pub const DISTANCE_SEED: u32 = 0x5717_12ed;
 
 impl StylizedSettings {
     pub fn validate(&self) -> Result<()> {
-        if let Auto::Set(l) = self.light
-            && l < -1
-        {
-            bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
-        }
+        check_light(self.light)?;
         let k = (self.unshadowed_spp as f64).sqrt().round() as u32;
         if self.unshadowed_spp == 0 || k * k != self.unshadowed_spp || k > 64 {
             bail!(
@@ -167,8 +164,7 @@ impl StylizedSettings {
 
     /// The sphere light stylized, if any (after specialisation; `auto` counts as the first).
     pub fn light_index(&self) -> Option<u32> {
-        let l = self.light.or(0);
-        (l >= 0).then_some(l as u32)
+        light_index(self.light)
     }
 
     /// The shadow output this filter needs: `unshadowed_spp` light samples for r and no
@@ -198,24 +194,11 @@ impl FilterKind for StylizedShadows {
 
     /// `light = auto` becomes the first sphere light, or none when the scene has none.
     fn specialise(s: &mut StylizedSettings, scene: &SceneInfo) -> Vec<String> {
-        let count = scene.sphere_lights.len();
-        let mut notes = Vec::new();
-        if s.light.is_auto() {
-            s.light = Auto::Set(if count > 0 { 0 } else { -1 });
-            notes.push(if count > 0 {
-                format!("light = 0: the first of {count} sphere light(s)")
-            } else {
-                "light = -1: the scene has no sphere light (the image passes through)".into()
-            });
-        }
-        notes
+        specialise_light(&mut s.light, scene)
     }
 
     fn needs(s: &StylizedSettings) -> OutputSet {
-        match s.light_index() {
-            Some(_) => OutputSet::of(&[Output::Colour, Output::Shadows]),
-            None => OutputSet::colour(),
-        }
+        light_needs(s.light)
     }
 
     fn render_options(s: &StylizedSettings, options: &mut RenderOptions) {
