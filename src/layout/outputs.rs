@@ -196,6 +196,8 @@ const P_SLOPE_SOURCE: usize = lane(offset_of!(ShadowPixel, slope_source));
 const P_PIXEL_SIZE: usize = lane(offset_of!(ShadowPixel, pixel_size));
 const P_TARGET: usize = lane(offset_of!(ShadowPixel, target));
 const P_OBJECT: usize = lane(offset_of!(ShadowPixel, object));
+const P_CENTRE_VISIBLE: usize = lane(offset_of!(ShadowPixel, centre_visible));
+const P_OCCLUDER: usize = lane(offset_of!(ShadowPixel, occluder_distance));
 const P_POSITION: usize = lane(offset_of!(ShadowPixel, position));
 const P_NORMAL: usize = lane(offset_of!(ShadowPixel, normal));
 const P_UNSHADOWED: usize = lane(offset_of!(ShadowPixel, unshadowed));
@@ -413,6 +415,8 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.pixel_size", ShadowPixels, P_PIXEL_SIZE),
             ch("shadow.target", ShadowPixels, P_TARGET),
             ch("shadow.object", ShadowPixels, P_OBJECT),
+            ch("shadow.centre_visible", ShadowPixels, P_CENTRE_VISIBLE),
+            ch("shadow.occluder_distance", ShadowPixels, P_OCCLUDER),
             ch("shadow.position.X", ShadowPixels, P_POSITION),
             ch("shadow.position.Y", ShadowPixels, P_POSITION + 1),
             ch("shadow.position.Z", ShadowPixels, P_POSITION + 2),
@@ -423,7 +427,8 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.unshadowed.G", ShadowPixels, P_UNSHADOWED + 1),
             ch("shadow.unshadowed.B", ShadowPixels, P_UNSHADOWED + 2),
         ],
-        doc: "AAF soft shadows of one sphere light: unshadowed term, visibility sums, slopes",
+        doc: "soft shadows of one sphere light: unshadowed term, visibility sums, slopes, the \
+              centre's binary visibility",
     },
     OutputDecl {
         output: Output::Halves,
