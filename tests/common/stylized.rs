@@ -3,9 +3,9 @@
 #![allow(dead_code)]
 
 use noisefree::filters::stylized::{DeviceStages, StylizedKernel, StylizedSettings};
-use noisefree::layout::outputs::{BufferId, Output, OutputSet};
-use noisefree::layout::{FilterVector, Float4, ShadowPixel, ShadowTerms};
-use noisefree::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
+use noisefree::layout::outputs::BufferId;
+use noisefree::layout::{Float4, ShadowPixel};
+use noisefree::render::Frame;
 
 use crate::common::aaf::shadow_renderer;
 use crate::common::{bundled_scene, gpu};
@@ -101,34 +101,10 @@ pub fn plane_pixels(
     pixels
 }
 
-/// A frame holding `pixels` as its shadow output (F and the replaced term 0).
+/// A frame holding `pixels` as its shadow output (F and the replaced term 0), the light 10
+/// above the origin.
 pub fn shadow_frame(w: u32, h: u32, pixels: Vec<ShadowPixel>) -> Frame {
-    let n = pixels.len();
-    let mut scene = SceneInfo::unknown();
-    scene.sphere_lights = vec![[0.0, 0.0, 10.0, 0.5]];
-    Frame::on_host(
-        FrameInfo {
-            width: w,
-            height: h,
-            spp: 1,
-            sample_capacity: 0,
-            scene,
-        },
-        OutputSet::of(&[Output::Colour, Output::Shadows]),
-        VarianceForm::Variances,
-        vec![
-            (
-                BufferId::FilterVectors,
-                HostBuffer::from_slice(&vec![FilterVector::default(); n]),
-            ),
-            (
-                BufferId::ShadowTerms,
-                HostBuffer::from_slice(&vec![ShadowTerms::default(); n]),
-            ),
-            (BufferId::ShadowPixels, HostBuffer::from_slice(&pixels)),
-        ],
-    )
-    .unwrap()
+    crate::common::aaf::shadow_frame(w, h, pixels, [0.0, 0.0, 10.0, 0.5])
 }
 
 /// A disc of shadow with a notch, on a 48 × 40 plane.
