@@ -260,9 +260,9 @@ typedef struct __attribute__((aligned(16))) {
     float pixel_size; // d: the world size of one pixel at the hit (eq. 3.4).
     float target; // n(x) of eq. 3.5 clamped to [sparse, max] (before rounding to whole strata).
     float object; // The object hit: mesh part for triangles, −1 − index for spheres.
-    float pad0;
+    float centre_visible; // V of the one shadow ray from the centre's hit to the light's centre: 1 visible, 0  occluded or the centre below the surface (the binary matte of the stylized-shadows  filter, DeCoro 2009 §3.3 step 1).
     float position[3]; // World position of the hit.
-    float pad1;
+    float occluder_distance; // d(x): distance from the hit to the nearest occluder on that ray; 0 when visible or  below the surface (DeCoro §3.3.2 "approximate distance to occluder").
     float normal[3]; // Shading normal at the hit, facing the camera.
     float pad2;
     float unshadowed[3]; // Σ r(x_k) over the light samples' points x_k on the receiver: r of eq. 3.1, the  light's unshadowed direct term from its centre with the albedo (albedo · L sin²α  cos θ_c); divided by `samples` it is r over the pixel, anti-aliased as the samples  spread over it.
@@ -280,7 +280,9 @@ typedef struct __attribute__((aligned(16))) {
 #define SHADOW_PIXEL_PIXEL_SIZE 8
 #define SHADOW_PIXEL_TARGET 9
 #define SHADOW_PIXEL_OBJECT 10
+#define SHADOW_PIXEL_CENTRE_VISIBLE 11
 #define SHADOW_PIXEL_POSITION 12
+#define SHADOW_PIXEL_OCCLUDER_DISTANCE 15
 #define SHADOW_PIXEL_NORMAL 16
 #define SHADOW_PIXEL_UNSHADOWED 20
 #define SHADOW_PIXEL_FLOATS 24

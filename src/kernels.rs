@@ -79,6 +79,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "filters/path_density.cl",
         include_str!("../kernels/filters/path_density.cl"),
     ),
+    (
+        "filters/stylized.cl",
+        include_str!("../kernels/filters/stylized.cl"),
+    ),
     ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];
 

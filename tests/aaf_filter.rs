@@ -5,14 +5,14 @@
 
 mod common;
 
-use common::aaf::{aaf_filtered, shadow_renderer};
+use common::aaf::{aaf_filtered, shadow_frame, shadow_renderer};
 use common::*;
 use noisefree::filters::aaf_shadows::{AafShadowSettings, reference};
 use noisefree::imaging::RgbImage;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
 use noisefree::layout::{FilterVector, ShadowPixel, ShadowTerms};
 use noisefree::render::shadows::bandlimit::{beta, light_sigma, sample_count};
-use noisefree::render::{Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, VarianceForm};
+use noisefree::render::{Frame, HostBuffer, Renderer, VarianceForm};
 use noisefree::scene::Scene;
 
 fn render(scene: &Scene, w: u32, h: u32, spp: u32, settings: &AafShadowSettings) -> Renderer {
@@ -67,29 +67,7 @@ fn plane_frame(
         p.normal = [0.0, 0.0, 1.0];
         p.unshadowed = [9.0; 3]; // r = 1
     }
-    let terms = vec![ShadowTerms::default(); n];
-    let mut scene = SceneInfo::unknown();
-    scene.sphere_lights = vec![[0.0, 0.0, 1.0e6, 0.5]];
-    Frame::on_host(
-        FrameInfo {
-            width: w,
-            height: h,
-            spp: 1,
-            sample_capacity: 0,
-            scene,
-        },
-        OutputSet::of(&[Output::Colour, Output::Shadows]),
-        VarianceForm::Variances,
-        vec![
-            (
-                BufferId::FilterVectors,
-                HostBuffer::from_slice(&vec![FilterVector::default(); n]),
-            ),
-            (BufferId::ShadowTerms, HostBuffer::from_slice(&terms)),
-            (BufferId::ShadowPixels, HostBuffer::from_slice(&pixels)),
-        ],
-    )
-    .unwrap()
+    shadow_frame(w, h, pixels, [0.0, 0.0, 1.0e6, 0.5])
 }
 
 fn no_rejection() -> AafShadowSettings {

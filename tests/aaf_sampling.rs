@@ -81,8 +81,9 @@ fn shadow_passes_and_terms_match_the_rust_reference() {
         stats.rays
     );
     // A shadow ray that grazes a bar can be decided differently when the two sides round the
-    // light direction differently (sin/cos of two libraries). Measured: every pixel agrees, to
-    // 1.4e-6 (relative, or absolute below 1); bound: 99% of them within 1e-5.
+    // light direction differently (sin/cos of two libraries). Measured: 3069 of 3072 pixels
+    // within 6.4e-6 (relative, or absolute below 1), the other 3 off by about 4.5e-5 in the
+    // adaptive target n(x) alone; bound: 99% of them within 1e-5.
     assert!(close * 100 >= device.len() * 99, "{close}");
     // The megakernel's shadow terms: the same running means as the reference.
     let terms = shadow_terms(&frame);

@@ -23,7 +23,12 @@ const SEED: u32 = 5;
 
 fn options_for(scene: &noisefree::scene::Scene) -> RenderOptions {
     let mut o = options(scene, W, H, SEED);
-    o.outputs = OutputSet::of(&[Output::Variance, Output::Position, Output::Samples]);
+    o.outputs = OutputSet::of(&[
+        Output::Variance,
+        Output::Position,
+        Output::Samples,
+        Output::Halves,
+    ]);
     o
 }
 
@@ -131,6 +136,7 @@ fn merged_ranges_and_tiles_equal_the_one_machine_render() {
     exact(BufferId::SampleVectors, &[]);
     exact(BufferId::DepthShifts, &[0]);
     exact(BufferId::Positions, &[3]);
+    exact(BufferId::OddHalves, &[3]);
 
     // The filter sees the difference as float rounding too, except where it is not continuous
     // in its input: a pixel whose samples hit both surfaces and the sky has F.depth = a mean

@@ -18,10 +18,15 @@
 // times the albedo, blended over the grids with tent weights (1 at a block's centre, 1/B at its
 // edge) times min(1, m / (4K)), m the block's surface pixels.
 //
+// bmfr_residuals, bmfr_select (with `select`): each pixel blended between the fit and its
+// unfiltered light by the error the half buffers estimate (at the end of this file).
+//
 // Build options (src/filters/bmfr/device.rs):
 //   BMFR_BLOCK, BMFR_WG, BMFR_GRIDS    block side, work-items per block, shifted grids
 //   BMFR_DEPTH, BMFR_TEXTURE, BMFR_TEXTURE2   0/1: the optional features
 //   BMFR_NOISE, BMFR_ALBEDO_EPSILON, BMFR_PIVOT_MIN   float literals
+//   BMFR_SELECT_RADIUS                 half width of the selection's window, pixels
+//   BMFR_SELECT_SCALE                  kappa, the trust in the fit (float literal)
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -29,7 +34,8 @@
 
 #if !defined(BMFR_BLOCK) || !defined(BMFR_WG) || !defined(BMFR_GRIDS) || !defined(BMFR_DEPTH) \
     || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
-    || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN)
+    || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
+    || !defined(BMFR_SELECT_SCALE)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif
 
@@ -323,4 +329,62 @@ __kernel void bmfr_apply(__global const FilterVector* fv,
         wsum += wg;
     }
     out[i] = (float4)(sum / wsum, 0.0f);
+}
+
+// Per-pixel selection between the fit and the unfiltered light (src/filters/bmfr/select.rs).
+// bmfr_residuals: per pixel, over the three channels, the squared residual of the fit
+// (f - y)^2 and the variance of y estimated from the half buffers, (y - odd)^2 n_odd / n_even;
+// (0, 0) for a kept pixel or one without samples in both halves (1 spp).
+__kernel void bmfr_residuals(__global const FilterVector* fv,
+                             __global const float4* positions,
+                             __global const float4* odd_halves,
+                             uint width, uint height, float spp,
+                             __global const float4* fitted,
+                             __global float2* residuals) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    __global const FilterVector* f = fv + i;
+    float4 odd = odd_halves[i];
+    float n_odd = odd.w, n_even = spp - odd.w;
+    if (bmfr_kept(f, positions + i, spp) || n_odd < 1.0f || n_even < 1.0f) {
+        residuals[i] = (float2)(0.0f);
+        return;
+    }
+    float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
+                             f->direct[2] + f->indirect[2]);
+    float3 r = fitted[i].xyz - beauty;
+    float3 d = beauty - odd.xyz;
+    float3 v = d * d * (n_odd / n_even);
+    residuals[i] = (float2)(r.x * r.x + r.y * r.y + r.z * r.z, v.x + v.y + v.z);
+}
+
+// bmfr_select: the window sums R (residuals) and V (variances) over the (2 r + 1)^2 pixels
+// around, row by row, and the blend y + lambda (f - y) with lambda = min(1, kappa V / R) (1
+// when R = 0: no estimate).
+__kernel void bmfr_select(__global const FilterVector* fv,
+                          uint width, uint height,
+                          __global const float2* residuals,
+                          __global float4* fitted) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    float sum_r = 0.0f, sum_v = 0.0f;
+    for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) {
+        int yy = y + dy;
+        if (yy < 0 || yy >= (int)height) continue;
+        for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
+            int xx = x + dx;
+            if (xx < 0 || xx >= (int)width) continue;
+            float2 e = residuals[(uint)yy * width + (uint)xx];
+            sum_r += e.x;
+            sum_v += e.y;
+        }
+    }
+    float lambda = sum_r > 0.0f ? fmin(1.0f, BMFR_SELECT_SCALE * sum_v / sum_r) : 1.0f;
+    __global const FilterVector* f = fv + i;
+    float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
+                             f->direct[2] + f->indirect[2]);
+    float3 fit = fitted[i].xyz;
+    fitted[i] = (float4)(beauty + lambda * (fit - beauty), 0.0f);
 }

@@ -83,6 +83,9 @@ typedef struct {
 #if OUTPUT_SHADOWS
     float shadow[SHADOW_TERMS_FLOATS];     // ShadowTerms: the mean of the replaced light
 #endif
+#if OUTPUT_HALVES
+    float odd[4];                          // mean light of the odd-numbered samples, count
+#endif
 } PixelStats;
 
 inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
@@ -102,6 +105,9 @@ inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
 #if OUTPUT_SHADOWS
     vstore4(vload4(pixel, shadow_terms), 0, p->shadow);
 #endif
+#if OUTPUT_HALVES
+    vstore4(vload4(pixel, odd_halves), 0, p->odd);
+#endif
 }
 
 inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
@@ -120,6 +126,9 @@ inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pi
 #endif
 #if OUTPUT_SHADOWS
     vstore4(vload4(0, p->shadow), pixel, shadow_terms);
+#endif
+#if OUTPUT_HALVES
+    vstore4(vload4(0, p->odd), pixel, odd_halves);
 #endif
 }
 
@@ -169,8 +178,10 @@ inline void accumulate3(PixelStats* p, int f_lane, int s_lane, float3 x, float n
 #endif
 }
 
-// Folds sample number `count` (1-based) of this pixel into its outputs.
-inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
+// Folds sample number `count` (1-based) of this render of the pixel into its outputs;
+// `sample` is its absolute number (the half buffers split by its parity, so that renders of
+// sample ranges merge into the one-machine halves).
+inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count, uint sample) {
     float n = (float)count;
     // Colour: means only (GB holds no colour variance, eq. 6.2).
     running_mean(&p->mean[FILTER_VECTOR_DIRECT], ps->direct.x, n);
@@ -220,6 +231,20 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count) {
         running_mean(&p->position[1], ps->world1.y, h);
         running_mean(&p->position[2], ps->world1.z, h);
     }
+#endif
+#if OUTPUT_HALVES
+    // The odd half: a running mean over the odd-numbered samples; w counts them. The even
+    // half is what F's light holds beyond it (src/filters/bmfr/select.rs).
+    if (sample & 1u) {
+        p->odd[3] += 1.0f;
+        float m = p->odd[3];
+        float3 light = ps->direct + ps->indirect;
+        running_mean(&p->odd[0], light.x, m);
+        running_mean(&p->odd[1], light.y, m);
+        running_mean(&p->odd[2], light.z, m);
+    }
+#else
+    (void)sample;
 #endif
 }
 

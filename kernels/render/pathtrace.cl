@@ -208,7 +208,7 @@ __kernel void render(__constant const SceneParams* params,
         uint key = rng_sample_key(params->seed, pixel, sample);
         PathSample ps = trace_path(&s, x, y, key, &rays, shadow_light, shadow_object);
         uint index = sample - range_first;              // 0 for the render's first sample
-        film_accumulate(&stats, &ps, index + 1u);
+        film_accumulate(&stats, &ps, index + 1u, sample);
 #if OUTPUT_SAMPLES
         if (index < sample_capacity)
             write_sample_vector(sample_vectors, slot * sample_capacity + index, x, y, key, &ps,

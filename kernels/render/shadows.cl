@@ -95,6 +95,30 @@ inline float shadow_light_distance(const SceneRefs* s, __global const Light* lig
     return d2 <= light->p0.w * light->p0.w ? 0.0f : sqrt(d2);
 }
 
+// The stylized-shadows filter's binary matte (DeCoro 2009 §3.3 step 1; digest §1.4 "a shadow
+// ray to the sphere centre"): V of one ray from the receiver to the light's centre, and d(x),
+// the distance to the nearest occluder on it (§3.3.2: raytraced distances are allowed). A
+// centre below the geometric surface counts as occluded at d = 0, as a shadow-volume or
+// shadow-map matte has it (the attached shadow), so the terminator is a contour too.
+inline float shadow_centre_visible(const SceneRefs* s, __global const Light* light,
+                                   const ShadowReceiver* r, float* occluder, uint* rays) {
+    *occluder = 0.0f;
+    float3 p = offset_ray_origin(r->p, r->ng, s->params->scene_size);
+    float3 to_c = light->p0.xyz - p;
+    float d2 = dot(to_c, to_c);
+    float radius = light->p0.w;
+    if (d2 <= radius * radius) return 1.0f;                      // inside the light
+    float dc = sqrt(d2);
+    float3 dir = to_c / dc;
+    if (dot(r->ng, dir) <= 0.0f) return 0.0f;
+    float t_near, t_far;
+    if (occluder_range(s, p, dir, (dc - radius) * SHADOW_RAY_SHORTEN, &t_near, &t_far, rays)) {
+        *occluder = t_near;
+        return 0.0f;
+    }
+    return 1.0f;
+}
+
 // Running sums of one pixel's light samples.
 typedef struct {
     float visible, weight, occluded, s1, s2;
@@ -200,6 +224,10 @@ __kernel void shadow_sparse(SHADOW_SCENE_PARAMS, __global float* shadow_pixels,
                                       / (float)params->image_height;
         px[SHADOW_PIXEL_TARGET] = px[SHADOW_PIXEL_SAMPLES];
         px[SHADOW_PIXEL_OBJECT] = r.object;
+        float occluder;
+        px[SHADOW_PIXEL_CENTRE_VISIBLE] = shadow_centre_visible(&s, lights + light, &r,
+                                                                &occluder, &rays);
+        px[SHADOW_PIXEL_OCCLUDER_DISTANCE] = occluder;
         vstore3(r.p, 0, px + SHADOW_PIXEL_POSITION);
         vstore3(r.ns, 0, px + SHADOW_PIXEL_NORMAL);
         vstore3(acc.unshadowed, 0, px + SHADOW_PIXEL_UNSHADOWED);

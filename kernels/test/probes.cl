@@ -71,7 +71,7 @@ __kernel void probe_film(__global const float* stream, uint stream_len, uint fir
         ps.albedo = (float3)(v);
         ps.albedo2 = (float3)(v);
         ps.direction = (float3)(v);
-        film_accumulate(&stats, &ps, k + 1u);
+        film_accumulate(&stats, &ps, k + 1u, k);
     }
     pixel_stats_store(&stats, RENDER_OUTPUT_ARGS, pixel);
 }

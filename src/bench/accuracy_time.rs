@@ -21,7 +21,7 @@ struct Point {
 }
 
 /// Study 3: error against wall-clock time (render + filter) for unfiltered path tracing at
-/// 1..1024 spp and each filter at 1..64 spp; the equal-quality sample reduction and the
+/// 1..1024 spp and each filter at 1..64 spp (`--filter-spp`); the equal-quality sample reduction and the
 /// equal-time error ratio of each filter at 8 spp.
 pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
@@ -34,7 +34,7 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         match c {
             Candidate::Unfiltered => unfiltered_max,
             _ if ctx.quick || c.reads_every_sample() => 8,
-            _ => 64,
+            _ => ctx.filter_spp.unwrap_or(64).min(unfiltered_max),
         }
     };
     let oidn = super::oidn::Oidn::find();
@@ -48,8 +48,9 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         pb.set_message(format!("accuracy against time: {name}"));
         let reference = reference_image(ctx, path, &s)?;
         let methods = study.methods()?;
-        let chains = study.chains()?;
-        for candidate in Candidate::all(&methods, &chains, oidn.as_ref())
+        let mut extra = study.chains()?;
+        extra.push(study.bmfr_fit()?);
+        for candidate in Candidate::all(&methods, &extra, oidn.as_ref())
             .into_iter()
             .filter(|c| ctx.wants(&c.label()))
         {

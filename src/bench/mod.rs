@@ -114,6 +114,11 @@ pub struct BenchArgs {
     /// accuracy-time, sweep, rpf-*) [default: 512, the thesis's; 64 with --quick].
     #[arg(long, value_name = "N")]
     pub size: Option<u32>,
+    /// Largest spp of the filters' curves in the accuracy-time study (a power of 2; up to the
+    /// unfiltered curve's 1024), to show whether a filter keeps improving as samples grow
+    /// (filters that read every sample stop at 8 regardless) [default: 64].
+    #[arg(long, value_name = "N")]
+    pub filter_spp: Option<u32>,
     /// Measure again even what the CSV files already hold.
     #[arg(long)]
     pub fresh: bool,
@@ -189,6 +194,9 @@ impl BenchArgs {
         if let Some(n) = self.size {
             v.extend(["--size".into(), n.to_string()]);
         }
+        if let Some(n) = self.filter_spp {
+            v.extend(["--filter-spp".into(), n.to_string()]);
+        }
         if let Some(d) = self.device {
             v.extend(["--device".into(), d.to_string()]);
         }
@@ -227,6 +235,12 @@ fn select(args: &BenchArgs) -> Result<Selection> {
     }
     if args.size.is_some_and(|n| !(8..=8192).contains(&n)) {
         bail!("--size must be 8 to 8192 pixels");
+    }
+    if args
+        .filter_spp
+        .is_some_and(|n| !n.is_power_of_two() || n > 1024)
+    {
+        bail!("--filter-spp must be a power of 2 from 1 to 1024");
     }
     let mut studies = args.study.clone();
     if args.specialisation {
@@ -338,6 +352,8 @@ pub struct Context {
     pub methods: Vec<String>,
     /// `--size`, if given.
     pub size: Option<u32>,
+    /// `--filter-spp`, if given.
+    pub filter_spp: Option<u32>,
 }
 
 impl Context {
@@ -486,6 +502,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             .unwrap_or_else(ground_truth::default_cache),
         reference_spp: args.reference_spp,
         methods: args.method.clone(),
+        filter_spp: args.filter_spp,
         size: args.size,
     };
     ctx.say(&format!(

@@ -123,6 +123,21 @@ impl StudyScene {
         Ok(v)
     }
 
+    /// The regression filter without its per-pixel selection (the fit alone, as the paper's
+    /// single frame): what the selection changes.
+    pub fn bmfr_fit(&self) -> Result<(String, Configured)> {
+        use crate::filters::FilterKind;
+        use crate::filters::bmfr::{Bmfr, BmfrSettings};
+        let settings = BmfrSettings {
+            select: false,
+            ..Default::default()
+        };
+        Ok((
+            format!("{}-fit", Bmfr::NAME),
+            Configured::typed::<Bmfr>(settings, &self.info)?,
+        ))
+    }
+
     /// The path-density filter's chains (DeCoro 2009 ch. 5: outlier removal first, then a
     /// filter of the inter-pixel variance), as extra cells of the quality and accuracy-time
     /// studies: path-density → ddf and → atrous. (label, filter).

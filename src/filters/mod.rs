@@ -45,6 +45,7 @@ builtin_filters! {
     aaf_shadows::AafShadows, // axis-aligned filtering of soft shadows (Wang 2013 ch. 3)
     path_density::PathDensity, // the path-density outlier filter (DeCoro 2009 ch. 5)
     trimmed::Trimmed, // α-trimmed means of the samples (DeCoro 2009 §5.2 baselines)
+    stylized::StylizedShadows, // stylized shadows of one sphere light (DeCoro 2009 ch. 3)
     sheared::Sheared, // 4-D sheared filtering of soft shadows (Yan et al. 2015)
 }
 

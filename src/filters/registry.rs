@@ -344,6 +344,7 @@ fn value_name(ty: &str) -> &'static str {
         "u32" | "usize" | "i32" => "N",
         "f32" | "f64" => "X",
         "[f32; 5]" => "A,B,C,D,E",
+        "[f32; 3]" => "C0,C1,C2",
         "Vec<u32>" => "N,N,...",
         "Auto<f32>" => "auto|X",
         "Auto<i32>" | "Auto<u32>" => "auto|N",

@@ -441,10 +441,15 @@ device_structs! {
         pub target: f32,
         /// The object hit: mesh part for triangles, −1 − index for spheres.
         pub object: f32,
-        pub pad0: f32,
+        /// V of the one shadow ray from the centre's hit to the light's centre: 1 visible, 0
+        /// occluded or the centre below the surface (the binary matte of the stylized-shadows
+        /// filter, DeCoro 2009 §3.3 step 1).
+        pub centre_visible: f32,
         /// World position of the hit.
         pub position: [f32; 3],
-        pub pad1: f32,
+        /// d(x): distance from the hit to the nearest occluder on that ray; 0 when visible or
+        /// below the surface (DeCoro §3.3.2 "approximate distance to occluder").
+        pub occluder_distance: f32,
         /// Shading normal at the hit, facing the camera.
         pub normal: [f32; 3],
         pub pad2: f32,

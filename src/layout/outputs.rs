@@ -42,6 +42,10 @@ pub enum Output {
     /// AAF soft shadows of one sphere light (Wang 2013 ch. 3): the part of F the filtered term
     /// replaces, and the sparse + adaptive light samples of each pixel's centre receiver.
     Shadows,
+    /// The mean light (direct + indirect) of the pixel's odd-numbered samples alone: with F
+    /// it splits the pixel's samples into two independent half buffers (even and odd, as in
+    /// NFOR, Bitterli et al. 2016), whose difference estimates the variance of F's light.
+    Halves,
     /// Sheared filtering of soft shadows (Yan et al. 2015 §3.1): the shadow light's l² light
     /// samples per pixel on a jittered grid (the 4-D light field) and its axes on the screen.
     LightField,
@@ -58,6 +62,7 @@ pub enum BufferId {
     SampleVectors,
     ShadowTerms,
     ShadowPixels,
+    OddHalves,
     LightFieldPixels,
 }
 
@@ -90,7 +95,8 @@ pub enum Merge {
     /// compensation of each S_n, which is rewritten from the merged S_n (the part of the
     /// double-precision sum that its float does not hold).
     WelfordState,
-    /// xyz: means over the samples whose camera ray hit a surface; w: how many did (a count).
+    /// xyz: means over a subset of the pixel's samples (those whose camera ray hit a surface;
+    /// the odd-numbered ones); w: how many there are (a count).
     HitMeans,
     /// One element per sample: each part's samples go to their sample numbers.
     PerSample,
@@ -194,6 +200,8 @@ const P_SLOPE_SOURCE: usize = lane(offset_of!(ShadowPixel, slope_source));
 const P_PIXEL_SIZE: usize = lane(offset_of!(ShadowPixel, pixel_size));
 const P_TARGET: usize = lane(offset_of!(ShadowPixel, target));
 const P_OBJECT: usize = lane(offset_of!(ShadowPixel, object));
+const P_CENTRE_VISIBLE: usize = lane(offset_of!(ShadowPixel, centre_visible));
+const P_OCCLUDER: usize = lane(offset_of!(ShadowPixel, occluder_distance));
 const P_POSITION: usize = lane(offset_of!(ShadowPixel, position));
 const P_NORMAL: usize = lane(offset_of!(ShadowPixel, normal));
 const P_UNSHADOWED: usize = lane(offset_of!(ShadowPixel, unshadowed));
@@ -297,6 +305,15 @@ pub const BUFFERS: &[BufferDecl] = &[
         per: Per::Pixel,
         merge: Merge::Identical,
         doc: "AAF shadows: visibility sums, slopes and the pixel centre's hit, per pixel",
+    },
+    BufferDecl {
+        id: OddHalves,
+        name: "odd_halves",
+        element: "float4",
+        element_bytes: size_of::<Float4>(),
+        per: Per::Pixel,
+        merge: Merge::HitMeans,
+        doc: "mean light of the odd-numbered samples per pixel (rgb) and how many (w)",
     },
     BufferDecl {
         id: LightFieldPixels,
@@ -417,6 +434,8 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.pixel_size", ShadowPixels, P_PIXEL_SIZE),
             ch("shadow.target", ShadowPixels, P_TARGET),
             ch("shadow.object", ShadowPixels, P_OBJECT),
+            ch("shadow.centre_visible", ShadowPixels, P_CENTRE_VISIBLE),
+            ch("shadow.occluder_distance", ShadowPixels, P_OCCLUDER),
             ch("shadow.position.X", ShadowPixels, P_POSITION),
             ch("shadow.position.Y", ShadowPixels, P_POSITION + 1),
             ch("shadow.position.Z", ShadowPixels, P_POSITION + 2),
@@ -427,7 +446,22 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.unshadowed.G", ShadowPixels, P_UNSHADOWED + 1),
             ch("shadow.unshadowed.B", ShadowPixels, P_UNSHADOWED + 2),
         ],
-        doc: "AAF soft shadows of one sphere light: unshadowed term, visibility sums, slopes",
+        doc: "soft shadows of one sphere light: unshadowed term, visibility sums, slopes, the \
+              centre's binary visibility",
+    },
+    OutputDecl {
+        output: Output::Halves,
+        name: "halves",
+        switch: Some("OUTPUT_HALVES"),
+        requires: &[Output::Colour],
+        buffers: &[OddHalves],
+        channels: &[
+            ch("odd.R", OddHalves, 0),
+            ch("odd.G", OddHalves, 1),
+            ch("odd.B", OddHalves, 2),
+            ch("odd.samples", OddHalves, 3),
+        ],
+        doc: "mean light of the odd-numbered samples (with F: the two half buffers)",
     },
     OutputDecl {
         output: Output::LightField,
@@ -670,7 +704,9 @@ mod tests {
                 b.name
             );
         }
-        assert_eq!(Positions.decl().element_bytes, 16, "HitMeans is xyz + w");
+        for b in BUFFERS.iter().filter(|b| b.merge == Merge::HitMeans) {
+            assert_eq!(b.element_bytes, 16, "{}: HitMeans is xyz + w", b.name);
+        }
     }
 
     #[test]

@@ -3,8 +3,11 @@
 use noisefree::filters::Configured;
 use noisefree::filters::aaf_shadows::{AafShadowSettings, AafShadows};
 use noisefree::imaging::RgbImage;
-use noisefree::layout::outputs::{Output, OutputSet};
-use noisefree::render::{Frame, Renderer, ShadowSampling};
+use noisefree::layout::outputs::{BufferId, Output, OutputSet};
+use noisefree::layout::{FilterVector, ShadowPixel, ShadowTerms};
+use noisefree::render::{
+    Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, ShadowSampling, VarianceForm,
+};
 use noisefree::scene::Scene;
 
 use super::{gpu, options, scene_from_toml};
@@ -71,4 +74,36 @@ pub fn aaf_filtered(frame: &Frame, settings: &AafShadowSettings) -> RgbImage {
         .run(frame)
         .unwrap()
         .image
+}
+
+/// A host frame of one spp holding `pixels` as its shadow output, with F and the replaced
+/// term 0 (so a shadow filter's image is r times its visibility), lit by one sphere light
+/// `light` (centre xyz, radius).
+pub fn shadow_frame(w: u32, h: u32, pixels: Vec<ShadowPixel>, light: [f32; 4]) -> Frame {
+    let n = pixels.len();
+    let mut scene = SceneInfo::unknown();
+    scene.sphere_lights = vec![light];
+    Frame::on_host(
+        FrameInfo {
+            width: w,
+            height: h,
+            spp: 1,
+            sample_capacity: 0,
+            scene,
+        },
+        OutputSet::of(&[Output::Colour, Output::Shadows]),
+        VarianceForm::Variances,
+        vec![
+            (
+                BufferId::FilterVectors,
+                HostBuffer::from_slice(&vec![FilterVector::default(); n]),
+            ),
+            (
+                BufferId::ShadowTerms,
+                HostBuffer::from_slice(&vec![ShadowTerms::default(); n]),
+            ),
+            (BufferId::ShadowPixels, HostBuffer::from_slice(&pixels)),
+        ],
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"))
 }

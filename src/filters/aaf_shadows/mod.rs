@@ -87,11 +87,7 @@ pub const MAX_RADIUS: u32 = 1024;
 
 impl AafShadowSettings {
     pub fn validate(&self) -> Result<()> {
-        if let Auto::Set(l) = self.light
-            && l < -1
-        {
-            bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
-        }
+        check_light(self.light)?;
         self.sampling().check()?;
         for (v, name) in [(self.radius, "radius"), (self.fill_radius, "fill_radius")] {
             if v > MAX_RADIUS {
@@ -112,8 +108,7 @@ impl AafShadowSettings {
 
     /// The sphere light filtered, if any (after specialisation; `auto` counts as the first).
     pub fn light_index(&self) -> Option<u32> {
-        let l = self.light.or(0);
-        (l >= 0).then_some(l as u32)
+        light_index(self.light)
     }
 
     /// How the renderer samples the shadow output for these settings.
@@ -149,6 +144,61 @@ impl AafShadowSettings {
     }
 }
 
+/// A shadow filter's `light` setting (this filter's and stylized-shadows'): a sphere light's
+/// number from 0, -1 for none, or auto.
+pub fn check_light(light: Auto<i32>) -> Result<()> {
+    if let Auto::Set(l) = light
+        && l < -1
+    {
+        bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
+    }
+    Ok(())
+}
+
+/// The sphere light a `light` setting names, if any (`auto` counts as the first).
+pub fn light_index(light: Auto<i32>) -> Option<u32> {
+    let l = light.or(0);
+    (l >= 0).then_some(l as u32)
+}
+
+/// What a shadow filter reads: the shadow output when its `light` names one, else colour.
+pub fn light_needs(light: Auto<i32>) -> OutputSet {
+    match light_index(light) {
+        Some(_) => OutputSet::of(&[Output::Colour, Output::Shadows]),
+        None => OutputSet::colour(),
+    }
+}
+
+/// `light = auto` becomes the first sphere light, or none when the scene has none; one note per
+/// decision, and one naming the light.
+pub fn specialise_light(light: &mut Auto<i32>, scene: &SceneInfo) -> Vec<String> {
+    let count = scene.sphere_lights.len();
+    let mut notes = Vec::new();
+    if light.is_auto() {
+        let l = if count > 0 { 0 } else { -1 };
+        *light = Auto::Set(l);
+        notes.push(if count > 0 {
+            format!("light = 0: the first of {count} sphere light(s)")
+        } else {
+            "light = -1: the scene has no sphere light, nothing to filter (the image \
+             passes through)"
+                .to_string()
+        });
+    }
+    if let Some(l) = light_index(*light) {
+        match scene.sphere_lights.get(l as usize) {
+            Some(c) => notes.push(format!(
+                "filters sphere light {l}: centre ({}, {}, {}), radius {}",
+                c[0], c[1], c[2], c[3]
+            )),
+            None => notes.push(format!(
+                "sphere light {l} does not exist (the scene has {count}): preparing fails"
+            )),
+        }
+    }
+    notes
+}
+
 /// The AAF soft-shadow filter in the registry.
 pub struct AafShadows;
 
@@ -164,39 +214,12 @@ impl FilterKind for AafShadows {
 
     /// `light = auto` becomes the first sphere light, or none when the scene has none.
     fn specialise(s: &mut AafShadowSettings, scene: &SceneInfo) -> Vec<String> {
-        let count = scene.sphere_lights.len();
-        let mut notes = Vec::new();
-        if s.light.is_auto() {
-            let l = if count > 0 { 0 } else { -1 };
-            s.light = Auto::Set(l);
-            notes.push(if count > 0 {
-                format!("light = 0: the first of {count} sphere light(s)")
-            } else {
-                "light = -1: the scene has no sphere light, nothing to filter (the image \
-                 passes through)"
-                    .to_string()
-            });
-        }
-        if let Some(l) = s.light_index() {
-            match scene.sphere_lights.get(l as usize) {
-                Some(c) => notes.push(format!(
-                    "filters sphere light {l}: centre ({}, {}, {}), radius {}",
-                    c[0], c[1], c[2], c[3]
-                )),
-                None => notes.push(format!(
-                    "sphere light {l} does not exist (the scene has {count}): preparing fails"
-                )),
-            }
-        }
-        notes
+        specialise_light(&mut s.light, scene)
     }
 
     /// The shadow output, when there is a light to filter.
     fn needs(s: &AafShadowSettings) -> OutputSet {
-        match s.light_index() {
-            Some(_) => OutputSet::of(&[Output::Colour, Output::Shadows]),
-            None => OutputSet::colour(),
-        }
+        light_needs(s.light)
     }
 
     fn render_options(s: &AafShadowSettings, options: &mut RenderOptions) {

@@ -13,8 +13,8 @@ use super::{
 };
 use crate::filters::{FilterRun, PreparedFilter};
 use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
-use crate::layout::Float4;
-use crate::layout::outputs::{BufferId, Output, OutputSet};
+use crate::layout::{Float2, Float4};
+use crate::layout::outputs::{BufferId, OutputSet};
 use crate::render::Frame;
 
 /// The regression filter, built once for an image size.
@@ -22,6 +22,9 @@ pub struct BmfrKernel {
     gpu: Arc<Gpu>,
     fits: Vec<Kernel>,
     apply: Kernel,
+    /// With `select`: `bmfr_residuals`, then `bmfr_select` (select.rs).
+    select: Option<(Kernel, Kernel)>,
+    needs: OutputSet,
     _weights: Buffer<f32>,
     _info: Buffer<f32>,
     out: Buffer<Float4>,
@@ -65,6 +68,8 @@ impl BmfrKernel {
             ("BMFR_NOISE", format!("{:e}f", s.noise as f32)),
             ("BMFR_ALBEDO_EPSILON", format!("{ALBEDO_EPSILON:e}f")),
             ("BMFR_PIVOT_MIN", format!("{PIVOT_MIN:e}f")),
+            ("BMFR_SELECT_RADIUS", s.select_radius.to_string()),
+            ("BMFR_SELECT_SCALE", format!("{:e}f", s.select_scale as f32)),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -113,10 +118,48 @@ impl BmfrKernel {
             .arg(&out)
             .build()
             .context("creating the bmfr apply kernel")?;
+        let select = if s.select {
+            let residuals = gpu.zeroed::<Float2>(
+                width as usize * height as usize,
+                "bmfr selection residuals",
+            )?;
+            let residual = Kernel::builder()
+                .program(&program)
+                .name("bmfr_residuals")
+                .queue(gpu.queue.clone())
+                .global_work_size([width as usize, height as usize])
+                .arg_named("fv", None::<&Buffer<u8>>)
+                .arg_named("positions", None::<&Buffer<u8>>)
+                .arg_named("odd_halves", None::<&Buffer<u8>>)
+                .arg(width)
+                .arg(height)
+                .arg_named("spp", 0f32)
+                .arg(&out)
+                .arg(&residuals)
+                .build()
+                .context("creating the bmfr residuals kernel")?;
+            let blend = Kernel::builder()
+                .program(&program)
+                .name("bmfr_select")
+                .queue(gpu.queue.clone())
+                .global_work_size([width as usize, height as usize])
+                .arg_named("fv", None::<&Buffer<u8>>)
+                .arg(width)
+                .arg(height)
+                .arg(&residuals)
+                .arg(&out)
+                .build()
+                .context("creating the bmfr select kernel")?;
+            Some((residual, blend))
+        } else {
+            None
+        };
         Ok(BmfrKernel {
             gpu,
             fits,
             apply,
+            select,
+            needs: s.needs(),
             _weights: weights,
             _info: info,
             out,
@@ -130,20 +173,28 @@ impl BmfrKernel {
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
         let start = Instant::now();
         frame.check_size(self.width, self.height, "the bmfr filter")?;
-        frame.require(
-            OutputSet::of(&[Output::Colour, Output::Features, Output::Position]),
-            "the bmfr filter",
-        )?;
+        frame.require(self.needs, "the bmfr filter")?;
         let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
         let pos = frame.device(&self.gpu, BufferId::Positions)?;
-        let mut events = Vec::with_capacity(self.fits.len() + 1);
+        let spp = frame.info().spp as f32;
         for k in self.fits.iter().chain(std::iter::once(&self.apply)) {
             k.set_arg("fv", fv)?;
             k.set_arg("positions", pos)?;
-            k.set_arg("spp", frame.info().spp as f32)?;
+            k.set_arg("spp", spp)?;
+        }
+        if let Some((residual, blend)) = &self.select {
+            residual.set_arg("fv", fv)?;
+            residual.set_arg("positions", pos)?;
+            residual.set_arg("odd_halves", frame.device(&self.gpu, BufferId::OddHalves)?)?;
+            residual.set_arg("spp", spp)?;
+            blend.set_arg("fv", fv)?;
+        }
+        let selection = self.select.iter().flat_map(|(r, b)| [r, b]);
+        let mut events = Vec::with_capacity(self.fits.len() + 3);
+        for k in self.fits.iter().chain(std::iter::once(&self.apply)).chain(selection) {
             // SAFETY: every buffer outlives its launch (we wait for all of them below) and is
             // sized for the image and the grids the kernels were built for; the in-order queue
-            // runs the blend after the fits.
+            // runs the blend after the fits, and the selection after the blend.
             events.push(unsafe { enqueue(k, "a bmfr filter kernel")? });
         }
         let mut kernel_time = Duration::ZERO;

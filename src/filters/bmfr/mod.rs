@@ -43,9 +43,15 @@
 //! small mean albedo made outliers of their blocks' fits (outside_dof 512², 8 spp, MSE-LUV:
 //! 34.5 against 20.4 unfiltered before, in the quality study of results/README.md; 12.3
 //! against 20.8 unfiltered after, at `render`'s default seed).
+//!
+//! Selection (`select`, select.rs): each pixel is then blended between the fit and its
+//! unfiltered light by the fit's error and the light's variance, both estimated over a small
+//! window from the residual and the two half buffers (even and odd samples, NFOR), so that
+//! where the fit is biased the output follows the samples as they converge.
 
 mod device;
 mod reference;
+pub mod select;
 
 use std::sync::Arc;
 
@@ -97,10 +103,26 @@ crate::filter_settings! {
         pub texture: bool = false,
         /// Also fit to the albedo of the second hit ("texture2").
         pub texture2: bool = false,
+        /// Blend each pixel between the fit and its unfiltered light by the errors the two
+        /// half buffers estimate (select.rs), so the error keeps falling with spp.
+        pub select: bool = true,
+        /// Half width of the window the selection's estimates are summed over, pixels.
+        pub select_radius: u32 = 2,
+        /// κ, the trust in the fit: the blend weight is min(1, κ V / R) (select.rs).
+        pub select_scale: f64 = 2.0,
     }
 }
 
 impl BmfrSettings {
+    /// The outputs the filter reads.
+    pub fn needs(&self) -> OutputSet {
+        let mut outputs = vec![Output::Colour, Output::Features, Output::Position];
+        if self.select {
+            outputs.push(Output::Halves);
+        }
+        OutputSet::of(&outputs)
+    }
+
     /// Number of features K (columns of the fit, the constant included).
     pub fn features(&self) -> usize {
         10 + self.depth as usize + 3 * self.texture as usize + 3 * self.texture2 as usize
@@ -115,6 +137,18 @@ impl BmfrSettings {
         }
         if ![1, 2, 4].contains(&self.grids) {
             bail!("the bmfr grids must be 1, 2 or 4, got {}", self.grids);
+        }
+        if self.select_radius > MAX_SELECT_RADIUS {
+            bail!(
+                "the bmfr select_radius must be at most {MAX_SELECT_RADIUS} pixels, got {}",
+                self.select_radius
+            );
+        }
+        if !(self.select_scale >= 1.0 && self.select_scale <= 100.0) {
+            bail!(
+                "the bmfr select_scale must be a number in [1, 100], got {}",
+                self.select_scale
+            );
         }
         if !(self.noise >= 0.0 && self.noise <= 1.0) {
             bail!(
@@ -150,6 +184,9 @@ pub fn blocks_per_grid(width: u32, height: u32, block: u32) -> u32 {
     (width.div_ceil(block) + 1) * (height.div_ceil(block) + 1)
 }
 
+/// The largest window half width of the selection (a 33 × 33 window).
+pub const MAX_SELECT_RADIUS: u32 = 16;
+
 /// Floats per block in the block-information buffer: the minimum and 1 / range of the four
 /// rescaled features (position xyz, depth), and the count of surface pixels.
 pub const INFO_FLOATS: usize = 9;
@@ -171,9 +208,10 @@ impl FilterKind for Bmfr {
         Vec::new()
     }
 
-    /// Colour, normals and albedos of F, and the mean world positions.
-    fn needs(_: &BmfrSettings) -> OutputSet {
-        OutputSet::of(&[Output::Colour, Output::Features, Output::Position])
+    /// Colour, normals and albedos of F, and the mean world positions; with `select`, the
+    /// odd samples' half buffer.
+    fn needs(s: &BmfrSettings) -> OutputSet {
+        s.needs()
     }
 
     fn prepare(

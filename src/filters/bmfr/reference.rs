@@ -5,6 +5,7 @@
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
+use super::select;
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
     grid_blocks, grid_offset,
@@ -186,7 +187,8 @@ fn fit_block(
 }
 
 /// The plain Rust reference of kernels/filters/bmfr.cl: every block of every grid fitted, then
-/// each pixel's fits blended.
+/// each pixel's fits blended, then (with `select`) each pixel blended with its unfiltered
+/// light.
 pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     s.validate()?;
     let (w, h) = (frame.width(), frame.height());
@@ -258,7 +260,25 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
             }
             sum.map(|v| v / wsum)
         })
-        .collect();
+        .collect::<Vec<[f32; 3]>>();
+    let pixels = if s.select {
+        let odd: &[Float4] = frame.host_slice(BufferId::OddHalves)?;
+        let residuals: Vec<[f32; 2]> = (0..pixels.len())
+            .into_par_iter()
+            .map(|i| select::residual(&fv[i], &pos[i], &odd[i], spp, pixels[i]))
+            .collect();
+        (0..pixels.len())
+            .into_par_iter()
+            .map(|i| {
+                let xy = ((i as u32 % w) as i32, (i as u32 / w) as i32);
+                let r = s.select_radius as i32;
+                let scale = s.select_scale as f32;
+                select::select(&fv[i], &residuals, (w, h), xy, r, scale, pixels[i])
+            })
+            .collect()
+    } else {
+        pixels
+    };
     Ok(RgbImage {
         width: w,
         height: h,

@@ -87,6 +87,28 @@ fn light_distance(s: &SceneArrays, light: &Light, sf: &Surface) -> f32 {
     }
 }
 
+/// The binary visibility of the light's centre and the occluder distance d(x)
+/// (kernels/render/shadows.cl `shadow_centre_visible`, the stylized-shadows matte).
+pub fn centre_visible(s: &SceneArrays, light: &Light, sf: &Surface, rays: &mut u32) -> (f32, f32) {
+    let p = offset_ray_origin(sf.p, sf.ng, s.params.scene_size);
+    let to_c = light.p0.xyz() - p;
+    let d2 = to_c.dot(to_c);
+    let radius = light.p0.0[3];
+    if d2 <= radius * radius {
+        return (1.0, 0.0);
+    }
+    let dc = d2.sqrt();
+    let dir = to_c / dc;
+    if sf.ng.dot(dir) <= 0.0 {
+        return (0.0, 0.0);
+    }
+    *rays += 1;
+    match occluder_range(s, p, dir, (dc - radius) * SHADOW_RAY_SHORTEN) {
+        Some((near, _)) => (0.0, near),
+        None => (1.0, 0.0),
+    }
+}
+
 /// Running sums of one pixel's light samples.
 #[derive(Clone, Copy, Debug)]
 struct Sums {
@@ -223,6 +245,7 @@ pub fn sparse(s: &SceneArrays, light: u32, sqrt_spp: u32) -> (Vec<ShadowPixel>, 
             px.pixel_size = t * 2.0 * s.params.tan_half_fov / s.params.image_height as f32;
             px.target = px.samples;
             px.object = object;
+            (px.centre_visible, px.occluder_distance) = centre_visible(s, l, sf, &mut rays);
             px.position = sf.p.to_array();
             px.normal = sf.ns.to_array();
             px.unshadowed = acc.unshadowed.to_array();

@@ -1,0 +1,228 @@
+// Stylized shadows (DeCoro 2009 ch. 3, "Stylized Shadows", NPAR 2007; digest: shared/notes/
+// seed-decoro.md §1): the filter side, over the shadow output of kernels/render/shadows.cl
+// (one sphere light: its binary matte V from the ray to its centre, the occluder distance on
+// that ray, the centre hit's position and normal, the unshadowed term r, and ShadowTerms, the
+// light's direct term the path tracer put into F). src/filters/stylized/ is the same code in
+// Rust, one file per step, and says why each choice is what it is.
+//
+// 1. st_contour: contour points (§3.3.3 "pixels on shadow boundaries", digest §1.3 step 2):
+//    for each pixel and its right and lower neighbour, when V differs, both are matte pixels
+//    of one surface (normals within the 45° rule, at most `gap` pixel footprints apart along
+//    their mean normal: not across a silhouette), the midpoint of their world positions,
+//    with the mean normal and the occluder distance of the shadowed one. Two slots per
+//    pixel; the host compacts them in pixel order.
+// 2. st_distance: eq. 3.2 with p = 8, D = (mean |x - y|^-8)^(-1/8) over N contour points
+//    (stratified over the list; all of them when there are at most N), those failing the 45°
+//    rule skipped, computed as m (mean (m/d)^8)^(-1/8), m = min d (digest §1.7 item 6), and
+//    negated where V = 0; no contour point: D = +-inf. Also d(x) for the quadratic controls:
+//    the occluder distances of the contour points averaged with the same weights (m/d)^8.
+// 3. st_blur, twice: G * D (§3.3.1 Abstraction, §3.3.3 Gaussian Blur), sigma = alpha/sqrt(2)
+//    per pass, importance-sampled Gaussian offsets from Halton points (bases 2 and 3) within
+//    3 sigma (a different stretch of the sequence per pass), neighbours failing the 45° rule,
+//    off the pixel's surface (further than `gap` footprints from its tangent plane), not in
+//    the matte or with no contour (inf) skipped, the mean of the rest.
+// 4. st_compose: eq. 3.3 with (1 - b) for the printed (1 - b)^-1, S = (1 - b) smoothstep(
+//    i - s/2, i + s/2, D) + b (a hard step D >= i at s = 0), then F - direct + r S.
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "layout.cl"
+#include "render/rng.cl"
+
+// The controls buffer: four quadratics in d, c0 + c1 d + c2 d^2 (src/filters/stylized/
+// transfer.rs `Controls::lanes`).
+#define ST_INFLATION 0
+#define ST_SOFTNESS 4
+#define ST_BRIGHTNESS 8
+#define ST_ABSTRACTION 12
+
+inline float3 st_lane3(__global const float* px, int lane) {
+    return (float3)(px[lane], px[lane + 1], px[lane + 2]);
+}
+
+// A pixel of the matte: the ray through its centre hit a diffuse surface (the shadow pass
+// writes a unit normal there and zeros elsewhere).
+inline bool st_in_matte(__global const float* px) {
+    float3 n = st_lane3(px, SHADOW_PIXEL_NORMAL);
+    return dot(n, n) > 0.5f;
+}
+
+inline float st_quadratic(__constant const float* c, int at, float d) {
+    return c[at] + (c[at + 1] + c[at + 2] * d) * d;
+}
+
+__kernel void st_contour(__global const float* pixels, __global float4* slots, uint width,
+                         uint height, float normal_cos, float gap) {
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= width || y >= height) return;
+    uint i = y * width + x;
+    __global const float* a = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    for (uint dir = 0u; dir < 2u; ++dir) {
+        size_t slot = ((size_t)i * 2u + dir) * 2u;
+        slots[slot] = (float4)(0.0f);
+        slots[slot + 1u] = (float4)(0.0f);
+        uint nx = x + (dir == 0u ? 1u : 0u), ny = y + (dir == 1u ? 1u : 0u);
+        if (nx >= width || ny >= height) continue;
+        __global const float* b = pixels + ((size_t)ny * width + nx) * SHADOW_PIXEL_FLOATS;
+        if (!st_in_matte(a) || !st_in_matte(b)) continue;
+        float va = a[SHADOW_PIXEL_CENTRE_VISIBLE], vb = b[SHADOW_PIXEL_CENTRE_VISIBLE];
+        if (va == vb) continue;
+        float3 na = st_lane3(a, SHADOW_PIXEL_NORMAL), nb = st_lane3(b, SHADOW_PIXEL_NORMAL);
+        if (dot(na, nb) < normal_cos) continue;
+        float3 pa = st_lane3(a, SHADOW_PIXEL_POSITION), pb = st_lane3(b, SHADOW_PIXEL_POSITION);
+        float3 delta = pb - pa;
+        float3 n = na + nb;
+        n = n / sqrt(dot(n, n));
+        float foot = fmax(a[SHADOW_PIXEL_PIXEL_SIZE], b[SHADOW_PIXEL_PIXEL_SIZE]);
+        if (fabs(dot(n, delta)) > gap * foot) continue;
+        float occluder = (va == 0.0f) ? a[SHADOW_PIXEL_OCCLUDER_DISTANCE]
+                                      : b[SHADOW_PIXEL_OCCLUDER_DISTANCE];
+        float3 mid = (pa + pb) * 0.5f;
+        slots[slot] = (float4)(mid, occluder);
+        slots[slot + 1u] = (float4)(n, 1.0f);
+    }
+}
+
+// `contour` holds `count` points as (position, occluder distance), (normal, 1) pairs; `n` is
+// the number of samples, `scale` = count / n as a float (the host's, so that the reference
+// picks the same entries).
+__kernel void st_distance(__global const float* pixels, __global const float4* contour,
+                          uint count, uint n, float scale, uint seed, float normal_cos,
+                          uint width, uint height, __global float* dist,
+                          __global float* occluder) {
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= width || y >= height) return;
+    uint i = y * width + x;
+    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    float own_occluder = px[SHADOW_PIXEL_OCCLUDER_DISTANCE];
+    bool lit = px[SHADOW_PIXEL_CENTRE_VISIBLE] != 0.0f;
+    if (!st_in_matte(px)) {
+        dist[i] = INFINITY;
+        occluder[i] = 0.0f;
+        return;
+    }
+    float3 p = st_lane3(px, SHADOW_PIXEL_POSITION);
+    float3 nrm = st_lane3(px, SHADOW_PIXEL_NORMAL);
+    bool all = count <= n;
+    uint samples = all ? count : n;
+    uint key = rng_sample_key(seed, i, 0u);
+    // Pass 1: m = min d over the kept points.
+    float m = INFINITY;
+    for (uint k = 0u; k < samples; ++k) {
+        uint j = all ? k : min((uint)(((float)k + rng_uniform(key, k, 0u)) * scale), count - 1u);
+        float4 q = contour[2u * j], qn = contour[2u * j + 1u];
+        if (dot(nrm, qn.xyz) < normal_cos) continue;
+        float3 delta = q.xyz - p;
+        m = fmin(m, sqrt(dot(delta, delta)));
+    }
+    if (m == INFINITY) {
+        // No contour point on this side of the 45° rule: the pixel is as far from any
+        // boundary as can be (D = +-inf gives S = 1 or b below, never NaN).
+        dist[i] = lit ? INFINITY : -INFINITY;
+        occluder[i] = own_occluder;
+        return;
+    }
+    // Pass 2: sum of (m/d)^8 in [0, 1] per point: no overflow, and the nearest point adds 1,
+    // so the mean is at least 1/kept and its -1/8 power is finite.
+    float sum = 0.0f, sum_occ = 0.0f;
+    uint kept = 0u;
+    for (uint k = 0u; k < samples; ++k) {
+        uint j = all ? k : min((uint)(((float)k + rng_uniform(key, k, 0u)) * scale), count - 1u);
+        float4 q = contour[2u * j], qn = contour[2u * j + 1u];
+        if (dot(nrm, qn.xyz) < normal_cos) continue;
+        float3 delta = q.xyz - p;
+        float d = sqrt(dot(delta, delta));
+        float w = 1.0f;
+        if (d > m) {
+            float r = m / d;
+            float r2 = r * r;
+            float r4 = r2 * r2;
+            w = r4 * r4;
+        }
+        sum += w;
+        sum_occ += w * q.w;
+        kept += 1u;
+    }
+    float mean = sum / (float)kept;
+    float D = m / sqrt(sqrt(sqrt(mean)));
+    dist[i] = lit ? D : -D;
+    occluder[i] = sum_occ / sum;
+}
+
+// One blur pass over `in`. `stencil` holds this pass's n offsets of a unit Gaussian truncated
+// at 3 (Halton points, made by the host: src/filters/stylized/blur.rs `stencil`); the pixel
+// reads the neighbours at rint(sigma * offset), sigma = alpha(d) / sqrt(2).
+__kernel void st_blur(__global const float* pixels, __constant const float* controls,
+                      __global const float* occluder, __global const float2* stencil,
+                      __global const float* in, __global float* out, uint width, uint height,
+                      uint n, float normal_cos, float gap) {
+    int x = (int)get_global_id(0), y = (int)get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    int i = y * (int)width + x;
+    float own = in[i];
+    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    float alpha = st_quadratic(controls, ST_ABSTRACTION, occluder[i]);
+    if (!(alpha > 0.0f) || !isfinite(own) || !st_in_matte(px)) {
+        out[i] = own;
+        return;
+    }
+    float sigma = alpha * M_SQRT1_2_F;          // two passes of alpha / sqrt(2)
+    float3 nrm = st_lane3(px, SHADOW_PIXEL_NORMAL);
+    float3 pos = st_lane3(px, SHADOW_PIXEL_POSITION);
+    float plane = gap * px[SHADOW_PIXEL_PIXEL_SIZE];
+    float sum = 0.0f;
+    uint kept = 0u;
+    for (uint k = 0u; k < n; ++k) {
+        float2 o = stencil[k];
+        int qx = x + (int)rint(sigma * o.x), qy = y + (int)rint(sigma * o.y);
+        if (qx < 0 || qy < 0 || qx >= (int)width || qy >= (int)height) continue;
+        int j = qy * (int)width + qx;
+        __global const float* q = pixels + (size_t)j * SHADOW_PIXEL_FLOATS;
+        float dj = in[j];
+        if (!st_in_matte(q) || !isfinite(dj)) continue;
+        if (dot(nrm, st_lane3(q, SHADOW_PIXEL_NORMAL)) < normal_cos) continue;
+        if (fabs(dot(nrm, st_lane3(q, SHADOW_PIXEL_POSITION) - pos)) > plane) continue;
+        sum += dj;
+        kept += 1u;
+    }
+    out[i] = kept > 0u ? sum / (float)kept : own;
+}
+
+// Eq. 3.3 with (1 - b) (the printed (1 - b)^-1 exceeds 1 and divides by 0 at b = 1). The
+// shader smoothstep 3t^2 - 2t^3, written out so that the Rust reference matches it.
+inline float st_transfer(float D, float i, float s, float b) {
+    float t;
+    if (s > 0.0f) {
+        t = clamp((D - (i - 0.5f * s)) / s, 0.0f, 1.0f);
+        t = t * t * (3.0f - 2.0f * t);
+    } else {
+        t = (D >= i) ? 1.0f : 0.0f;
+    }
+    return (1.0f - b) * t + b;
+}
+
+__kernel void st_compose(__global const float* fv, __global const float* terms,
+                         __global const float* pixels, __constant const float* controls,
+                         __global const float* occluder, __global const float* dist,
+                         uint width, uint height, __global float* matte,
+                         __global float4* image) {
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= width || y >= height) return;
+    uint i = y * width + x;
+    __global const float* f = fv + (size_t)i * FILTER_VECTOR_FLOATS;
+    float3 beauty = st_lane3(f, FILTER_VECTOR_DIRECT) + st_lane3(f, FILTER_VECTOR_INDIRECT);
+    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    float d = occluder[i];
+    float inflation = st_quadratic(controls, ST_INFLATION, d);
+    float softness = fmax(st_quadratic(controls, ST_SOFTNESS, d), 0.0f);
+    float brightness = clamp(st_quadratic(controls, ST_BRIGHTNESS, d), 0.0f, 1.0f);
+    float S = st_transfer(dist[i], inflation, softness, brightness);
+    matte[i] = S;
+    if (!(px[SHADOW_PIXEL_WEIGHT] > 0.0f)) {
+        image[i] = (float4)(beauty, 0.0f);
+        return;
+    }
+    __global const float* t = terms + (size_t)i * SHADOW_TERMS_FLOATS;
+    float3 rest = beauty - st_lane3(t, SHADOW_TERMS_DIRECT);
+    float3 r = st_lane3(px, SHADOW_PIXEL_UNSHADOWED) / px[SHADOW_PIXEL_SAMPLES];
+    image[i] = (float4)(rest + r * S, 0.0f);
+}

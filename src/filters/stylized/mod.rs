@@ -1,0 +1,298 @@
+//! Stylized shadows (DeCoro 2009, "Rendering Filters for Controlling Detail and Creating
+//! Effects", ch. 3 = "Stylized Shadows", NPAR 2007; digest shared/notes/seed-decoro.md §1): a
+//! sphere light's hard shadow turned into an art-directed one by four controls, inflation i,
+//! softness s, brightness b and abstraction α. Per light (eq. 3.1, §3.3 steps 1-5):
+//!
+//! 1. the binary matte V of the light at the primary hit (the renderer's shadow output: one
+//!    ray to the light's centre, src/render/shadows, kernels/render/shadows.cl
+//!    `shadow_centre_visible`), and the contour points between pixels where V changes
+//!    ([`contour`]);
+//! 2. the signed L8-averaged world-space distance D to the contour, eq. 3.2 ([`distance`]);
+//! 3. its Gaussian blur of standard deviation α, two passes of α/√2 ([`blur`]);
+//! 4. S = (1 − b)·smoothstep(i − s/2, i + s/2, G * D) + b, eq. 3.3 with (1 − b) for the
+//!    printed (1 − b)^-1 ([`transfer`]);
+//! 5. S in place of V in the light's direct term: output = F − direct + r·S, with `direct` the
+//!    light's direct term the path tracer put into F (ShadowTerms) and r its unshadowed term
+//!    at the pixel (ShadowPixel.unshadowed / samples), the digest's option (b) of §1.4.
+//!
+//! The kernels are kernels/filters/stylized.cl, driven by `device.rs`; each step's file holds
+//! its plain Rust reference and says what the seed leaves open and what is done. Steps 1-2
+//! depend on the render alone, step 3 on α, step 4 on i, s, b: [`StylizedKernel`] runs them
+//! separately, so a change of i, s or b re-runs only the compose, a change of α the blur and
+//! the compose (the thesis's "> 100 fps" and "> 50 fps" edits, §3.3.3 "Sampling").
+//!
+//! Adaptations to a path tracer (digest §1.4):
+//! - **Binary V** from one ray to the sphere light's centre: the port's lights are spheres
+//!   (soft shadows), the thesis's input is a hard matte; stylizing soft visibility is its
+//!   future work (§3.4).
+//! - **One light per render**, `light` (auto: the first sphere light), like aaf-shadows: the
+//!   shadow output holds one light's terms. The other lights' shadows stay as rendered.
+//! - **b applies to the direct light of the light only**: the path tracer's indirect light is
+//!   kept, so b = 0 (the default) is the physical shadow and b adds "ambient" on top (digest
+//!   §1.4: b would otherwise double-count indirect light).
+//! - **d(x)**, the occluder distance of the quadratic controls, is the shadow ray's hit
+//!   distance (§3.3.2 allows "more accurate distances, such as those computed with
+//!   raytracing"), spread to both sides of the boundary by the distance step.
+//! - Pixels whose centre hit is not diffuse (sky, glass, mirrors) or that have no light
+//!   sample keep F as rendered; the matte is the centre ray's (a thin lens is ignored, as in
+//!   aaf-shadows).
+//! - With the defaults (i = 0, s = 0, b = 0, α = 0) S = V: the hard shadow of the light's
+//!   centre replaces the soft one.
+//! - **Whole frames**: D at a pixel depends on every contour point of the image, so the
+//!   filter has no bounded reach ([`PreparedFilter::reach`] is None) and runs on the merged
+//!   film when a frame is split across devices (without a light it passes bands through).
+
+pub mod blur;
+pub mod contour;
+mod device;
+pub mod distance;
+pub mod transfer;
+
+use std::sync::Arc;
+
+use anyhow::{Result, bail};
+
+use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
+use super::{Auto, FilterKind, PreparedFilter};
+use crate::gpu::Gpu;
+use crate::imaging::RgbImage;
+use crate::layout::outputs::{BufferId, OutputSet};
+use crate::layout::{ShadowPixel, ShadowTerms};
+use crate::render::{Frame, FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
+pub use device::{DeviceStages, StylizedKernel};
+pub use transfer::Controls;
+
+crate::filter_settings! {
+    /// The stylized-shadows filter's settings: the four controls, each a quadratic
+    /// [c0, c1, c2] of the occluder distance d (c0 + c1 d + c2 d²; [c, 0, 0] is a constant),
+    /// and how the distance and the blur are sampled.
+    pub struct StylizedSettings, flags "stylized-" {
+        /// The sphere light whose shadows are stylized, counting from 0 in the scene's order;
+        /// auto: the first, or none when the scene has no sphere light (the image passes
+        /// through); -1: none.
+        pub light: Auto<i32> = Auto::Auto,
+        /// Inflation i: the shadow's new boundary is the isocontour D = i of the signed
+        /// L8-averaged distance (world units; negative deflates).
+        pub inflation: [f32; 3] = [0.0, 0.0, 0.0],
+        /// Softness s: width of the ramp from b to 1 around D = i (world units; 0: hard).
+        pub softness: [f32; 3] = [0.0, 0.0, 0.0],
+        /// Brightness b: the darkest the shadow gets, in [0, 1] (added to the light's direct
+        /// term only).
+        pub brightness: [f32; 3] = [0.0, 0.0, 0.0],
+        /// Abstraction α: standard deviation of the blur of D, pixels (0: none).
+        pub abstraction: [f32; 3] = [0.0, 0.0, 0.0],
+        /// Contour points drawn per pixel for eq. 3.2 (all of them when the contour has
+        /// fewer).
+        pub contour_samples: u32 = 1024,
+        /// Halton points per blur pass.
+        pub blur_samples: u32 = 64,
+        /// The normal rule: contour points and blur neighbours whose normal is further from
+        /// the pixel's are ignored, degrees (§3.3.2: 45).
+        pub normal_angle: f32 = 45.0,
+        /// Two pixels are of one surface (a contour pair, a blur neighbour) when they are at
+        /// most this many pixel footprints apart along the normal: not across silhouettes.
+        pub surface_gap: f32 = 4.0,
+        /// Light samples per pixel for r, the unshadowed term (a square; r is anti-aliased
+        /// over them; their visibility is not used).
+        pub unshadowed_spp: u32 = 4,
+    }
+}
+
+/// Most points drawn per pixel, and most blur points per pass.
+pub const MAX_SAMPLES: u32 = 1 << 16;
+
+/// The seed of the distance step's strata (a fixed one: the filter is deterministic).
+pub const DISTANCE_SEED: u32 = 0x5717_12ed;
+
+impl StylizedSettings {
+    pub fn validate(&self) -> Result<()> {
+        check_light(self.light)?;
+        let k = (self.unshadowed_spp as f64).sqrt().round() as u32;
+        if self.unshadowed_spp == 0 || k * k != self.unshadowed_spp || k > 64 {
+            bail!(
+                "unshadowed_spp is a square of whole strata (1, 4, 9, ..., 4096), got {}",
+                self.unshadowed_spp
+            );
+        }
+        self.sampling().check()?;
+        for (v, name) in [
+            (self.contour_samples, "contour_samples"),
+            (self.blur_samples, "blur_samples"),
+        ] {
+            if v == 0 || v > MAX_SAMPLES {
+                bail!("{name} must be in 1..={MAX_SAMPLES}, got {v}");
+            }
+        }
+        let c = self.controls();
+        for (q, name) in [
+            (c.inflation, "inflation"),
+            (c.softness, "softness"),
+            (c.brightness, "brightness"),
+            (c.abstraction, "abstraction"),
+        ] {
+            if q.iter().any(|v| !v.is_finite()) {
+                bail!("{name} takes three finite coefficients [c0, c1, c2], got {q:?}");
+            }
+        }
+        if !(self.normal_angle >= 0.0) || !(self.surface_gap > 0.0) {
+            bail!(
+                "normal_angle must be >= 0 degrees and surface_gap > 0, got {} and {}",
+                self.normal_angle,
+                self.surface_gap
+            );
+        }
+        Ok(())
+    }
+
+    pub fn controls(&self) -> Controls {
+        Controls {
+            inflation: self.inflation,
+            softness: self.softness,
+            brightness: self.brightness,
+            abstraction: self.abstraction,
+        }
+    }
+
+    /// cos of the normal rule's angle (-2: no test at 180° or more).
+    pub fn normal_cos(&self) -> f32 {
+        if self.normal_angle >= 180.0 {
+            -2.0
+        } else {
+            self.normal_angle.to_radians().cos()
+        }
+    }
+
+    /// The sphere light stylized, if any (after specialisation; `auto` counts as the first).
+    pub fn light_index(&self) -> Option<u32> {
+        light_index(self.light)
+    }
+
+    /// The shadow output this filter needs: `unshadowed_spp` light samples for r and no
+    /// adaptive pass (the centre ray gives V).
+    pub fn sampling(&self) -> ShadowSampling {
+        ShadowSampling {
+            light: self.light_index().unwrap_or(0),
+            sparse_spp: self.unshadowed_spp,
+            max_spp: self.unshadowed_spp,
+            fill_radius: 0,
+            ..ShadowSampling::default()
+        }
+    }
+}
+
+/// The stylized-shadows filter in the registry.
+pub struct StylizedShadows;
+
+impl FilterKind for StylizedShadows {
+    type Settings = StylizedSettings;
+    const NAME: &'static str = "stylized-shadows";
+    const SUMMARY: &'static str = "art-directed shadows of one sphere light: inflation, \
+         softness, brightness, abstraction (DeCoro 2009 ch. 3; on the device)";
+
+    fn check(s: &StylizedSettings) -> Result<()> {
+        s.validate()
+    }
+
+    /// `light = auto` becomes the first sphere light, or none when the scene has none.
+    fn specialise(s: &mut StylizedSettings, scene: &SceneInfo) -> Vec<String> {
+        specialise_light(&mut s.light, scene)
+    }
+
+    fn needs(s: &StylizedSettings) -> OutputSet {
+        light_needs(s.light)
+    }
+
+    fn render_options(s: &StylizedSettings, options: &mut RenderOptions) {
+        options.shadows = s.sampling();
+    }
+
+    fn prepare(
+        s: &StylizedSettings,
+        frame: &FrameInfo,
+        gpu: &Arc<Gpu>,
+    ) -> Result<Box<dyn PreparedFilter>> {
+        if let Some(l) = s.light_index()
+            && l as usize >= frame.scene.sphere_lights.len()
+        {
+            bail!(
+                "the stylized-shadows filter is set to sphere light {l}, but the scene has {} \
+                 sphere light(s)",
+                frame.scene.sphere_lights.len()
+            );
+        }
+        Ok(Box::new(StylizedKernel::new(
+            gpu.clone(),
+            s,
+            s.light_index().is_some(),
+            frame.width,
+            frame.height,
+        )?))
+    }
+}
+
+/// What the reference computes, step by step (tests compare each with the kernels').
+pub struct Stages {
+    /// The contour list (two float4s per point).
+    pub contour: Vec<crate::layout::Float4>,
+    /// D of eq. 3.2, signed; ±∞ where no contour point counts.
+    pub distance: Vec<f32>,
+    /// d(x), the occluder distance of the controls.
+    pub occluder: Vec<f32>,
+    /// G * D after both passes.
+    pub blurred: Vec<f32>,
+    /// S per pixel.
+    pub matte: Vec<f32>,
+    pub image: RgbImage,
+}
+
+/// The whole filter in plain Rust on `frame` (which holds the shadow output).
+pub fn reference(frame: &Frame, s: &StylizedSettings) -> Result<Stages> {
+    s.validate()?;
+    let (w, h) = (frame.width(), frame.height());
+    let pixels: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
+    let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms)?;
+    let normal_cos = s.normal_cos();
+    let contour = contour::compact(&contour::slots(pixels, w, h, normal_cos, s.surface_gap));
+    let sampling = distance::Sampling::new(
+        (contour.len() / 2) as u32,
+        s.contour_samples,
+        DISTANCE_SEED,
+        normal_cos,
+    );
+    let (dist, occluder) = distance::distances(pixels, &contour, &sampling);
+    let controls = s.controls();
+    let n = s.blur_samples;
+    let mut blurred = dist.clone();
+    for pass in 0..2 {
+        let stencil = blur::stencil(pass * n, n);
+        blurred = blur::pass(
+            pixels,
+            &controls,
+            &occluder,
+            &stencil,
+            &blurred,
+            w,
+            h,
+            normal_cos,
+            s.surface_gap,
+        );
+    }
+    let (matte, image) = transfer::compose(
+        frame.filter_vectors()?,
+        terms,
+        pixels,
+        &controls,
+        &occluder,
+        &blurred,
+        w,
+        h,
+    );
+    Ok(Stages {
+        contour,
+        distance: dist,
+        occluder,
+        blurred,
+        matte,
+        image,
+    })
+}
