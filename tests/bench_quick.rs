@@ -217,7 +217,7 @@ fn method_selects_the_compared_methods() {
         .collect();
     assert_eq!(
         methods.into_iter().collect::<Vec<_>>(),
-        ["bmfr", "unfiltered"],
+        ["bmfr", "bmfr-fit", "unfiltered"],
         "{csv}"
     );
     let bad = noisefree()
