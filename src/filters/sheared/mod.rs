@@ -62,6 +62,7 @@ use std::sync::Arc;
 
 use anyhow::{Result, bail};
 
+use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
@@ -99,11 +100,7 @@ crate::filter_settings! {
 
 impl ShearedSettings {
     pub fn validate(&self) -> Result<()> {
-        if let Auto::Set(l) = self.light
-            && l < -1
-        {
-            bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
-        }
+        check_light(self.light)?;
         if self.side == 0 || self.side > MAX_SIDE {
             bail!(
                 "side is the light-field grid's l, 1..={MAX_SIDE} (Yan et al. 2015: l <= 4), \
@@ -133,8 +130,7 @@ impl ShearedSettings {
 
     /// The sphere light filtered, if any (`auto` counts as the first).
     pub fn light_index(&self) -> Option<u32> {
-        let l = self.light.or(0);
-        (l >= 0).then_some(l as u32)
+        light_index(self.light)
     }
 
     /// How the renderer samples: AAF's sparse pass and fill, no adaptive pass, the grid.
@@ -212,26 +208,14 @@ impl FilterKind for Sheared {
     }
 
     fn specialise(s: &mut ShearedSettings, scene: &SceneInfo) -> Vec<String> {
-        let count = scene.sphere_lights.len();
-        let mut notes = Vec::new();
-        if s.light.is_auto() {
-            let l = if count > 0 { 0 } else { -1 };
-            s.light = Auto::Set(l);
-            notes.push(if count > 0 {
-                format!("light = 0: the first of {count} sphere light(s)")
-            } else {
-                "light = -1: the scene has no sphere light, nothing to filter (the image \
-                 passes through)"
-                    .to_string()
-            });
-        }
-        notes
+        specialise_light(&mut s.light, scene)
     }
 
     fn needs(s: &ShearedSettings) -> OutputSet {
+        let outputs = light_needs(s.light);
         match s.light_index() {
-            Some(_) => OutputSet::of(&[Output::Colour, Output::Shadows, Output::LightField]),
-            None => OutputSet::colour(),
+            Some(_) => outputs.with(Output::LightField),
+            None => outputs,
         }
     }
 
