@@ -51,6 +51,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/render/shadows.cl"),
     ),
     (
+        "render/subtractive.cl",
+        include_str!("../kernels/render/subtractive.cl"),
+    ),
+    (
         "render/pathtrace.cl",
         include_str!("../kernels/render/pathtrace.cl"),
     ),
