@@ -13,6 +13,7 @@ use noisefree::render::subtractive::device::SubtractiveKernels;
 use noisefree::render::subtractive::{self as sub, DirLight, GBuffer, Settings, reference};
 use noisefree::render::{FrameSettings, SceneArrays};
 use noisefree::scene::Scene;
+use std::path::Path;
 
 fn arrays(scene: &Scene, w: u32, h: u32) -> SceneArrays {
     let mut f = FrameSettings::from_scene(scene);
@@ -319,4 +320,67 @@ fn subtractive_beats_additive_at_equal_lights_against_many_lights() {
         eprintln!("{lights} lights: subtractive {sub_rms:.4}, additive {add_rms:.4}");
         assert!(sub_rms < add_rms, "{lights}: {sub_rms} vs {add_rms}");
     }
+}
+
+#[test]
+fn the_cli_writes_a_preview_and_refuses_scenes_without_an_environment() {
+    let dir = tempdir("subtractive_cli");
+    let png = dir.join("outside.png");
+    let out = noisefree()
+        .args(["render", "scenes/outside.toml", "--preview", "subtractive"])
+        .args(["--width", "48", "--height", "32", "--preview-lights", "8"])
+        .args([
+            "--shadow-block",
+            "8",
+            "--unshadowed-lights",
+            "64",
+            "--quiet",
+            "--out",
+        ])
+        .arg(&png)
+        .current_dir(repo_path(""))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(png.exists() && png.with_extension("exr").exists());
+    let scene = bundled_scene_path("cornell_diffuse");
+    let scene = scene.to_str().unwrap();
+    let out = dir.join("cornell.png");
+    let out = out.to_str().unwrap();
+    fails(
+        &["render", scene, "--preview", "subtractive", "--out", out],
+        &[
+            "cornell_diffuse.toml",
+            "needs a scene lit by an environment",
+        ],
+    );
+    assert!(!Path::new(out).exists(), "nothing written on an error");
+    fails(
+        &[
+            "render",
+            "scenes/outside.toml",
+            "--preview",
+            "subtractive",
+            "--shadow-block",
+            "0",
+            "--out",
+            out,
+        ],
+        &["shadow block must be 1..=64"],
+    );
+    fails(
+        &[
+            "render",
+            "scenes/outside.toml",
+            "--preview",
+            "sheared",
+            "--out",
+            out,
+        ],
+        &["no such preview", "subtractive"],
+    );
 }
