@@ -37,6 +37,29 @@ __kernel void sub_unshadowed(__global const float4* pos, __global const float4* 
     out[k] = (float4)(c, 0.0f);
 }
 
+// Step 3 with the prefiltered irradiance map (64x32 lat-long over normals, MAP_W x MAP_H from
+// the host's -D options): C = albedo / pi * E(n), bilinear, u wrapping, v clamped.
+__kernel void sub_prefiltered(__global const float4* pos, __global const float4* nrm,
+                              __global const float4* alb, __global const float4* map,
+                              uint n_pixels, __global float4* out) {
+    uint k = get_global_id(0);
+    if (k >= n_pixels) return;
+    if (pos[k].w == 0.0f) { out[k] = alb[k]; return; }
+    float3 n = nrm[k].xyz;
+    float u = 0.5f + atan2(n.x, -n.z) * (0.5f * SUB_INV_PI);
+    float v = 0.5f + asin(clamp(n.y, -1.0f, 1.0f)) * SUB_INV_PI;
+    float fx = u * (float)MAP_W - 0.5f;
+    float fy = clamp(v * (float)MAP_H - 0.5f, 0.0f, (float)(MAP_H - 1));
+    float x0 = floor(fx), y0 = floor(fy);
+    float ax = fx - x0, ay = fy - y0;
+    int i0 = (int)x0, j0 = (int)y0;
+    int ia = ((i0 % MAP_W) + MAP_W) % MAP_W, ib = (((i0 + 1) % MAP_W) + MAP_W) % MAP_W;
+    int ja = clamp(j0, 0, MAP_H - 1), jb = clamp(j0 + 1, 0, MAP_H - 1);
+    float3 e = (map[ja * MAP_W + ia].xyz * (1.0f - ax) + map[ja * MAP_W + ib].xyz * ax) * (1.0f - ay)
+             + (map[jb * MAP_W + ia].xyz * (1.0f - ax) + map[jb * MAP_W + ib].xyz * ax) * ay;
+    out[k] = (float4)(alb[k].xyz * SUB_INV_PI * e, 0.0f);
+}
+
 // Step 2(c-d): per sample k (at pixel pixels[k]), the light of the blocked lights (S) or,
 // with SUB_VISIBLE, of the visible ones (the additive image).
 __kernel void sub_shadow(__global const float4* pos, __global const float4* nrm,

@@ -23,8 +23,9 @@ use noisefree::render::{FrameSettings, RenderOptions, Renderer, SceneArrays};
 const REFERENCE_LIGHTS: u32 = 4096;
 const REFERENCE_SEED: u32 = 7;
 const LIGHTS: [u32; 3] = [8, 32, 128];
-/// Shadow block sides f: S at 1/16, 1/256, 1/1024 of the pixels.
-const BLOCKS: [u32; 3] = [4, 16, 32];
+/// Shadow block sides f: S at 1/1 (the seed's "full sampling"), 1/16, 1/256, 1/1024 of
+/// the pixels.
+const BLOCKS: [u32; 4] = [1, 4, 16, 32];
 
 fn rms(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     let s: f64 = a
@@ -84,7 +85,10 @@ fn main() -> Result<()> {
     let base = Settings::default();
     let e = sub::environment_lights(&arrays, base.lights, base.seed);
     let c_set = sub::unshadowed_set(&arrays, &base, &e);
-    let c = k.unshadowed(&dg, &c_set)?;
+    let c_sum = k.unshadowed(&dg, &c_set)?;
+    let c = sub::unshadowed(&arrays, &dg, &k, &base, &e)?;
+    let c_rgb = |c: &[[f32; 4]]| rgb(size, size, c).pixels;
+    let map_error = rms(&c_rgb(&c.image), &c_rgb(&c_sum.image));
 
     let mut t = String::new();
     writeln!(
@@ -92,13 +96,19 @@ fn main() -> Result<()> {
         "Subtractive vs additive shadows (DeCoro 2009 ch. 4), {} at {size}², device {}.\n\
          RMS (linear RGB) against the additive form with {REFERENCE_LIGHTS} lights and against the \
          path tracer at {gt_spp} spp (which has the indirect and specular light the preview leaves \
-         out). C: {} unshadowed lights, computed once per view: {:.2} ms. Times on a loaded \
+         out). C: the prefiltered irradiance map ({}×{}) of {} unshadowed lights, one lookup per \
+         pixel: {:.2} ms per frame (the direct sum over those lights: {:.2} ms; RMS between \
+         the two {:.5}). Times on a loaded \
          2-core machine (compare within the table only): kernels from OpenCL profiling events, \
          rays on the host (rayon).\n",
         scene_path.display(),
         gpu.summary.name,
+        sub::MAP_W,
+        sub::MAP_H,
         c_set.len(),
-        c.time.as_secs_f64() * 1e3
+        c.time.as_secs_f64() * 1e3,
+        c_sum.time.as_secs_f64() * 1e3,
+        map_error,
     )?;
     writeln!(
         t,
@@ -106,11 +116,11 @@ fn main() -> Result<()> {
     )?;
     writeln!(t, "|---|---|---|---|---|---|---|---|---|")?;
     let row = |t: &mut String,
-                   form: &str,
-                   lights: u32,
-                   frac: &str,
-                   p: &sub::Preview,
-                   img: &RgbImage|
+               form: &str,
+               lights: u32,
+               frac: &str,
+               p: &sub::Preview,
+               img: &RgbImage|
      -> Result<()> {
         let frame_ms = (p.ray_time
             + p.kernel_time

@@ -56,7 +56,7 @@ pub fn run(
     let k = SubtractiveKernels::new(gpu)?;
     let dg = k.upload(&g)?;
     let e = sub::environment_lights(&arrays, settings.lights, settings.seed);
-    let c = k.unshadowed(&dg, &sub::unshadowed_set(&arrays, &settings, &e))?;
+    let c = sub::unshadowed(&arrays, &dg, &k, &settings, &e)?;
     let p = sub::subtractive(&arrays, &g, &dg, &k, &c.image, &settings)?;
     let image = to_rgb(p.width, p.height, &p.image);
     imaging::write_png(png, &image, args.exposure)?;

@@ -61,11 +61,16 @@ fn read(buffer: &Buffer<Float4>, len: usize) -> Result<Vec<[f32; 4]>> {
 impl SubtractiveKernels {
     pub fn new(gpu: Arc<Gpu>) -> Result<SubtractiveKernels> {
         let build = |visible: &str| {
-            gpu.program(
-                "render/subtractive.cl",
-                &[("SUB_VISIBLE".to_string(), visible.to_string())],
-                "",
-            )
+            let defines = [
+                ("SUB_VISIBLE", visible.to_string()),
+                ("MAP_W", super::MAP_W.to_string()),
+                ("MAP_H", super::MAP_H.to_string()),
+            ];
+            let defines: Vec<(String, String)> = defines
+                .into_iter()
+                .map(|(k, v)| (k.to_string(), v))
+                .collect();
+            gpu.program("render/subtractive.cl", &defines, "")
         };
         Ok(SubtractiveKernels {
             blocked: build("0")?,
@@ -111,6 +116,31 @@ impl SubtractiveKernels {
             .build()
             .context("creating sub_unshadowed")?;
         let time = self.run(&k, "sub_unshadowed")?;
+        Ok(Timed {
+            image: read(&out, n)?,
+            time,
+        })
+    }
+
+    /// Step 3 from the prefiltered irradiance map ([`super::irradiance_map`]).
+    pub fn prefiltered(&self, g: &DeviceGBuffer, map: &[[f32; 4]]) -> Result<Timed> {
+        let n = (g.width * g.height) as usize;
+        let m = self.gpu.upload(&f4(map))?;
+        let out = self.gpu.zeroed::<Float4>(n, "unshadowed light")?;
+        let k = Kernel::builder()
+            .program(&self.blocked)
+            .name("sub_prefiltered")
+            .queue(self.gpu.queue.clone())
+            .global_work_size(n)
+            .arg(&g.position)
+            .arg(&g.normal)
+            .arg(&g.albedo)
+            .arg(&m)
+            .arg(n as u32)
+            .arg(&out)
+            .build()
+            .context("creating sub_prefiltered")?;
+        let time = self.run(&k, "sub_prefiltered")?;
         Ok(Timed {
             image: read(&out, n)?,
             time,

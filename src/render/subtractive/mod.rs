@@ -43,6 +43,9 @@ pub struct Settings {
     /// different BRDF and, at `Some(lights)`-equal counts, gives the identity test of §2.7.1.
     /// None: C uses E itself (then block = 1 must equal the additive form).
     pub unshadowed_lights: Option<u32>,
+    /// C from the prefiltered irradiance map of the `unshadowed_lights` set ([`irradiance_map`],
+    /// one lookup per pixel, as the thesis's SH irradiance) rather than the direct sum.
+    pub prefiltered: bool,
     /// σ of G(‖S′_p − S_p‖), relative to the world-space footprint of one block at the
     /// pixel's distance (§2.2 leaves σ open; measured on Outside: 1 keeps contact shadows).
     pub sigma_position: f32,
@@ -56,6 +59,7 @@ impl Default for Settings {
             lights: 32,
             block: 4,
             unshadowed_lights: Some(1024),
+            prefiltered: true,
             sigma_position: 1.0,
             seed: 1,
         }
@@ -361,4 +365,51 @@ pub fn additive(
         ray_time,
         rays: rays(g, &pixels, e.len()),
     })
+}
+
+/// Resolution of the prefiltered irradiance map (lat-long over normal directions).
+pub const MAP_W: u32 = 64;
+pub const MAP_H: u32 = 32;
+
+/// Step 3's prefiltered map (§2.1: the thesis uses SH irradiance [78] for diffuse surfaces):
+/// irradiance E(n) = Σ_l max(n·ω_l, 0) E_l over a dense unshadowed light set, tabulated on a
+/// 64×32 lat-long grid of normals and looked up bilinearly per pixel. It depends on the
+/// environment only, so it is built once; a frame then costs one lookup per pixel instead of
+/// a sum over the dense set. Irradiance is the map convolved with a cosine lobe, smooth
+/// enough that bilinear lookup at 5.6° spacing is close to the direct sum (measured in
+/// tests/subtractive.rs).
+pub fn irradiance_map(lights: &[DirLight]) -> Vec<[f32; 4]> {
+    (0..MAP_W * MAP_H)
+        .into_par_iter()
+        .map(|k| {
+            let u = ((k % MAP_W) as f32 + 0.5) / MAP_W as f32;
+            let v = ((k / MAP_W) as f32 + 0.5) / MAP_H as f32;
+            let n = latlong_dir(u, v);
+            let mut e = Vec3::ZERO;
+            for l in lights {
+                let c = n.dot(l.dir);
+                if c > 0.0 {
+                    e += l.irradiance * c;
+                }
+            }
+            [e.x, e.y, e.z, 0.0]
+        })
+        .collect()
+}
+
+/// C for `settings`: the prefiltered map of the dense set, the dense set summed directly
+/// (`prefiltered` false), or E itself (`unshadowed_lights` None, for the identity test).
+pub fn unshadowed(
+    s: &SceneArrays,
+    dg: &device::DeviceGBuffer,
+    k: &device::SubtractiveKernels,
+    settings: &Settings,
+    e: &[DirLight],
+) -> Result<device::Timed> {
+    let set = unshadowed_set(s, settings, e);
+    if settings.prefiltered && settings.unshadowed_lights.is_some() {
+        k.prefiltered(dg, &irradiance_map(&set))
+    } else {
+        k.unshadowed(dg, &set)
+    }
 }

@@ -146,3 +146,32 @@ pub fn compose(
         })
         .collect()
 }
+
+/// Step 3 with the prefiltered map (`sub_prefiltered`): C = albedo/π · E(n), E bilinear in the
+/// lat-long map of normals (u wraps, v clamps); the sky where the camera ray escapes.
+pub fn prefiltered(g: &GBuffer, map: &[[f32; 4]]) -> Vec<[f32; 4]> {
+    use super::{MAP_H, MAP_W};
+    (0..g.position.len())
+        .map(|k| {
+            if g.position[k][3] == 0.0 {
+                return g.albedo[k];
+            }
+            let n = v3(&g.normal[k]);
+            let u = 0.5 + n.x.atan2(-n.z) * (0.5 * FRAC_1_PI);
+            let v = 0.5 + n.y.clamp(-1.0, 1.0).asin() * FRAC_1_PI;
+            let fx = u * MAP_W as f32 - 0.5;
+            let fy = (v * MAP_H as f32 - 0.5).clamp(0.0, (MAP_H - 1) as f32);
+            let (x0, y0) = (fx.floor(), fy.floor());
+            let (ax, ay) = (fx - x0, fy - y0);
+            let at = |i: i32, j: i32| {
+                let i = i.rem_euclid(MAP_W as i32) as u32;
+                let j = j.clamp(0, MAP_H as i32 - 1) as u32;
+                v3(&map[(j * MAP_W + i) as usize])
+            };
+            let (i, j) = (x0 as i32, y0 as i32);
+            let e = (at(i, j) * (1.0 - ax) + at(i + 1, j) * ax) * (1.0 - ay)
+                + (at(i, j + 1) * (1.0 - ax) + at(i + 1, j + 1) * ax) * ay;
+            rgba(v3(&g.albedo[k]) * FRAC_1_PI * e)
+        })
+        .collect()
+}
