@@ -36,12 +36,10 @@ fn worst(a: &[[f32; 4]], b: &[[f32; 4]], floor: f32) -> f32 {
 }
 
 fn rms(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
-    let s: f64 = a
-        .iter()
-        .zip(b)
-        .flat_map(|(x, y)| (0..3).map(move |c| ((x[c] - y[c]) as f64).powi(2)))
-        .sum();
-    (s / (3 * a.len()) as f64).sqrt()
+    let n = a.len() as u32;
+    noisefree::metrics::mse_rgb(&sub::to_rgb(n, 1, a), &sub::to_rgb(n, 1, b))
+        .unwrap()
+        .sqrt()
 }
 
 fn all_finite_nonnegative(img: &[[f32; 4]]) {
@@ -308,7 +306,9 @@ fn subtractive_beats_additive_at_equal_lights_against_many_lights() {
     let settings = Settings::default();
     let e = sub::environment_lights(&s, settings.lights, settings.seed);
     let c = sub::unshadowed(&s, &dg, &k, &settings, &e).unwrap().image;
-    for lights in [8u32, 32] {
+    // Measured on PoCL (96×64): 8 lights .0264 vs .0521 (ratio .51), 32 lights .0198 vs .0242
+    // (.82); bounds on the ratio a little above those.
+    for (lights, ratio) in [(8u32, 0.55), (32, 0.86)] {
         let st = Settings {
             lights,
             ..settings.clone()
@@ -322,7 +322,10 @@ fn subtractive_beats_additive_at_equal_lights_against_many_lights() {
             &reference,
         );
         eprintln!("{lights} lights: subtractive {sub_rms:.4}, additive {add_rms:.4}");
-        assert!(sub_rms < add_rms, "{lights}: {sub_rms} vs {add_rms}");
+        assert!(
+            sub_rms < ratio * add_rms,
+            "{lights}: {sub_rms} vs {add_rms}"
+        );
     }
 }
 

@@ -17,6 +17,7 @@ use std::path::PathBuf;
 use anyhow::{Context as _, Result};
 use noisefree::gpu::Gpu;
 use noisefree::imaging::{RgbImage, write_png};
+use noisefree::metrics::mse_rgb;
 use noisefree::render::subtractive::{self as sub, Settings, device::SubtractiveKernels};
 use noisefree::render::{FrameSettings, RenderOptions, Renderer, SceneArrays};
 
@@ -27,21 +28,9 @@ const LIGHTS: [u32; 3] = [8, 32, 128];
 /// the pixels.
 const BLOCKS: [u32; 4] = [1, 4, 16, 32];
 
-fn rms(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
-    let s: f64 = a
-        .iter()
-        .zip(b)
-        .flat_map(|(x, y)| (0..3).map(move |c| ((x[c] - y[c]) as f64).powi(2)))
-        .sum();
-    (s / (3 * a.len()) as f64).sqrt()
-}
-
-fn rgb(w: u32, h: u32, img: &[[f32; 4]]) -> RgbImage {
-    RgbImage {
-        width: w,
-        height: h,
-        pixels: img.iter().map(|p| [p[0], p[1], p[2]]).collect(),
-    }
+/// RMS in linear RGB (the seed's "rms").
+fn rms(a: &RgbImage, b: &RgbImage) -> f64 {
+    mse_rgb(a, b).expect("images of one size").sqrt()
 }
 
 fn main() -> Result<()> {
@@ -80,15 +69,17 @@ fn main() -> Result<()> {
     let dg = k.upload(&g)?;
     eprintln!("reference: additive, {REFERENCE_LIGHTS} lights");
     let many = sub::additive(&arrays, &g, &dg, &k, REFERENCE_LIGHTS, REFERENCE_SEED)?;
-    let many = rgb(size, size, &many.image);
+    let many = sub::to_rgb(size, size, &many.image);
     write_png(&out.join("reference-4096-lights.png"), &many, 0.0)?;
     let base = Settings::default();
     let e = sub::environment_lights(&arrays, base.lights, base.seed);
     let c_set = sub::unshadowed_set(&arrays, &base, &e);
     let c_sum = k.unshadowed(&dg, &c_set)?;
     let c = sub::unshadowed(&arrays, &dg, &k, &base, &e)?;
-    let c_rgb = |c: &[[f32; 4]]| rgb(size, size, c).pixels;
-    let map_error = rms(&c_rgb(&c.image), &c_rgb(&c_sum.image));
+    let map_error = rms(
+        &sub::to_rgb(size, size, &c.image),
+        &sub::to_rgb(size, size, &c_sum.image),
+    );
 
     let mut t = String::new();
     writeln!(
@@ -134,8 +125,8 @@ fn main() -> Result<()> {
         writeln!(
             t,
             "| {form} | {lights} | {frac} | {:.4} | {:.4} | {} | {:.1} | {:.2} | {:.1} |",
-            rms(&img.pixels, &many.pixels),
-            rms(&img.pixels, &truth.pixels),
+            rms(img, &many),
+            rms(img, &truth),
             p.rays,
             p.ray_time.as_secs_f64() * 1e3,
             p.kernel_time.as_secs_f64() * 1e3,
@@ -146,7 +137,7 @@ fn main() -> Result<()> {
     for lights in LIGHTS {
         eprintln!("{lights} lights");
         let a = sub::additive(&arrays, &g, &dg, &k, lights, base.seed)?;
-        let ai = rgb(size, size, &a.image);
+        let ai = sub::to_rgb(size, size, &a.image);
         row(&mut t, "additive", lights, "1/1", &a, &ai)?;
         if lights == 32 {
             write_png(&out.join("additive-32.png"), &ai, 0.0)?;
@@ -158,7 +149,7 @@ fn main() -> Result<()> {
                 ..base.clone()
             };
             let p = sub::subtractive(&arrays, &g, &dg, &k, &c.image, &s)?;
-            let pi = rgb(size, size, &p.image);
+            let pi = sub::to_rgb(size, size, &p.image);
             row(
                 &mut t,
                 "subtractive",

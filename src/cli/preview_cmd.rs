@@ -9,21 +9,13 @@ use anyhow::{Result, bail};
 
 use super::render_cmd::{RenderArgs, RenderSummary};
 use crate::gpu::Gpu;
-use crate::imaging::{self, RgbImage};
+use crate::imaging;
 use crate::render::subtractive::{self as sub, Settings, device::SubtractiveKernels};
 use crate::render::{FrameSettings, SceneArrays};
 use crate::scene::Scene;
 
 /// The preview modes `--preview` accepts.
 pub const PREVIEWS: &[&str] = &["subtractive"];
-
-pub fn to_rgb(width: u32, height: u32, image: &[[f32; 4]]) -> RgbImage {
-    RgbImage {
-        width,
-        height,
-        pixels: image.iter().map(|p| [p[0], p[1], p[2]]).collect(),
-    }
-}
 
 #[allow(clippy::too_many_arguments)]
 pub fn run(
@@ -58,7 +50,7 @@ pub fn run(
     let e = sub::environment_lights(&arrays, settings.lights, settings.seed);
     let c = sub::unshadowed(&arrays, &dg, &k, &settings, &e)?;
     let p = sub::subtractive(&arrays, &g, &dg, &k, &c.image, &settings)?;
-    let image = to_rgb(p.width, p.height, &p.image);
+    let image = sub::to_rgb(p.width, p.height, &p.image);
     imaging::write_png(png, &image, args.exposure)?;
     if let Some(path) = exr {
         imaging::write_exr(path, &image)?;

@@ -413,3 +413,12 @@ pub fn unshadowed(
         k.unshadowed(dg, &set)
     }
 }
+
+/// An RGBA result of the kernels as an image (A dropped).
+pub fn to_rgb(width: u32, height: u32, image: &[[f32; 4]]) -> crate::imaging::RgbImage {
+    crate::imaging::RgbImage {
+        width,
+        height,
+        pixels: image.iter().map(|p| [p[0], p[1], p[2]]).collect(),
+    }
+}
