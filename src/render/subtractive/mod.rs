@@ -11,6 +11,20 @@
 //! The plain Rust reference of every kernel in kernels/render/subtractive.cl is here
 //! ([`reference`]); [`device`] runs the kernels. Rays are traced on the host (rayon) with the
 //! BVH the path tracer's reference uses; the kernels are steps 2(c-d), 3, 4 and 5.
+//!
+//! Choices where the seed is open (digest §2.2, §2.4):
+//! - E: stratified inverse-CDF sampling of luminance × solid angle on a 256×128 lat-long grid,
+//!   equal luminance per light (the thesis: structured importance sampling [2]).
+//! - C: a 64×32 prefiltered irradiance map of 1024 importance-sampled unshadowed lights from an
+//!   independent seed (the thesis: SH irradiance / prefiltered maps); the diffuse BRDF only.
+//! - Direct light only; glass, mirror and chrome first hits shaded as diffuse of their albedo
+//!   (§2.4: "no GI, glass or mirror paths"); the sky is C where the camera ray escapes.
+//! - S at the centre pixel of each f×f block, f = 1…64 (1/1 … 1/4096; the seed's range 1/16 …
+//!   1/1024 is f = 4 … 32); one ray per light facing the surface, rays on the host.
+//! - Upsampling: the 2×2 nearest samples, weight = bilinear × G(‖Δp‖, σ) × max(n′·n, 0),
+//!   σ = `sigma_position` (1) × f × the pixel's world footprint (scale-invariant);
+//!   normalised by the weight sum; the nearest sample when the sum is 0 (§2.4).
+//! - max(C − S′, 0) per channel (§2.4, not in the thesis).
 
 pub mod device;
 pub mod reference;
