@@ -33,6 +33,22 @@ pub fn run(
             PREVIEWS.join(", ")
         );
     }
+    // A preview is one frame of its own: the path tracer's flags would be silently ignored.
+    for (given, flag) in [
+        (args.filter.is_some(), "--filter"),
+        (args.partial.is_some(), "--partial"),
+        (args.samples.is_some(), "--samples"),
+        (args.tile.is_some(), "--tile"),
+        (args.aovs.is_some(), "--aovs"),
+        (args.save_samples.is_some(), "--save-samples"),
+        (args.spp.is_some(), "--spp"),
+    ] {
+        if given {
+            bail!(
+                "--preview {name} renders one direct-light frame without the path tracer: {flag} does not apply"
+            );
+        }
+    }
     sub::check_scene(scene).map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
     let settings = Settings {
         lights: args.preview_lights,
