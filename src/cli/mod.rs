@@ -5,6 +5,7 @@ mod filter_cmd;
 mod interrupt;
 mod merge_cmd;
 mod partial_render;
+mod preview_cmd;
 mod render_cmd;
 mod slurm;
 mod tools;

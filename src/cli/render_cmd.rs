@@ -122,6 +122,19 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// A real-time preview instead of the path tracer: `subtractive` (DeCoro 2009 ch. 4,
+    /// environment-lit scenes: unshadowed direct light minus low-resolution shadows).
+    #[arg(long, value_name = "MODE")]
+    pub preview: Option<String>,
+    /// --preview subtractive: shadow-casting lights sampled from the environment.
+    #[arg(long, default_value_t = 32)]
+    pub preview_lights: u32,
+    /// --preview subtractive: one shadow sample per F×F pixels (4: 1/16 … 32: 1/1024).
+    #[arg(long, value_name = "F", default_value_t = 4)]
+    pub shadow_block: u32,
+    /// --preview subtractive: lights of the unshadowed term C.
+    #[arg(long, default_value_t = 1024)]
+    pub unshadowed_lights: u32,
 }
 
 fn parse_size(s: &str) -> std::result::Result<[usize; 2], String> {
@@ -313,6 +326,17 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     }
 
     let gpus = args.multi.open(args.device)?;
+    if let Some(name) = &args.preview {
+        return super::preview_cmd::run(
+            args,
+            name,
+            &scene,
+            &options.frame,
+            gpus[0].clone(),
+            &png_path,
+            exr_path.as_deref(),
+        );
+    }
     // The scene arrays first: the filters specialise to what they say (effects, camera, size).
     let arrays = SceneArrays::build(&scene, &options.frame)?;
     let info = SceneInfo::new(&scene, &arrays);

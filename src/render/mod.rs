@@ -12,6 +12,7 @@ pub mod frame;
 pub mod progressive;
 pub mod shadows;
 pub mod split;
+pub mod subtractive;
 pub mod tile;
 
 use std::sync::Arc;
