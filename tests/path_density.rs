@@ -8,7 +8,8 @@ mod common;
 
 use common::*;
 use noisefree::filters::path_density::{
-    DensityMode, FilmSamples, PathDensityKernel, PathDensityParams, PathDensitySettings, reference,
+    ColorSpace, DensityMode, FilmSamples, PathDensityKernel, PathDensityParams,
+    PathDensitySettings, reference,
 };
 use noisefree::filters::trimmed::trimmed_mean;
 use noisefree::imaging::RgbImage;
@@ -179,7 +180,7 @@ fn epsilon_approximate_sigma_is_within_one_plus_epsilon_of_the_exact() {
 #[test]
 fn kernels_match_the_reference() {
     // A rendered frame (Cornell glossy: mirror and metal fireflies) and a synthetic one, in
-    // both modes and for the seed's three k.
+    // both modes and for the seed's three k, and the RGB distance (PD_RGB).
     let scene = bundled_scene("cornell_glossy");
     let mut o = options(&scene, 24, 20, 3);
     o.outputs = OutputSet::of(&[Output::Samples]);
@@ -191,16 +192,18 @@ fn kernels_match_the_reference() {
         (&rendered, "cornell_glossy"),
         (&noisy(16, 12, 5), "synthetic"),
     ] {
-        for (k, mode) in [
-            (10, DensityMode::Accumulated),
-            (50, DensityMode::Accumulated),
-            (200, DensityMode::Accumulated),
-            (10, DensityMode::PerFrame),
+        for (k, mode, color_space) in [
+            (10, DensityMode::Accumulated, ColorSpace::Cielab),
+            (50, DensityMode::Accumulated, ColorSpace::Cielab),
+            (200, DensityMode::Accumulated, ColorSpace::Cielab),
+            (10, DensityMode::PerFrame, ColorSpace::Cielab),
+            (10, DensityMode::Accumulated, ColorSpace::Rgb),
         ] {
             let settings = PathDensitySettings {
                 k,
                 mode,
                 frame_spp: 2,
+                color_space,
                 ..Default::default()
             };
             let p = settings.params().for_spp(s.spp);
@@ -217,8 +220,8 @@ fn kernels_match_the_reference() {
                 }
             }
             eprintln!(
-                "{name} k {k} {mode:?}: sigma {sigma_err:e}, weight {weight_err:e}, image \
-                 {image_err:e}"
+                "{name} k {k} {mode:?} {color_space:?}: sigma {sigma_err:e}, weight \
+                 {weight_err:e}, image {image_err:e}"
             );
             // The same float operations in the same order: measured bit-identical on PoCL
             // (σ, weights and image all 0 difference), so the bound is 0. Only cbrt could
@@ -412,7 +415,7 @@ fn a_coloured_grid_keeps_its_black_lines() {
     // The seed's Fig. 5.9: coloured cells between black lines one pixel wide. In CIELAB the
     // line's samples have each other (and their pixel's) as neighbours and the cells' samples
     // theirs, so nothing is rejected and every pixel keeps its colour: the lines neither grow
-    // nor shrink. (An RGB metric, the seed shows, would reject cell samples next to the lines.)
+    // nor shrink. (With noisy cells an RGB metric grows them: tests/path_density_scenes.rs.)
     let cell = |x: u32, y: u32| -> [f32; 3] {
         if x.is_multiple_of(6) || y.is_multiple_of(6) {
             [0.0; 3]

@@ -29,6 +29,8 @@
 //
 // Build options:
 //   PD_K   k, the number of neighbours (the size of the private sorted array).
+//   PD_RGB defined: the colour coordinates are 100 x linear RGB instead of CIELAB (the seed's
+//          Fig. 5.9 comparison); a sample is valid when its Lab and those are finite.
 //
 // Float operations are written out in a fixed order (FP_CONTRACT OFF) so that the reference
 // performs the same ones; only cbrt may differ from Rust's by an ulp (tests/path_density.rs).
@@ -58,6 +60,12 @@ inline float4 pd_lab_of(float r, float g, float b) {
     float a = 500.0f * (fx - fy);
     float bb = 200.0f * (fy - fz);
     bool ok = isfinite(l) && isfinite(a) && isfinite(bb);
+#if defined(PD_RGB)
+    l = 100.0f * r;
+    a = 100.0f * g;
+    bb = 100.0f * b;
+    ok = ok && isfinite(l) && isfinite(a) && isfinite(bb);
+#endif
     return ok ? (float4)(l, a, bb, 1.0f) : (float4)(0.0f);
 }
 

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel, Program};
 
-use super::PathDensityParams;
+use super::{ColorSpace, PathDensityParams};
 use super::reference::Densities;
 use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
 use crate::imaging::RgbImage;
@@ -63,7 +63,10 @@ pub struct DeviceRun {
 impl PathDensityKernel {
     pub fn new(gpu: Arc<Gpu>, params: PathDensityParams) -> Result<PathDensityKernel> {
         params.validate()?;
-        let defines = vec![("PD_K".to_string(), params.k.to_string())];
+        let mut defines = vec![("PD_K".to_string(), params.k.to_string())];
+        if params.color_space == ColorSpace::Rgb {
+            defines.push(("PD_RGB".to_string(), "1".to_string()));
+        }
         let program = gpu.program("filters/path_density.cl", &defines, "")?;
         Ok(PathDensityKernel {
             gpu,

@@ -30,6 +30,13 @@
 //! - **CIELAB** of linear Rec. 709 RGB, D65 white with Y_n = 1 (HDR values give L* > 100; a
 //!   firefly of Y = 10 has L* ≈ 234). A sample whose colour or Lab is not finite is never a
 //!   neighbour and weighs 0.
+//! - **An RGB distance** for comparison only (`color_space = "rgb"`, the seed's Fig. 5.9):
+//!   the colour coordinates are 100 × linear RGB, so that the colour weight 20 is the same
+//!   share of a [0, 1] colour's range as of L*'s [0, 100]. The seed shows that it "poorly
+//!   distinguishes colors across edges": dark colours all sit near black, so the cell samples
+//!   next to a black line are rejected and the line grows (scenes/decoro/color_grid.toml,
+//!   tests/path_density_scenes.rs). Validity stays that of the Lab (and of the scaled RGB), so
+//!   both spaces drop the same samples.
 //! - **Fewer than k samples** in the image (or frame group): σ is the mean over those there
 //!   are; none at all gives σ = 0 (nothing contradicts the sample).
 //! - **Exact kNN** on the device by rings of pixels with an early stop
@@ -106,6 +113,16 @@ pub enum DensityMode {
     PerFrame,
 }
 
+/// The space of the colour term of the distance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ColorSpace {
+    /// CIELAB (the seed's metric).
+    Cielab,
+    /// 100 × linear RGB (the seed's Fig. 5.9 counter-example; for comparison only).
+    Rgb,
+}
+
 /// The filter run on the cleaned image, if any.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -131,6 +148,9 @@ crate::filter_settings! {
         pub reject: f32 = 3.0,
         /// ε of the approximate kNN: σ at most 1 + ε times the exact one (0: exact).
         pub epsilon: f32 = 0.0,
+        /// "cielab" (the seed's) or "rgb" (100 x linear RGB: the seed's Fig. 5.9 comparison,
+        /// which grows dark lines).
+        pub color_space: ColorSpace = ColorSpace::Cielab,
         /// "accumulated" (every sample so far; consistent) or "per-frame" (biased).
         pub mode: DensityMode = DensityMode::Accumulated,
         /// Samples per frame in the per-frame mode.
@@ -150,6 +170,8 @@ pub struct PathDensityParams {
     pub reject: f32,
     /// ε of the approximate kNN (0: exact).
     pub epsilon: f32,
+    /// The colour term's space.
+    pub color_space: ColorSpace,
     /// Samples per frame group; `u32::MAX` (accumulated): all of a pixel's samples.
     pub frame_spp: u32,
 }
@@ -225,6 +247,7 @@ impl PathDensitySettings {
             keep: self.keep,
             reject: self.reject,
             epsilon: self.epsilon,
+            color_space: self.color_space,
             frame_spp: match self.mode {
                 DensityMode::Accumulated => u32::MAX,
                 DensityMode::PerFrame => self.frame_spp,

@@ -3,7 +3,7 @@
 //! from Rust's by an ulp), plus a brute-force kNN over the whole image that the ring scan must
 //! equal (tests/path_density.rs).
 
-use super::PathDensityParams;
+use super::{ColorSpace, PathDensityParams};
 use crate::imaging::RgbImage;
 
 /// The stored samples of one image, pixel-major: sample `s` of pixel `p` is `p · spp + s`.
@@ -62,6 +62,19 @@ pub fn lab(rgb: [f32; 3]) -> Option<[f32; 3]> {
     (l.is_finite() && a.is_finite() && bb.is_finite()).then_some([l, a, bb])
 }
 
+/// The colour coordinates of the distance in `space` (`pd_lab_of`): the Lab, or 100 × RGB
+/// (valid when the Lab and they are finite); None when not valid.
+pub fn coords(rgb: [f32; 3], space: ColorSpace) -> Option<[f32; 3]> {
+    let lab = lab(rgb)?;
+    match space {
+        ColorSpace::Cielab => Some(lab),
+        ColorSpace::Rgb => {
+            let c = rgb.map(|v| 100.0 * v);
+            c.iter().all(|v| v.is_finite()).then_some(c)
+        }
+    }
+}
+
 /// The joint distance d = ‖Δxy‖ / w_W + ‖ΔLab‖ / w_c (`pd_distance`).
 pub fn distance(a: [f32; 2], la: [f32; 3], b: [f32; 2], lb: [f32; 3], inv_w: f32, inv_c: f32) -> f32 {
     let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
@@ -110,9 +123,9 @@ impl Densities {
     }
 }
 
-/// The Lab of every sample (None: not finite).
-pub fn labs(samples: &FilmSamples) -> Vec<Option<[f32; 3]>> {
-    samples.rgb.iter().map(|&c| lab(c)).collect()
+/// The colour coordinates of every sample in `space` (None: not valid).
+pub fn labs(samples: &FilmSamples, space: ColorSpace) -> Vec<Option<[f32; 3]>> {
+    samples.rgb.iter().map(|&c| coords(c, space)).collect()
 }
 
 /// The k smallest distances kept sorted, as the kernel's private array.
@@ -153,7 +166,7 @@ impl Best {
 /// σ of every sample by the kernel's ring scan (ε-approximate when `p.epsilon` > 0), and the
 /// weights.
 pub fn densities(samples: &FilmSamples, p: &PathDensityParams) -> Densities {
-    let labs = labs(samples);
+    let labs = labs(samples, p.color_space);
     let n = samples.len();
     let mut sigma = vec![0.0f32; n];
     let mut weight = vec![0.0f32; n];
@@ -247,7 +260,7 @@ fn ring_sigma(
 /// σ of sample `i` by brute force over every sample of its frame group in the whole image
 /// (the definition the exact ring scan must reproduce; `p.epsilon` is ignored).
 pub fn brute_force_sigma(samples: &FilmSamples, p: &PathDensityParams, i: usize) -> f32 {
-    let labs = labs(samples);
+    let labs = labs(samples, p.color_space);
     let Some(li) = labs[i] else {
         return f32::INFINITY;
     };
@@ -270,8 +283,19 @@ pub fn brute_force_sigma(samples: &FilmSamples, p: &PathDensityParams, i: usize)
 }
 
 /// The reconstruction (`pd_reconstruct`): per pixel and frame group Σ w·L / Σ w, the group's
-/// plain mean when every weight is 0, the groups averaged by their sample counts.
+/// plain mean when every weight is 0, the groups averaged by their sample counts (CIELAB
+/// validity).
 pub fn reconstruct(samples: &FilmSamples, weight: &[f32], frame_spp: u32) -> RgbImage {
+    reconstruct_in(samples, weight, frame_spp, ColorSpace::Cielab)
+}
+
+/// [`reconstruct`] with the validity of `space`'s coordinates.
+pub fn reconstruct_in(
+    samples: &FilmSamples,
+    weight: &[f32],
+    frame_spp: u32,
+    space: ColorSpace,
+) -> RgbImage {
     let spp = samples.spp as usize;
     let fs = frame_spp as usize;
     let groups = spp.div_ceil(fs);
@@ -285,7 +309,7 @@ pub fn reconstruct(samples: &FilmSamples, weight: &[f32], frame_spp: u32) -> Rgb
                 let (mut ws, mut n) = (0.0f32, 0.0f32);
                 for s in g0..g1 {
                     let i = p * spp + s;
-                    if lab(samples.rgb[i]).is_none() {
+                    if coords(samples.rgb[i], space).is_none() {
                         continue;
                     }
                     let c = samples.rgb[i];
@@ -328,5 +352,6 @@ pub fn reconstruct(samples: &FilmSamples, weight: &[f32], frame_spp: u32) -> Rgb
 /// The whole filter: densities, then the reconstruction.
 pub fn filter(samples: &FilmSamples, p: &PathDensityParams) -> (RgbImage, Densities) {
     let d = densities(samples, p);
-    (reconstruct(samples, &d.weight, p.frame_spp), d)
+    let image = reconstruct_in(samples, &d.weight, p.frame_spp, p.color_space);
+    (image, d)
 }

@@ -26,7 +26,9 @@
 //!   (soft shadows), the thesis's input is a hard matte; stylizing soft visibility is its
 //!   future work (§3.4).
 //! - **One light per render**, `light` (auto: the first sphere light), like aaf-shadows: the
-//!   shadow output holds one light's terms. The other lights' shadows stay as rendered.
+//!   shadow output holds one light's terms. The other lights' shadows stay as rendered. The
+//!   seed stylizes every light (eq. 3.1: Σ_l, S_l in place of V_l); "Several lights" below is
+//!   the design for that, not built yet.
 //! - **b applies to the direct light of the light only**: the path tracer's indirect light is
 //!   kept, so b = 0 (the default) is the physical shadow and b adds "ambient" on top (digest
 //!   §1.4: b would otherwise double-count indirect light).
@@ -41,6 +43,35 @@
 //! - **Whole frames**: D at a pixel depends on every contour point of the image, so the
 //!   filter has no bounded reach ([`PreparedFilter::reach`] is None) and runs on the merged
 //!   film when a frame is split across devices (without a light it passes bands through).
+//!
+//! # Several lights (design, not built)
+//!
+//! Eq. 3.1 sums over the lights, each with its own S_l. What one light per render lacks, and
+//! how each piece would grow (issue 17, §2):
+//! - **The shadow output per light.** `ShadowTerms` (the light's direct term that the path
+//!   tracer put into F) and `ShadowPixel` (V from the centre ray, r, d(x), position, normal)
+//!   hold one light, chosen by `ShadowSampling::light`. They would become planes of
+//!   `pixels × L` elements for the scene's L sphere lights (src/layout/outputs.rs sizes them as
+//!   it sizes the sample vectors by `sample_capacity`; the AOV channels get the light's number,
+//!   `shadow.l1.direct.R`; merging partial renders merges each plane as it merges the one).
+//! - **The megakernel** (kernels/render/pathtrace.cl) folds `ps.shadow_direct` only when the
+//!   next-event estimate chose `shadow_light` (or the first bounce hit it): with planes it adds
+//!   to `shadow_direct[chosen]`, a private array of L float3 (L a build define, capped; the
+//!   film's `PixelStats.shadow` grows with it). Next-event estimation already picks one light
+//!   per vertex, so the per-light terms are disjoint parts of F and can all be subtracted.
+//! - **The shadow passes** (src/render/shadows) run once per light before the first samples,
+//!   writing plane l; their cost is L times today's, paid once per render. aaf-shadows and
+//!   sheared filtering, which read the same output, read the plane of their `light`.
+//! - **The filter** keeps one `device.rs` pipeline per light (contour, D, blur, each light's
+//!   V_l has its own contour) and one compose over all of them:
+//!   F − Σ_l direct_l + Σ_l r_l·S_l. A change of light l's i, s or b re-runs only the
+//!   compose; of its α, its blur and the compose.
+//! - **Settings**: today's four quadratics are the default of every light, with a table per
+//!   light overriding them (`[filter.stylized-shadows.lights.1] inflation = ...`); `light`
+//!   becomes the set of lights stylized (auto: all sphere lights).
+//! - **Tests**: with two lights, changing light 1's controls changes the image by exactly
+//!   r_1·(S_1′ − S_1) and leaves light 0's part alone; identity controls give
+//!   F − Σ direct_l + Σ r_l·V_l, and with one light stylized the bytes of today's filter.
 
 pub mod blur;
 pub mod contour;
