@@ -87,6 +87,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "filters/stylized.cl",
         include_str!("../kernels/filters/stylized.cl"),
     ),
+    (
+        "bench/roofline.cl",
+        include_str!("../kernels/bench/roofline.cl"),
+    ),
     ("test/probes.cl", include_str!("../kernels/test/probes.cl")),
 ];
 

@@ -22,6 +22,7 @@ fn quick_benchmark_completes_with_well_formed_results() {
         ("quality", 8),
         ("accuracy-time", 6),
         ("sweep", 6),
+        ("roofline", 14),
     ] {
         let csv = std::fs::read_to_string(out.join(format!("{study}.csv")))
             .unwrap_or_else(|e| panic!("{study}.csv: {e}"));

@@ -44,7 +44,7 @@ fn load(ctx: &Context, name: &str) -> Result<Scene> {
 }
 
 /// Rendered 8-spp outputs of `scene` at `w` x `h`, the filter's input (on the device).
-fn filter_input(ctx: &Context, scene: &Scene, w: u32, h: u32) -> Result<Frame> {
+pub(super) fn filter_input(ctx: &Context, scene: &Scene, w: u32, h: u32) -> Result<Frame> {
     let mut o = RenderOptions::for_scene(scene);
     (o.frame.width, o.frame.height) = (w, h);
     o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);

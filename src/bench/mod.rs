@@ -29,6 +29,8 @@
 //!   against light samples and against time (Wang 2013 Fig. 3.6), the spp map (`aaf`).
 //! - `rpf-readings`, `rpf-scale` (only when asked; hours): RPF's readings against the
 //!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
+//! - `roofline`: each image filter kernel's achieved GFLOP/s and GB/s against the device's
+//!   own peaks, measured by micro-kernels in the same run (`roofline/`).
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -46,6 +48,7 @@ pub mod oidn;
 pub mod path_density;
 pub mod plot;
 pub mod quality;
+pub mod roofline;
 pub mod rpf;
 pub mod speed;
 pub mod study;
@@ -82,6 +85,8 @@ pub enum Study {
     RpfReadings,
     /// RPF against the scene scale, Tables 5.3-5.4 (not in the default set: hours).
     RpfScale,
+    /// Each image filter kernel's GFLOP/s and GB/s against the device's measured peaks.
+    Roofline,
 }
 
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -258,6 +263,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
             Study::Sweep,
             Study::RenderSpeed,
             Study::Statistics,
+            Study::Roofline,
         ];
     }
     studies.dedup();
@@ -268,7 +274,11 @@ fn select(args: &BenchArgs) -> Result<Selection> {
         || studies.iter().any(|s| {
             matches!(
                 s,
-                Study::FilterSpeed | Study::Sweep | Study::RpfScale | Study::AafShadows
+                Study::FilterSpeed
+                    | Study::Sweep
+                    | Study::RpfScale
+                    | Study::AafShadows
+                    | Study::Roofline
             )
         });
     if scenes_dir.is_none() && needs_bundled {
@@ -321,7 +331,11 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
                     paths.push(dir.join(format!("{name}.toml")));
                 }
             }
-            Study::RenderSpeed | Study::Statistics | Study::FilterSpeed | Study::Balance => {}
+            Study::RenderSpeed
+            | Study::Statistics
+            | Study::FilterSpeed
+            | Study::Balance
+            | Study::Roofline => {}
         }
     }
     let mut seen = std::collections::BTreeSet::new();
@@ -527,6 +541,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
             Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
             Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,
+            Study::Roofline => roofline::roofline(&ctx)?,
         }
     }
     write_device_info(&ctx)?;

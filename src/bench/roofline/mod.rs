@@ -1,0 +1,258 @@
+//! `roofline` (issue 14): how close each image filter kernel comes to what the device can do
+//! (Williams, Waterman & Patterson, CACM 2009). The device's ceilings are measured on the
+//! device itself by micro-kernels (`peaks`: FMA throughput, the price of one `exp`, STREAM's
+//! triad bandwidth); each filter's arithmetic and compulsory traffic are counted from its
+//! source and the frame (`models`), and divided by its kernel time from OpenCL profiling
+//! events. The result: achieved GFLOP/s against the arithmetic peak, GB/s against the
+//! bandwidth, and both against the roofline min(peak, intensity x bandwidth).
+//!
+//! Everything is measured anew on every run (nothing resumed), so the ceilings and the
+//! kernels come from the same run on the same, equally loaded, device.
+//!
+//! Counted: the data-driven filter's variants (thesis §6.3, kw 21) and à-trous. Not counted:
+//! RPF, bmfr, path-density and the AAF/sheared passes, whose arithmetic depends on the data
+//! (mutual-information buckets, QR of rank-deficient blocks, kNN ring scans); their times are
+//! in the quality study.
+
+pub mod models;
+pub mod peaks;
+
+use std::time::Duration;
+
+use anyhow::Result;
+
+use super::plot::{Chart, Series, line_chart};
+use super::table::{ResultTable, num};
+use super::{Context, bar};
+use crate::filters::atrous::{Atrous, AtrousSettings};
+use crate::filters::ddf::{Ddf, DdfSettings, DirectionTerm, Variant};
+use crate::filters::{Configured, FilterKind};
+use crate::render::Frame;
+use models::Work;
+use peaks::Peaks;
+
+/// The kernels measured: a label and how to configure it.
+const KERNELS: &[&str] = &[
+    "ddf-naive",
+    "ddf-vector",
+    "ddf-rows",
+    "ddf-rows+holes",
+    "atrous",
+];
+
+/// The scenes: a closed room (every pixel a surface) and Outside (a sky the filters skip).
+const SCENES: &[&str] = &["cornell_diffuse", "outside"];
+
+/// The data-driven filter's settings for a label of [`KERNELS`] (defaults otherwise: kw 21).
+fn ddf_settings(label: &str) -> DdfSettings {
+    let variant = match label {
+        "ddf-naive" => Variant::Naive,
+        "ddf-vector" => Variant::Vector,
+        _ => Variant::Rows,
+    };
+    DdfSettings {
+        variant,
+        holes: label == "ddf-rows+holes",
+        ..Default::default()
+    }
+}
+
+/// The filter of `label`, configured for `frame`, and the work it does on it.
+fn configure(label: &str, frame: &Frame) -> Result<(Configured, Work)> {
+    let info = &frame.info().scene;
+    let fv = frame.filter_vectors()?;
+    let (w, h) = (frame.width(), frame.height());
+    if label == "atrous" {
+        let s = AtrousSettings::default();
+        let work = models::atrous_work(fv, w, h, s.iterations);
+        return Ok((Configured::typed::<Atrous>(s, info)?, work));
+    }
+    let s = ddf_settings(label);
+    let mut effective = s.clone();
+    Ddf::specialise(&mut effective, info);
+    let mut extra = 0.0;
+    if effective.uses_texture2() {
+        extra += models::DDF_TEXTURE2_FLOPS;
+    }
+    extra += match effective.direction {
+        DirectionTerm::Thesis => 0.0,
+        DirectionTerm::Difference => models::DDF_DIRECTION_DIFFERENCE_FLOPS,
+        DirectionTerm::Neighbour => models::DDF_DIRECTION_NEIGHBOUR_FLOPS,
+    };
+    let p = effective.params(w, h, 1.0, 1.0);
+    let work = models::ddf_work(
+        fv,
+        w,
+        h,
+        p.half_width as u32,
+        p.step as u32,
+        effective.keeps_sky(),
+        extra,
+    );
+    Ok((Configured::typed::<Ddf>(s, info)?, work))
+}
+
+/// The best kernel time of `runs` runs after a warm-up.
+fn best_time(ctx: &Context, f: &Configured, frame: &Frame, runs: usize) -> Result<Duration> {
+    let mut prepared = f.prepare(frame.info(), &ctx.gpu)?;
+    prepared.run(frame)?;
+    let mut best = Duration::MAX;
+    for _ in 0..runs {
+        best = best.min(prepared.run(frame)?.time());
+    }
+    Ok(best)
+}
+
+/// The table row of one kernel: its work over its time, against the ceilings.
+fn row(scene: &str, size: &str, label: &str, w: &Work, t: Duration, pk: &Peaks) -> Vec<String> {
+    let s = t.as_secs_f64();
+    let gflop = w.flop_equivalents(pk.exp_flops()) / 1e9;
+    let gbyte = w.bytes / 1e9;
+    let intensity = gflop / gbyte;
+    let attainable = pk.attainable(intensity);
+    let mut r = vec![scene.to_string(), size.to_string(), label.to_string()];
+    r.extend(
+        [
+            s * 1e3,
+            w.taps as f64 / 1e6,
+            gflop,
+            gflop / s,
+            100.0 * gflop / s / pk.gflops,
+            100.0 * gflop / s / pk.gflops_scalar,
+            gbyte / s,
+            100.0 * gbyte / s / pk.gbps,
+            intensity,
+            attainable,
+            100.0 * gflop / s / attainable,
+        ]
+        .map(num),
+    );
+    r
+}
+
+/// `roofline` (module docs).
+pub fn roofline(ctx: &Context) -> Result<()> {
+    let columns = [
+        "scene",
+        "size",
+        "kernel",
+        "ms",
+        "mtaps",
+        "gflop",
+        "gflops",
+        "pct_peak",
+        "pct_scalar_peak",
+        "gbps",
+        "pct_bandwidth",
+        "flops_per_byte",
+        "roof_gflops",
+        "pct_roof",
+    ];
+    let mut t = ctx.table("roofline", &columns, 3, true)?;
+    let (scenes, n, runs) = if ctx.quick {
+        (&SCENES[..1], 64, 2)
+    } else {
+        (SCENES, 512, 5)
+    };
+    let pb = bar(ctx, (1 + scenes.len() * KERNELS.len()) as u64, "roofline");
+    pb.set_message("roofline: the device's ceilings");
+    let pk = peaks::measure(&ctx.gpu, ctx.quick)?;
+    pb.inc(1);
+    let size = format!("{n}x{n}");
+    for name in scenes {
+        let scene = crate::scene::load_scene(&ctx.scene_file(name)?)?;
+        let frame = super::filter_speed::filter_input(ctx, &scene, n, n)?;
+        for label in KERNELS {
+            pb.set_message(format!("roofline: {name} {label}"));
+            let (f, work) = configure(label, &frame)?;
+            let time = best_time(ctx, &f, &frame, runs)?;
+            t.push(row(name, &size, label, &work, time, &pk))?;
+            pb.inc(1);
+        }
+    }
+    pb.finish_and_clear();
+    write_report(ctx, &t, &pk)
+}
+
+fn write_report(ctx: &Context, t: &ResultTable, pk: &Peaks) -> Result<()> {
+    let recs = t.records();
+    let scalar = Peaks {
+        gflops: pk.gflops_scalar,
+        ..*pk
+    };
+    let mut series = vec![
+        Series {
+            label: "roofline (float16 FMA, triad)".into(),
+            points: roof_points(pk, &recs),
+        },
+        Series {
+            label: "ceiling of float chains".into(),
+            points: roof_points(&scalar, &recs),
+        },
+    ];
+    for r in &recs {
+        let p = (
+            r["flops_per_byte"].parse().unwrap_or(f64::NAN),
+            r["gflops"].parse().unwrap_or(f64::NAN),
+        );
+        series.push(Series {
+            label: format!("{} {}", r["kernel"], r["scene"]),
+            points: vec![p],
+        });
+    }
+    line_chart(
+        &ctx.out.join("roofline.png"),
+        &Chart {
+            title: format!("Roofline of {}", ctx.gpu.summary.name),
+            x_label: "arithmetic intensity (flops per compulsory byte)".into(),
+            y_label: "GFLOP/s".into(),
+            log_x: true,
+            log_y: true,
+        },
+        &series,
+    )?;
+    let md = format!(
+        "# Roofline (issue 14)\n\n\
+         `noisefree bench --study roofline`: the device's ceilings measured by micro-kernels \
+         (kernels/bench/roofline.cl) in the same run as the filters: fused multiply-adds on 8 \
+         independent float16 chains per work-item **{:.1} GFLOP/s** (on float chains, which \
+         only the compiler can vectorise: **{:.1} GFLOP/s**); `exp` on float16s **{:.2} G/s** \
+         ({:.3} G/s on floats), so one exp costs **{:.1} flops**; STREAM triad **{:.1} GB/s**; \
+         ridge at {:.1} flops/byte.\n\n\
+         Each filter's flops are counted from its source (src/bench/roofline/models.rs; each \
+         `exp` at the measured price) and its taps exactly from the frame (8 spp); bytes are \
+         compulsory traffic (every buffer read once, the output written once). `pct_peak`: \
+         achieved GFLOP/s over the FMA peak, `pct_scalar_peak` over the float-chain peak (a \
+         kernel above 100 % of it was vectorised); `pct_bandwidth`: compulsory GB/s over the triad; \
+         `roof_gflops` = min(peak, intensity x bandwidth), `pct_roof` the achieved share of \
+         it. Kernel times: best of several runs, OpenCL profiling events.\n\n\
+         ![roofline](roofline.png)\n\n{}",
+        pk.gflops,
+        pk.gflops_scalar,
+        pk.gexps,
+        pk.gexps_scalar,
+        pk.exp_flops(),
+        pk.gbps,
+        pk.ridge(),
+        t.markdown()
+    );
+    std::fs::write(ctx.out.join("roofline.md"), md)?;
+    Ok(())
+}
+
+/// The roof as a polyline from below the lowest to above the highest intensity measured.
+fn roof_points(pk: &Peaks, recs: &[std::collections::BTreeMap<&str, &str>]) -> Vec<(f64, f64)> {
+    let xs: Vec<f64> = recs
+        .iter()
+        .filter_map(|r| r["flops_per_byte"].parse::<f64>().ok())
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .collect();
+    let lo = xs.iter().copied().fold(pk.ridge(), f64::min) / 4.0;
+    let hi = xs.iter().copied().fold(pk.ridge(), f64::max) * 4.0;
+    let mut pts = vec![(lo, pk.attainable(lo))];
+    if pk.ridge() > lo && pk.ridge() < hi {
+        pts.push((pk.ridge(), pk.gflops));
+    }
+    pts.push((hi, pk.attainable(hi)));
+    pts
+}
