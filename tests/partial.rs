@@ -261,3 +261,21 @@ fn shadow_output_merges_from_sample_ranges_and_refuses_tiles() {
     );
     assert!(e.contains("whole image") && e.contains("--samples"), "{e}");
 }
+
+/// The kernel hash that keys partial renders and the reference cache covers the megakernel's
+/// program (render/pathtrace.cl and its includes) and nothing else: a filter's or a
+/// benchmark's kernel can change without invalidating them.
+#[test]
+fn kernel_hash_covers_the_megakernel_program_only() {
+    let program = noisefree::kernels::assemble("render/pathtrace.cl", "").unwrap();
+    for part in ["render/outputs.cl", "render/shadows.cl", "layout.cl"] {
+        assert!(program.contains(&format!("#line 1 \"{part}\"")), "{part}");
+    }
+    for other in ["filters/", "bench/", "render/subtractive.cl", "test/"] {
+        assert!(!program.contains(&format!("#line 1 \"{other}")), "{other}");
+    }
+    assert_eq!(
+        noisefree::render::kernel_hash(),
+        noisefree::gpu::fnv1a(&[program.as_bytes()])
+    );
+}

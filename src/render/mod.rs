@@ -615,11 +615,16 @@ fn scene_bytes(arrays: &SceneArrays) -> [&[u8]; 10] {
     ]
 }
 
+/// The megakernel's complete program text: render/pathtrace.cl with every file it includes
+/// (the shadow passes and the light-field output are in the same program). Only these decide
+/// a render's pixels, so editing a filter's kernel keeps the reference cache and partial
+/// renders valid.
 fn kernel_sources() -> String {
-    crate::kernels::SOURCES.iter().map(|(_, s)| *s).collect()
+    crate::kernels::assemble("render/pathtrace.cl", "")
+        .expect("render/pathtrace.cl and its includes are embedded (src/kernels.rs)")
 }
 
-/// A hash of the kernels' sources (this build's megakernel).
+/// A hash of the megakernel's sources (this build's megakernel).
 pub fn kernel_hash() -> u64 {
     fnv1a(&[kernel_sources().as_bytes()])
 }

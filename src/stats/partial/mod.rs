@@ -27,7 +27,7 @@
 //! | `version` | 1, as in the prefix |
 //! | `scene` | the scene file (for messages) |
 //! | `scene_hash` | 16 hex digits: FNV-1a of the scene as uploaded (geometry, materials, textures, lights, camera, resolution, seed; `render::scene_hash`) |
-//! | `kernel_hash` | 16 hex digits: FNV-1a of the kernels' sources (`render::kernel_hash`) |
+//! | `kernel_hash` | 16 hex digits: FNV-1a of the megakernel's program text (`render::kernel_hash`) |
 //! | `width`, `height` | the whole image, pixels |
 //! | `seed` | the render's seed |
 //! | `spp` | samples per pixel of the whole render (the ranges of all parts make 0..spp) |
