@@ -55,6 +55,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/render/light_field.cl"),
     ),
     (
+        "render/lens_field.cl",
+        include_str!("../kernels/render/lens_field.cl"),
+    ),
+    (
         "render/subtractive.cl",
         include_str!("../kernels/render/subtractive.cl"),
     ),
