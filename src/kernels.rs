@@ -84,6 +84,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/sheared.cl"),
     ),
     (
+        "filters/sheared_dof.cl",
+        include_str!("../kernels/filters/sheared_dof.cl"),
+    ),
+    (
         "filters/path_density.cl",
         include_str!("../kernels/filters/path_density.cl"),
     ),

@@ -21,7 +21,9 @@ pub const EXTRA_SAMPLES: u32 = 36;
 /// lanes and the filter gathers across tile borders).
 pub fn check(side: u32, whole_image: bool) -> Result<()> {
     if side == 0 || side > MAX_SIDE {
-        bail!("the lens field's grid side l must be 1..={MAX_SIDE} (Yan et al.: l <= 4), got {side}");
+        bail!(
+            "the lens field's grid side l must be 1..={MAX_SIDE} (Yan et al.: l <= 4), got {side}"
+        );
     }
     if !whole_image {
         bail!(

@@ -9,11 +9,11 @@ pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
+pub mod lens_field;
 pub mod progressive;
 pub mod shadows;
 pub mod split;
 pub mod subtractive;
-pub mod lens_field;
 pub mod tile;
 
 use std::sync::Arc;
@@ -286,7 +286,11 @@ impl Renderer {
     #[allow(clippy::type_complexity)]
     fn build_kernels(
         &self,
-    ) -> Result<(Kernel, Option<shadows::ShadowPasses>, Option<lens_field::LensPass>)> {
+    ) -> Result<(
+        Kernel,
+        Option<shadows::ShadowPasses>,
+        Option<lens_field::LensPass>,
+    )> {
         let mut defines = self.features.defines();
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
         let program = self.gpu.program("render/pathtrace.cl", &defines, "")?;
