@@ -39,7 +39,7 @@
 //! - **Pixels**: no receiver: F as rendered; a receiver without slopes: its own samples (radius
 //!   0), lent to neighbours; with slopes: filtered. Output = F − the light's part the path
 //!   samples put there + r · filtered visibility (AAF's compose pass, reused).
-//! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 112 B per pixel
+//! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 288 B per pixel (its depth-of-field lanes included)
 //!   plus the filter's 2 · bins · 4 floats of step 1a and 2 · 2 · bins of steps 1b/2a;
 //!   refused before allocation when it does not fit the device.
 
