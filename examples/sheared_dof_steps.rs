@@ -18,8 +18,10 @@ fn main() -> Result<()> {
     let [scene, w, h, l, runs] = args.as_slice() else {
         bail!("usage: sheared_dof_steps SCENE.toml WIDTH HEIGHT L RUNS");
     };
-    let (w, h, l, runs): (u32, u32, u32, usize) = (w.parse()?, h.parse()?, l.parse()?, runs.parse()?);
-    let scene = load_scene(std::path::Path::new(scene)).with_context(|| format!("loading {scene}"))?;
+    let (w, h, l, runs): (u32, u32, u32, usize) =
+        (w.parse()?, h.parse()?, l.parse()?, runs.parse()?);
+    let scene =
+        load_scene(std::path::Path::new(scene)).with_context(|| format!("loading {scene}"))?;
     let gpu = Gpu::open(None)?;
     let settings = ShearedSettings {
         side: l,
