@@ -389,3 +389,97 @@ fn the_lens_field_pass_matches_its_rust_reference() {
         assert_eq!(kinds, 0);
     }
 }
+
+#[test]
+fn render_filters_depth_of_field_end_to_end_and_offline_gives_the_same_bytes() {
+    let dir = tempdir("sheared_dof_cli");
+    let scene = repo_path("scenes/cornell_diffuse_dof.toml");
+    let (png, exr, aovs, off) = (
+        dir.join("online.png"),
+        dir.join("online.exr"),
+        dir.join("aovs.exr"),
+        dir.join("offline.exr"),
+    );
+    let out = noisefree()
+        .arg("render")
+        .arg(&scene)
+        .args([
+            "--width", "40", "--height", "32", "--spp", "1", "--filter", "sheared",
+        ])
+        .args(["--sheared-side", "2", "--out"])
+        .arg(&png)
+        .arg("--exr")
+        .arg(&exr)
+        .arg("--aovs")
+        .arg(&aovs)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(png.exists() && exr.exists());
+    let out = noisefree()
+        .arg("filter")
+        .arg(&aovs)
+        .args(["--filter", "sheared", "--exr"])
+        .arg(&off)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (a, b) = (
+        noisefree::imaging::read_exr_rgb(&exr).unwrap(),
+        noisefree::imaging::read_exr_rgb(&off).unwrap(),
+    );
+    assert_eq!(a.pixels, b.pixels, "online == offline");
+    assert!(a.pixels.iter().flatten().all(|c| c.is_finite()));
+    // Both effects at once is refused, naming the combination; a pinhole has no lens field.
+    let grids = repo_path("scenes/grids.toml");
+    let dof = repo_path("scenes/outside_dof.toml");
+    fails(
+        &[
+            "render",
+            dof.to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+        ]
+        .into_iter()
+        .chain([
+            "--filter",
+            "sheared",
+            "--sheared-dof=true",
+            "--sheared-light",
+            "0",
+        ])
+        .collect::<Vec<_>>(),
+        &["depth of field", "soft shadows", "not both at once"],
+    );
+    fails(
+        &[
+            "render",
+            grids.to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+        ]
+        .into_iter()
+        .chain([
+            "--filter",
+            "sheared",
+            "--sheared-dof=true",
+            "--sheared-light",
+            "-1",
+        ])
+        .collect::<Vec<_>>(),
+        &["needs a thin lens", "lens_radius"],
+    );
+}
