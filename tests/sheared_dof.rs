@@ -224,26 +224,42 @@ fn device_filter(
     k.filter_rows(&frame, 0..p.height).unwrap().image.pixels
 }
 
+/// Settings of the depth-of-field filter with grid side `side`.
+fn dof_settings(side: u32) -> ShearedSettings {
+    ShearedSettings {
+        side,
+        dof: noisefree::filters::Auto::Set(true),
+        light: noisefree::filters::Auto::Set(-1),
+        ..Default::default()
+    }
+}
+
+/// A renderer that ran the lens-field pass (and one path sample) on `scene` at w × h.
+fn render_field(scene: &noisefree::scene::Scene, w: u32, h: u32, seed: u32, side: u32) -> Renderer {
+    let mut o = options(scene, w, h, seed);
+    o.outputs = OutputSet::of(&[Output::Colour, Output::LightField]);
+    o.shadows = dof_settings(side).sampling();
+    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
+    r.render_samples(1).unwrap();
+    r
+}
+
+fn field_of(r: &Renderer) -> Vec<LightFieldPixel> {
+    r.frame()
+        .host_slice::<LightFieldPixel>(BufferId::LightFieldPixels)
+        .unwrap()
+        .to_vec()
+}
+
 #[test]
 fn rendered_field_fallback_and_device_steps_match_the_reference() {
     // cornell_diffuse_dof at 48 x 48, l = 3: the lens field as rendered.
     let scene = bundled_scene("cornell_diffuse_dof");
     let (w, h) = (48u32, 48u32);
-    let settings = ShearedSettings {
-        dof: noisefree::filters::Auto::Set(true),
-        light: noisefree::filters::Auto::Set(-1),
-        ..Default::default()
-    };
-    let mut o = options(&scene, w, h, 1);
-    o.outputs = OutputSet::of(&[Output::Colour, Output::LightField]);
-    o.shadows = settings.sampling();
-    let mut r = Renderer::new(gpu(), &scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(1).unwrap();
+    let settings = dof_settings(3);
+    let r = render_field(&scene, w, h, 1, 3);
     let frame = r.frame();
-    let field: Vec<LightFieldPixel> = frame
-        .host_slice::<LightFieldPixel>(BufferId::LightFieldPixels)
-        .unwrap()
-        .to_vec();
+    let field = field_of(&r);
     // T11: 36 extra samples exactly where the slopes straddle the focal plane.
     let straddle = field
         .iter()
@@ -312,19 +328,6 @@ fn rendered_field_fallback_and_device_steps_match_the_reference() {
     assert!(image.pixels.iter().flatten().all(|c| c.is_finite()));
 }
 
-/// A small linear congruential generator (deterministic test data).
-struct Lcg(u64);
-
-impl Lcg {
-    fn uniform(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
-}
-
 #[test]
 fn the_lens_field_pass_matches_its_rust_reference() {
     use noisefree::render::SceneArrays;
@@ -333,22 +336,9 @@ fn the_lens_field_pass_matches_its_rust_reference() {
     let scene = bundled_scene("cornell_diffuse_dof");
     let (w, h) = (32u32, 32u32);
     for side in [2u32, 3] {
-        let settings = ShearedSettings {
-            side,
-            dof: noisefree::filters::Auto::Set(true),
-            light: noisefree::filters::Auto::Set(-1),
-            ..Default::default()
-        };
-        let mut o = options(&scene, w, h, 3);
-        o.outputs = OutputSet::of(&[Output::Colour, Output::LightField]);
-        o.shadows = settings.sampling();
-        let mut r = Renderer::new(gpu(), &scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-        r.render_samples(1).unwrap();
-        let frame = r.frame();
-        let device: Vec<LightFieldPixel> = frame
-            .host_slice::<LightFieldPixel>(BufferId::LightFieldPixels)
-            .unwrap()
-            .to_vec();
+        let r = render_field(&scene, w, h, 3, side);
+        let device = field_of(&r);
+        let o = options(&scene, w, h, 3);
         let arrays = SceneArrays::build(&scene, &o.frame).unwrap();
         let ro = ReferenceOptions {
             russian_roulette: true,
@@ -514,29 +504,15 @@ translate = [0, 1, -0.99]
     );
     let scene = scene_from_toml(&text);
     let (w, h) = (48u32, 48u32);
-    let field_of = |side: u32, seed: u32| -> Vec<LightFieldPixel> {
-        let settings = ShearedSettings {
-            side,
-            dof: noisefree::filters::Auto::Set(true),
-            light: noisefree::filters::Auto::Set(-1),
-            ..Default::default()
-        };
-        let mut o = options(&scene, w, h, seed);
-        o.outputs = OutputSet::of(&[Output::Colour, Output::LightField]);
-        o.shadows = settings.sampling();
-        let mut r = Renderer::new(gpu(), &scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-        r.render_samples(1).unwrap();
-        r.frame()
-            .host_slice::<LightFieldPixel>(BufferId::LightFieldPixels)
-            .unwrap()
-            .to_vec()
-    };
     let settings = ShearedSettings::default();
     let p = settings.dof_params(0.2, w, h);
     let g = |t: f32| (-(t * t) / (2.0 * 0.1 * 0.1)).exp() as f64;
     let mut sums = vec![([0f64; 3], 0f64); (w * h) as usize];
     for seed in 0..64 {
-        for (acc, lf) in sums.iter_mut().zip(field_of(4, 100 + seed)) {
+        for (acc, lf) in sums
+            .iter_mut()
+            .zip(field_of(&render_field(&scene, w, h, 100 + seed, 4)))
+        {
             for b in 0..4 {
                 for a in 0..4 {
                     let u1 = 0.2 * (2.0 * (a as f32 + lf.jitter[0]) / 4.0 - 1.0);
@@ -554,7 +530,7 @@ translate = [0, 1, -0.99]
         .iter()
         .map(|(v, w)| v.map(|c| (c / w) as f32))
         .collect();
-    let field = field_of(3, 1);
+    let field = field_of(&render_field(&scene, w, h, 1, 3));
     let guide = dof::prepare(&p, &field);
     let inside: Vec<usize> = (0..field.len())
         .filter(|&i| {

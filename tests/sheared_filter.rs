@@ -471,16 +471,3 @@ fn sizes_that_do_not_fit_are_refused_with_a_clear_message() {
         "{msg}"
     );
 }
-
-/// A small linear congruential generator (deterministic test data).
-struct Lcg(u64);
-
-impl Lcg {
-    fn uniform(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
-}

@@ -37,7 +37,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::shear::{MAX_ETA, MIN_SLOPE, bin_centre, bin_of, gauss};
+use super::shear::{MAX_ETA, MIN_SLOPE, bin_centre, bin_of, gauss, radius};
 use crate::layout::{LightFieldPixel, ShearedParams};
 use crate::render::shadows::light_field::grid_coordinate;
 
@@ -156,18 +156,6 @@ fn accepts(p: &ShearedParams, li: &LightFieldPixel, lj: &LightFieldPixel, kind_j
     ni.dot(nj) >= p.normal_cos
 }
 
-fn radius(sigma_x: f32, max_radius: i32) -> i32 {
-    if !(sigma_x > 0.0) {
-        return 0;
-    }
-    let r = (2.0 * sigma_x).ceil();
-    if r < max_radius as f32 {
-        r as i32
-    } else {
-        max_radius
-    }
-}
-
 /// The gather of 1b (`axis` 0: along the row) and 2b (1: the column) around FILTERED pixel
 /// `i`: (neighbour, w_x, bin of η (x − x′)) in walk order.
 fn gather(
@@ -181,7 +169,8 @@ fn gather(
     let g = guide[i];
     let (w, h) = (p.width as i32, p.height as i32);
     let (x, y) = (i as i32 % w, i as i32 / w);
-    let r = radius(g[0], p.max_radius);
+    // One-pixel steps: the shadow case's radius with one unit of x per step.
+    let r = radius(g[0], 1.0, p.max_radius);
     let inv_x = (1.0 / (2.0 * g[0] * g[0])).min(f32::MAX);
     for k in -r..=r {
         let (qx, qy) = if axis == 0 { (x + k, y) } else { (x, y + k) };
