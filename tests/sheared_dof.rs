@@ -426,52 +426,35 @@ fn render_filters_depth_of_field_end_to_end_and_offline_gives_the_same_bytes() {
     assert_eq!(a.pixels, b.pixels, "online == offline");
     assert!(a.pixels.iter().flatten().all(|c| c.is_finite()));
     // Both effects at once is refused, naming the combination; a pinhole has no lens field.
-    let grids = repo_path("scenes/grids.toml");
-    let dof = repo_path("scenes/outside_dof.toml");
-    fails(
-        &[
-            "render",
-            dof.to_str().unwrap(),
-            "--width",
-            "8",
-            "--height",
-            "8",
-            "--spp",
-            "1",
-        ]
-        .into_iter()
-        .chain([
-            "--filter",
-            "sheared",
-            "--sheared-dof=true",
-            "--sheared-light",
+    for (scene, light, needles) in [
+        (
+            "scenes/outside_dof.toml",
             "0",
-        ])
-        .collect::<Vec<_>>(),
-        &["depth of field", "soft shadows", "not both at once"],
-    );
-    fails(
-        &[
+            ["soft shadows", "not both at once"],
+        ),
+        (
+            "scenes/grids.toml",
+            "-1",
+            ["needs a thin lens", "lens_radius"],
+        ),
+    ] {
+        let path = repo_path(scene);
+        let args = [
             "render",
-            grids.to_str().unwrap(),
+            path.to_str().unwrap(),
             "--width",
             "8",
             "--height",
             "8",
-            "--spp",
-            "1",
-        ]
-        .into_iter()
-        .chain([
-            "--filter",
-            "sheared",
-            "--sheared-dof=true",
-            "--sheared-light",
-            "-1",
-        ])
-        .collect::<Vec<_>>(),
-        &["needs a thin lens", "lens_radius"],
-    );
+        ];
+        let more = ["--spp", "1", "--filter", "sheared", "--sheared-dof=true"];
+        let args: Vec<&str> = args
+            .into_iter()
+            .chain(more)
+            .chain(["--sheared-light", light])
+            .collect();
+        fails(&args, &needles);
+    }
 }
 
 #[test]
