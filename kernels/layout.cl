@@ -287,20 +287,29 @@ typedef struct __attribute__((aligned(16))) {
 #define SHADOW_PIXEL_UNSHADOWED 20
 #define SHADOW_PIXEL_FLOATS 24
 
-// Sheared filtering of soft shadows (Yan et al. 2015 §3.1, issue 16): the 4-D light field
-// of the pixel centre's receiver, l × l visibility samples on a jittered grid over the
-// filtered sphere light's square [−R, R]² in one global frame (kernels/render/
-// light_field.cl), and the screen directions of the light's two axes (Fig. 5a).
+// Sheared filtering (Yan et al. 2015 §3.1, issue 16): the 4-D light field of one pixel,
+// l × l samples on a jittered grid. Soft shadows: the visibility of the pixel centre's
+// receiver towards points of the filtered sphere light's square [−R, R]² in one global
+// frame (kernels/render/light_field.cl), and the screen directions of the light's two axes
+// (Fig. 5a). Depth of field: the radiance through points of the lens square [−A, A]²
+// (kernels/render/lens_field.cl), the slopes, the lens-centre hit and the fallback's 36
+// extra samples; the shadow pass leaves those lanes 0.
 typedef struct __attribute__((aligned(16))) {
-    float samples[16]; // Visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the light's  first axis y1, b along y2); lanes from l² on are 0.
+    float samples[16]; // Shadows: visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the  light's first axis y1, b along y2). Depth of field: the red radiance through lens  point (a, b) (a along the camera's right, b along its down). Lanes from l² on are 0.
     float jitter[2]; // The pixel's jitter j ∈ [0, 1)²: point (a, b) is at y = R (2 (a + j) / l − 1).
-    float dir1[2]; // Unit screen direction (pixels) in which the receiver's x1 grows with x2 fixed.
-    float dir2[2]; // The same for x2 with x1 fixed.
-    float scale[2]; // World x1 per pixel along dir1, world x2 per pixel along dir2 (0: not defined).
-    float count; // l² for a receiver, 0 for none.
+    float dir1[2]; // Unit screen direction (pixels) in which the receiver's x1 grows with x2 fixed  (depth of field: the row, (1, 0)).
+    float dir2[2]; // The same for x2 with x1 fixed (depth of field: the column, (0, 1)).
+    float scale[2]; // World x1 per pixel along dir1, world x2 per pixel along dir2 (0: not defined;  depth of field: 1, x is in pixels).
+    float count; // l² for a receiver (depth of field: every pixel), 0 for none.
+    float slopes[2]; // Depth of field: s_min and s_max of s = W (F/z − 1) / S over the l² samples (pixels  per metre of lens; Yan et al. §3.2), z the depth of each sample's first hit.
+    float extra_samples; // Depth of field: 36 where s_min · s_max < 0 (the fallback's extra samples), else 0.
+    float green[16]; // Depth of field: the green radiance of lens point (a, b), lanes as `samples`.
+    float blue[16]; // Depth of field: the blue radiance, lanes as `samples`.
+    float position[3]; // Depth of field: the first hit of the ray through the pixel centre and the lens  centre (0 where it leaves the scene).
     float pad0;
+    float normal[3]; // Depth of field: that hit's shading normal, facing the camera (0: no hit).
     float pad1;
-    float pad2;
+    float extra[4]; // Depth of field: Σ w(u) L(u) (rgb) and Σ w(u) (w) over the 36 extra samples, w the  Gaussian aperture of σ = A/2.
 } LightFieldPixel;
 // Float lanes of LightFieldPixel (offset / 4).
 #define LIGHT_FIELD_PIXEL_SAMPLES 0
@@ -309,7 +318,14 @@ typedef struct __attribute__((aligned(16))) {
 #define LIGHT_FIELD_PIXEL_DIR2 20
 #define LIGHT_FIELD_PIXEL_SCALE 22
 #define LIGHT_FIELD_PIXEL_COUNT 24
-#define LIGHT_FIELD_PIXEL_FLOATS 28
+#define LIGHT_FIELD_PIXEL_SLOPES 25
+#define LIGHT_FIELD_PIXEL_EXTRA_SAMPLES 27
+#define LIGHT_FIELD_PIXEL_GREEN 28
+#define LIGHT_FIELD_PIXEL_BLUE 44
+#define LIGHT_FIELD_PIXEL_POSITION 60
+#define LIGHT_FIELD_PIXEL_NORMAL 64
+#define LIGHT_FIELD_PIXEL_EXTRA 68
+#define LIGHT_FIELD_PIXEL_FLOATS 72
 
 // Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
 typedef struct __attribute__((aligned(16))) {

@@ -55,6 +55,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/render/light_field.cl"),
     ),
     (
+        "render/lens_field.cl",
+        include_str!("../kernels/render/lens_field.cl"),
+    ),
+    (
         "render/subtractive.cl",
         include_str!("../kernels/render/subtractive.cl"),
     ),
@@ -78,6 +82,10 @@ pub const SOURCES: &[(&str, &str)] = &[
     (
         "filters/sheared.cl",
         include_str!("../kernels/filters/sheared.cl"),
+    ),
+    (
+        "filters/sheared_dof.cl",
+        include_str!("../kernels/filters/sheared_dof.cl"),
     ),
     (
         "filters/path_density.cl",

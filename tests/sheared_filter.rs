@@ -313,7 +313,7 @@ fn sheared_settings() -> ShearedSettings {
 
 fn render(scene: &Scene, w: u32, h: u32, spp: u32, s: &ShearedSettings) -> Renderer {
     let mut o = options(scene, w, h, 5);
-    o.outputs = OutputSet::of(&[Output::LightField]);
+    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
     o.shadows = s.sampling();
     let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
     r.render_samples(spp).unwrap();
@@ -454,7 +454,7 @@ fn sizes_that_do_not_fit_are_refused_with_a_clear_message() {
         "sheared filter memory: {per_pixel} B per pixel ({:.0} MiB at 1024 x 1024)",
         s.memory_bytes(1024, 1024) as f64 / (1 << 20) as f64
     );
-    assert_eq!(per_pixel, 112 + 4 * (136 + 2 * 34) + 36);
+    assert_eq!(per_pixel, 288 + 4 * (136 + 2 * 34) + 36);
     let e = ShearedKernel::new(
         gpu(),
         &s,
@@ -470,17 +470,4 @@ fn sizes_that_do_not_fit_are_refused_with_a_clear_message() {
         msg.contains("sheared") && msg.contains("lower the resolution"),
         "{msg}"
     );
-}
-
-/// A small linear congruential generator (deterministic test data).
-struct Lcg(u64);
-
-impl Lcg {
-    fn uniform(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
 }

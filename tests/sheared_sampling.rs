@@ -27,7 +27,7 @@ fn sampling(side: u32) -> ShadowSampling {
 
 fn render(scene: &Scene, w: u32, h: u32, s: ShadowSampling) -> Renderer {
     let mut o = options(scene, w, h, 5);
-    o.outputs = OutputSet::of(&[Output::LightField]);
+    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
     o.shadows = s;
     let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
     r.render_samples(1).unwrap();
@@ -145,7 +145,7 @@ fn an_empty_light_field_is_all_visible_and_its_axes_are_on_screen() {
 fn grids_larger_than_four_by_four_are_refused() {
     let scene = floor_scene(OVERHEAD, "");
     let mut o = options(&scene, 8, 8, 1);
-    o.outputs = OutputSet::of(&[Output::LightField]);
+    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
     o.shadows = sampling(5);
     let e = Renderer::new(gpu(), &scene, &o)
         .err()

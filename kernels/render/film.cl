@@ -30,7 +30,7 @@ typedef struct {
     float3 albedo;     // first-hit albedo, 0 for sky
     float3 albedo2;    // albedo of the first diffuse surface after the first bounce, 0 if none
     float3 direction;  // direction leaving the first hit, 0 if none
-#if OUTPUT_POSITION || OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES || OUTPUT_LIGHT_FIELD
     float3 world1;     // first hit (camera origin + SKY_DEPTH x direction for sky)
     bool hit;          // the camera ray hit a surface
 #endif
@@ -53,7 +53,7 @@ inline PathSample path_sample_empty(void) {
     ps.albedo = (float3)(0.0f);
     ps.albedo2 = (float3)(0.0f);
     ps.direction = (float3)(0.0f);
-#if OUTPUT_POSITION || OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES || OUTPUT_LIGHT_FIELD
     ps.world1 = (float3)(0.0f);
     ps.hit = false;
 #endif

@@ -18,8 +18,5 @@
 #if OUTPUT_SAMPLES && !OUTPUT_FEATURES
 #error "noisefree: OUTPUT_SAMPLES needs OUTPUT_FEATURES (samples needs features)"
 #endif
-#if OUTPUT_LIGHT_FIELD && !OUTPUT_SHADOWS
-#error "noisefree: OUTPUT_LIGHT_FIELD needs OUTPUT_SHADOWS (light-field needs shadows)"
-#endif
 
 #endif

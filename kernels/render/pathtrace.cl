@@ -25,12 +25,12 @@ inline void add_light(PathSample* ps, uint bounce, float3 value) {
 // OUTPUT_SHADOWS, `shadow_light` is the light whose soft shadows AAF filters and
 // `shadow_object` the object the pixel centre's receiver belongs to (NaN: none): the samples
 // whose first hit is on it record the light's terms (kernels/render/shadows.cl).
-inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count,
-                             uint shadow_light, float shadow_object) {
+// trace_path_from: the same from a given camera ray (o, d) (the lens-field pass of sheared
+// depth of field, kernels/render/lens_field.cl, chooses the lens point).
+inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint key,
+                                  uint* ray_count, uint shadow_light, float shadow_object) {
     __constant const SceneParams* params = s->params;
     PathSample ps = path_sample_empty();
-    float3 o, d;
-    camera_ray(s, x, y, key, &o, &d);
     float3 throughput = (float3)(1.0f);       // "weight" in Alg. 1
     bool count_emission = true;               // no light connection was made at the last vertex
 #if OUTPUT_FEATURES
@@ -54,7 +54,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 #endif
         Hit hit = intersect_closest(s, o, d, INFINITY, ray_count);
         if (hit.kind == HIT_NONE) {           // Alg. 1 lines 12-16: SampleSky
-#if OUTPUT_POSITION || OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES || OUTPUT_LIGHT_FIELD
             if (bounce == 0u) ps.world1 = o + SKY_DEPTH * d;
 #endif
 #if HAS_ENV
@@ -64,7 +64,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
         }
         Surface sf = surface_at(s, &hit, o, d);
         __global const Material* m = s->materials + sf.material;
-#if OUTPUT_POSITION || OUTPUT_SAMPLES
+#if OUTPUT_POSITION || OUTPUT_SAMPLES || OUTPUT_LIGHT_FIELD
         if (bounce == 0u) {
             ps.world1 = sf.p;
             ps.hit = true;
@@ -155,6 +155,15 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
     }
     return ps;
 }
+
+inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count,
+                             uint shadow_light, float shadow_object) {
+    float3 o, d;
+    camera_ray(s, x, y, key, &o, &d);
+    return trace_path_from(s, o, d, key, ray_count, shadow_light, shadow_object);
+}
+
+#include "render/lens_field.cl"
 
 // One work-item per pixel of a tile of the image adds `sample_count` samples, numbered from
 // `sample_base`, to the pixel's outputs. The samples of one render are those from

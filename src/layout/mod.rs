@@ -461,28 +461,50 @@ device_structs! {
         pub pad3: f32,
     }
 
-    /// Sheared filtering of soft shadows (Yan et al. 2015 §3.1, issue 16): the 4-D light field
-    /// of the pixel centre's receiver, l × l visibility samples on a jittered grid over the
-    /// filtered sphere light's square [−R, R]² in one global frame (kernels/render/
-    /// light_field.cl), and the screen directions of the light's two axes (Fig. 5a).
+    /// Sheared filtering (Yan et al. 2015 §3.1, issue 16): the 4-D light field of one pixel,
+    /// l × l samples on a jittered grid. Soft shadows: the visibility of the pixel centre's
+    /// receiver towards points of the filtered sphere light's square [−R, R]² in one global
+    /// frame (kernels/render/light_field.cl), and the screen directions of the light's two axes
+    /// (Fig. 5a). Depth of field: the radiance through points of the lens square [−A, A]²
+    /// (kernels/render/lens_field.cl), the slopes, the lens-centre hit and the fallback's 36
+    /// extra samples; the shadow pass leaves those lanes 0.
     #[align(16)]
     pub struct LightFieldPixel {
-        /// Visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the light's
-        /// first axis y1, b along y2); lanes from l² on are 0.
+        /// Shadows: visibility f ∈ {0, 1} of grid point (a, b) at lane b·l + a (a along the
+        /// light's first axis y1, b along y2). Depth of field: the red radiance through lens
+        /// point (a, b) (a along the camera's right, b along its down). Lanes from l² on are 0.
         pub samples: [f32; 16],
         /// The pixel's jitter j ∈ [0, 1)²: point (a, b) is at y = R (2 (a + j) / l − 1).
         pub jitter: [f32; 2],
-        /// Unit screen direction (pixels) in which the receiver's x1 grows with x2 fixed.
+        /// Unit screen direction (pixels) in which the receiver's x1 grows with x2 fixed
+        /// (depth of field: the row, (1, 0)).
         pub dir1: [f32; 2],
-        /// The same for x2 with x1 fixed.
+        /// The same for x2 with x1 fixed (depth of field: the column, (0, 1)).
         pub dir2: [f32; 2],
-        /// World x1 per pixel along dir1, world x2 per pixel along dir2 (0: not defined).
+        /// World x1 per pixel along dir1, world x2 per pixel along dir2 (0: not defined;
+        /// depth of field: 1, x is in pixels).
         pub scale: [f32; 2],
-        /// l² for a receiver, 0 for none.
+        /// l² for a receiver (depth of field: every pixel), 0 for none.
         pub count: f32,
+        /// Depth of field: s_min and s_max of s = W (F/z − 1) / S over the l² samples (pixels
+        /// per metre of lens; Yan et al. §3.2), z the depth of each sample's first hit.
+        pub slopes: [f32; 2],
+        /// Depth of field: 36 where s_min · s_max < 0 (the fallback's extra samples), else 0.
+        pub extra_samples: f32,
+        /// Depth of field: the green radiance of lens point (a, b), lanes as `samples`.
+        pub green: [f32; 16],
+        /// Depth of field: the blue radiance, lanes as `samples`.
+        pub blue: [f32; 16],
+        /// Depth of field: the first hit of the ray through the pixel centre and the lens
+        /// centre (0 where it leaves the scene).
+        pub position: [f32; 3],
         pub pad0: f32,
+        /// Depth of field: that hit's shading normal, facing the camera (0: no hit).
+        pub normal: [f32; 3],
         pub pad1: f32,
-        pub pad2: f32,
+        /// Depth of field: Σ w(u) L(u) (rgb) and Σ w(u) (w) over the 36 extra samples, w the
+        /// Gaussian aperture of σ = A/2.
+        pub extra: [f32; 4],
     }
 
     /// Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).

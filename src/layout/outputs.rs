@@ -46,8 +46,9 @@ pub enum Output {
     /// it splits the pixel's samples into two independent half buffers (even and odd, as in
     /// NFOR, Bitterli et al. 2016), whose difference estimates the variance of F's light.
     Halves,
-    /// Sheared filtering of soft shadows (Yan et al. 2015 §3.1): the shadow light's l² light
-    /// samples per pixel on a jittered grid (the 4-D light field) and its axes on the screen.
+    /// Sheared filtering (Yan et al. 2015 §3.1): l² samples per pixel on a jittered grid (the
+    /// 4-D light field): with the shadow output the shadow light's visibility and its axes on
+    /// the screen; without it (a thin lens) the radiance through the lens, slopes and hit.
     LightField,
 }
 
@@ -211,6 +212,13 @@ const L_DIR1: usize = lane(offset_of!(LightFieldPixel, dir1));
 const L_DIR2: usize = lane(offset_of!(LightFieldPixel, dir2));
 const L_SCALE: usize = lane(offset_of!(LightFieldPixel, scale));
 const L_COUNT: usize = lane(offset_of!(LightFieldPixel, count));
+const L_SLOPES: usize = lane(offset_of!(LightFieldPixel, slopes));
+const L_EXTRA_SAMPLES: usize = lane(offset_of!(LightFieldPixel, extra_samples));
+const L_GREEN: usize = lane(offset_of!(LightFieldPixel, green));
+const L_BLUE: usize = lane(offset_of!(LightFieldPixel, blue));
+const L_POSITION: usize = lane(offset_of!(LightFieldPixel, position));
+const L_NORMAL: usize = lane(offset_of!(LightFieldPixel, normal));
+const L_EXTRA: usize = lane(offset_of!(LightFieldPixel, extra));
 const D_MEAN: usize = lane(offset_of!(DepthShift, mean));
 
 /// The mean each lane of [`WelfordSums`] is the S_n of: (S_n lane, buffer of the mean, lane of
@@ -322,7 +330,8 @@ pub const BUFFERS: &[BufferDecl] = &[
         element_bytes: size_of::<LightFieldPixel>(),
         per: Per::Pixel,
         merge: Merge::Identical,
-        doc: "sheared shadows: l x l light samples, jitter and light axes on screen, per pixel",
+        doc: "sheared filtering: l x l light (shadows) or lens (depth of field) samples, jitter, \
+              axes on screen, slopes, per pixel",
     },
 ];
 
@@ -467,7 +476,9 @@ pub const OUTPUTS: &[OutputDecl] = &[
         output: Output::LightField,
         name: "light-field",
         switch: Some("OUTPUT_LIGHT_FIELD"),
-        requires: &[Output::Shadows],
+        // Soft shadows ask for the shadow output beside it (src/filters/sheared); depth of
+        // field needs the colour alone.
+        requires: &[Output::Colour],
         buffers: &[LightFieldPixels],
         channels: &[
             ch("lightfield.f00", LightFieldPixels, L_SAMPLES),
@@ -495,8 +506,54 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("lightfield.scale.X", LightFieldPixels, L_SCALE),
             ch("lightfield.scale.Y", LightFieldPixels, L_SCALE + 1),
             ch("lightfield.count", LightFieldPixels, L_COUNT),
+            ch("lightfield.slope.min", LightFieldPixels, L_SLOPES),
+            ch("lightfield.slope.max", LightFieldPixels, L_SLOPES + 1),
+            ch("lightfield.extra", LightFieldPixels, L_EXTRA_SAMPLES),
+            ch("lightfield.g00", LightFieldPixels, L_GREEN),
+            ch("lightfield.g01", LightFieldPixels, L_GREEN + 1),
+            ch("lightfield.g02", LightFieldPixels, L_GREEN + 2),
+            ch("lightfield.g03", LightFieldPixels, L_GREEN + 3),
+            ch("lightfield.g04", LightFieldPixels, L_GREEN + 4),
+            ch("lightfield.g05", LightFieldPixels, L_GREEN + 5),
+            ch("lightfield.g06", LightFieldPixels, L_GREEN + 6),
+            ch("lightfield.g07", LightFieldPixels, L_GREEN + 7),
+            ch("lightfield.g08", LightFieldPixels, L_GREEN + 8),
+            ch("lightfield.g09", LightFieldPixels, L_GREEN + 9),
+            ch("lightfield.g10", LightFieldPixels, L_GREEN + 10),
+            ch("lightfield.g11", LightFieldPixels, L_GREEN + 11),
+            ch("lightfield.g12", LightFieldPixels, L_GREEN + 12),
+            ch("lightfield.g13", LightFieldPixels, L_GREEN + 13),
+            ch("lightfield.g14", LightFieldPixels, L_GREEN + 14),
+            ch("lightfield.g15", LightFieldPixels, L_GREEN + 15),
+            ch("lightfield.b00", LightFieldPixels, L_BLUE),
+            ch("lightfield.b01", LightFieldPixels, L_BLUE + 1),
+            ch("lightfield.b02", LightFieldPixels, L_BLUE + 2),
+            ch("lightfield.b03", LightFieldPixels, L_BLUE + 3),
+            ch("lightfield.b04", LightFieldPixels, L_BLUE + 4),
+            ch("lightfield.b05", LightFieldPixels, L_BLUE + 5),
+            ch("lightfield.b06", LightFieldPixels, L_BLUE + 6),
+            ch("lightfield.b07", LightFieldPixels, L_BLUE + 7),
+            ch("lightfield.b08", LightFieldPixels, L_BLUE + 8),
+            ch("lightfield.b09", LightFieldPixels, L_BLUE + 9),
+            ch("lightfield.b10", LightFieldPixels, L_BLUE + 10),
+            ch("lightfield.b11", LightFieldPixels, L_BLUE + 11),
+            ch("lightfield.b12", LightFieldPixels, L_BLUE + 12),
+            ch("lightfield.b13", LightFieldPixels, L_BLUE + 13),
+            ch("lightfield.b14", LightFieldPixels, L_BLUE + 14),
+            ch("lightfield.b15", LightFieldPixels, L_BLUE + 15),
+            ch("lightfield.position.X", LightFieldPixels, L_POSITION),
+            ch("lightfield.position.Y", LightFieldPixels, L_POSITION + 1),
+            ch("lightfield.position.Z", LightFieldPixels, L_POSITION + 2),
+            ch("lightfield.normal.X", LightFieldPixels, L_NORMAL),
+            ch("lightfield.normal.Y", LightFieldPixels, L_NORMAL + 1),
+            ch("lightfield.normal.Z", LightFieldPixels, L_NORMAL + 2),
+            ch("lightfield.extra.R", LightFieldPixels, L_EXTRA),
+            ch("lightfield.extra.G", LightFieldPixels, L_EXTRA + 1),
+            ch("lightfield.extra.B", LightFieldPixels, L_EXTRA + 2),
+            ch("lightfield.extra.W", LightFieldPixels, L_EXTRA + 3),
         ],
-        doc: "sheared soft shadows: the shadow light's 4-D light field (l x l samples per pixel)",
+        doc: "sheared filtering: the 4-D light field (l x l samples per pixel) of the shadow light \
+              or, with a thin lens, of the lens",
     },
 ];
 

@@ -9,6 +9,7 @@ pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
+pub mod lens_field;
 pub mod progressive;
 pub mod shadows;
 pub mod split;
@@ -177,6 +178,9 @@ pub struct Renderer {
     /// Built with the render kernel, from its program.
     shadow_passes: Option<shadows::ShadowPasses>,
     shadow_stats: Option<ShadowStats>,
+    /// The lens-field pass (sheared depth of field: the light-field output without the shadow
+    /// output); run before the first path samples.
+    lens_pass: Option<lens_field::LensPass>,
     _scene: DeviceScene,
     samples_done: u32,
     pub rays_total: u64,
@@ -211,6 +215,12 @@ impl Renderer {
         } else {
             FeatureSet::for_scene(scene, outputs)
         };
+        if outputs.contains(Output::LightField) && !outputs.contains(Output::Shadows) {
+            lens_field::check(
+                options.shadows.light_field,
+                tile == Tile::whole(options.frame.width, options.frame.height),
+            )?;
+        }
         let shadow_light = if outputs.contains(Output::Shadows) {
             Some(shadows::shadow_light(
                 &arrays,
@@ -259,19 +269,28 @@ impl Renderer {
             shadow_sampling: options.shadows,
             shadow_passes: None,
             shadow_stats: None,
+            lens_pass: None,
             _scene: device_scene,
             samples_done: 0,
             rays_total: 0,
             kernel_time_total: Duration::ZERO,
         };
-        let (kernel, shadow_passes) = r.build_kernels()?;
-        (r.kernel, r.shadow_passes) = (Some(kernel), shadow_passes);
+        let (kernel, shadow_passes, lens_pass) = r.build_kernels()?;
+        (r.kernel, r.shadow_passes, r.lens_pass) = (Some(kernel), shadow_passes, lens_pass);
         Ok(r)
     }
 
     /// The megakernel specialised to `self.features`, every argument bound, and the shadow
-    /// passes from its program (with the shadow output).
-    fn build_kernels(&self) -> Result<(Kernel, Option<shadows::ShadowPasses>)> {
+    /// passes from its program (with the shadow output), or the lens-field pass (with the
+    /// light-field output alone).
+    #[allow(clippy::type_complexity)]
+    fn build_kernels(
+        &self,
+    ) -> Result<(
+        Kernel,
+        Option<shadows::ShadowPasses>,
+        Option<lens_field::LensPass>,
+    )> {
         let mut defines = self.features.defines();
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
         let program = self.gpu.program("render/pathtrace.cl", &defines, "")?;
@@ -324,7 +343,21 @@ impl Renderer {
             )?),
             None => None,
         };
-        Ok((kernel, shadow_passes))
+        let lens_pass = if self.outputs.contains(Output::LightField) && self.shadow_light.is_none()
+        {
+            Some(lens_field::LensPass::new(
+                &self.gpu,
+                &program,
+                [self.width() as usize, self.height() as usize],
+                self.shadow_sampling.light_field,
+                &self._scene,
+                &self.debug_counters,
+                self.buffer(BufferId::LightFieldPixels),
+            )?)
+        } else {
+            None
+        };
+        Ok((kernel, shadow_passes, lens_pass))
     }
     /// The names of the render kernel's arguments in the order they are bound.
     pub fn argument_names() -> Vec<&'static str> {
@@ -420,6 +453,14 @@ impl Renderer {
             self.rays_total += rays;
             self.kernel_time_total += time;
         }
+        if self.samples_done == 0
+            && let Some(pass) = &self.lens_pass
+        {
+            // Over the whole image, as the shadow passes (the field depends on the pixel alone).
+            let (rays, time) = pass.run()?;
+            self.rays_total += rays;
+            self.kernel_time_total += time;
+        }
         let rows = rows.start.min(self.height())..rows.end.min(self.height());
         let stats = if rows.is_empty() {
             LaunchStats {
@@ -499,8 +540,9 @@ impl Renderer {
             .context("uploading the camera")?;
         if features != self.features {
             self.features = features;
-            let (kernel, shadow_passes) = self.build_kernels()?;
-            (self.kernel, self.shadow_passes) = (Some(kernel), shadow_passes);
+            let (kernel, shadow_passes, lens_pass) = self.build_kernels()?;
+            (self.kernel, self.shadow_passes, self.lens_pass) =
+                (Some(kernel), shadow_passes, lens_pass);
         }
         self.scene_info = SceneInfo::new(scene, &self.arrays);
         self.reset()

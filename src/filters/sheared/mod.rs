@@ -1,10 +1,17 @@
-//! Sheared filtering of soft shadows (L.-Q. Yan, S. U. Mehta, R. Ramamoorthi, F. Durand,
+//! Sheared filtering of soft shadows or depth of field (L.-Q. Yan, S. U. Mehta, R. Ramamoorthi, F. Durand,
 //! "Fast 4D Sheared Filtering for Interactive Rendering of Distribution Effects", ACM TOG 2015;
 //! seed 002, digest /work/shared/notes/seeds-aaf-sheared.md §3; issue 16), for one sphere
 //! light: the eq. 4-5 analysis in `shear.rs`, the OpenCL steps of kernels/filters/sheared.cl
 //! in `device.rs`, their plain Rust reference (and eq. 9's brute force) in `reference.rs`. The
 //! sampling side is the renderer's light-field output (src/render/shadows/light_field.rs),
 //! gathered with AAF's shadow output (receiver, d1, r(x), slopes, slope fill).
+//!
+//! **The effect is the scene's** (`dof = auto`): a thin lens (lens_radius > 0) gets depth of
+//! field (`dof.rs`, `dof_device.rs`, kernels/filters/sheared_dof.cl over the lens field of
+//! kernels/render/lens_field.cl); a pinhole camera gets one sphere light's soft shadows. In a
+//! lens scene the sphere lights' shadows stay as path traced in the radiance samples
+//! (unfiltered): both at once (the seed's appendix, eqs. 16-17) is a later step, and asking
+//! for it (`dof = true` with `light` >= 0) is refused with a message naming the combination.
 //!
 //! What the seed leaves open, and what is done:
 //! - **The light** (§3.2: a Gaussian of σ_y over a square of side 4σ_y): our sphere is sampled
@@ -32,7 +39,7 @@
 //! - **Pixels**: no receiver: F as rendered; a receiver without slopes: its own samples (radius
 //!   0), lent to neighbours; with slopes: filtered. Output = F − the light's part the path
 //!   samples put there + r · filtered visibility (AAF's compose pass, reused).
-//! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 112 B per pixel
+//! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 288 B per pixel (its depth-of-field lanes included)
 //!   plus the filter's 2 · bins · 4 floats of step 1a and 2 · 2 · bins of steps 1b/2a;
 //!   refused before allocation when it does not fit the device.
 
@@ -55,6 +62,8 @@
 //!   slopes for more of them (sparse 9 + fill 10 took the 128² RMS from 0.0635 to 0.0506).
 
 mod device;
+pub mod dof;
+mod dof_device;
 pub mod reference;
 pub mod shear;
 
@@ -70,6 +79,7 @@ use crate::layout::{Float4, LightFieldPixel, ShearedParams};
 use crate::render::shadows::light_field::{MAX_SIDE, light_frame};
 use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::{Intermediates, STEPS, ShearedKernel};
+pub use dof_device::{DOF_STEPS, DofIntermediates, DofKernel};
 
 crate::filter_settings! {
     /// The sheared soft-shadow filter's settings: the light-field grid and the filter.
@@ -95,6 +105,9 @@ crate::filter_settings! {
         pub depth_tolerance: f32 = 2.0,
         /// Factor on eq. 5's shear eta (1: as settled; 0: axis-aligned; -1: the other sign).
         pub shear: f32 = 1.0,
+        /// Depth of field instead of soft shadows; auto: when the scene has a thin lens
+        /// (lens_radius > 0).
+        pub dof: Auto<bool> = Auto::Auto,
     }
 }
 
@@ -125,6 +138,13 @@ impl ShearedSettings {
         if !self.shear.is_finite() {
             bail!("shear must be finite, got {}", self.shear);
         }
+        if self.dof == Auto::Set(true) && self.light_index().is_some() && !self.light.is_auto() {
+            bail!(
+                "the sheared filter does depth of field or one sphere light's soft shadows, not \
+                 both at once (Yan et al.'s appendix, eqs. 16-17, is not built): with dof = \
+                 true set light = -1 (the shadows stay as path traced), or dof = false"
+            );
+        }
         self.sampling().check()
     }
 
@@ -142,6 +162,20 @@ impl ShearedSettings {
             fill_radius: self.fill_radius,
             light_field: self.side,
         }
+    }
+
+    /// Whether the filter does depth of field (after `specialise`; `auto` counts as no).
+    pub fn is_dof(&self) -> bool {
+        self.dof.or(false)
+    }
+
+    /// The depth-of-field filter's parameters for a lens of radius `lens_radius` (A): the
+    /// Gaussian aperture σ_y = A/2 (σ_y = 2/Ω_u^max, Ω_u^max = 4/A, §3.2), bins over [−2A, 2A].
+    pub fn dof_params(&self, lens_radius: f32, width: u32, height: u32) -> ShearedParams {
+        let mut p = self.params([0.0, 0.0, 0.0, lens_radius], [0.0, 1.0, 0.0], width, height);
+        p.axis1 = Float4([1.0, 0.0, 0.0, 0.0]);
+        p.axis2 = Float4([0.0, 1.0, 0.0, 0.0]);
+        p
     }
 
     /// The filter's parameters for light `light` (centre, radius) in a scene centred at
@@ -185,6 +219,9 @@ impl ShearedSettings {
     /// (the light field's lanes are fixed at 16 samples; steps 1a-2a grow with the bins).
     pub fn memory_bytes(&self, width: u32, height: u32) -> u64 {
         let n = width as u64 * height as u64;
+        if self.is_dof() {
+            return n * dof_device::bytes_per_pixel(self.bins);
+        }
         let per_pixel = std::mem::size_of::<LightFieldPixel>() as u64
             + 4 * (reference::p_floats(self.bins) + 2 * reference::g_floats(self.bins)) as u64
             + 16 // guide
@@ -200,7 +237,7 @@ pub struct Sheared;
 impl FilterKind for Sheared {
     type Settings = ShearedSettings;
     const NAME: &'static str = "sheared";
-    const SUMMARY: &'static str = "4-D sheared filtering of one sphere light's soft shadows \
+    const SUMMARY: &'static str = "4-D sheared filtering of one sphere light's soft shadows, or of depth of field with a thin lens, \
          from l x l light samples per pixel (Yan et al. 2015; on the device)";
 
     fn check(s: &ShearedSettings) -> Result<()> {
@@ -208,10 +245,35 @@ impl FilterKind for Sheared {
     }
 
     fn specialise(s: &mut ShearedSettings, scene: &SceneInfo) -> Vec<String> {
-        specialise_light(&mut s.light, scene)
+        let lens = scene.camera.lens_radius;
+        if s.dof.is_auto() {
+            s.dof = Auto::Set(lens > 0.0);
+        }
+        if !s.is_dof() {
+            return specialise_light(&mut s.light, scene);
+        }
+        let mut notes = vec![format!(
+            "depth of field through the thin lens (radius {lens}, focal distance {}): l x l \
+             lens samples, Gaussian aperture sigma = A/2",
+            scene.camera.focal_distance
+        )];
+        if s.light.is_auto() {
+            s.light = Auto::Set(-1);
+            if !scene.sphere_lights.is_empty() {
+                notes.push(format!(
+                    "light = -1: the {} sphere light(s)' shadows stay as path traced \
+                     (unfiltered); shadows and depth of field together are not built",
+                    scene.sphere_lights.len()
+                ));
+            }
+        }
+        notes
     }
 
     fn needs(s: &ShearedSettings) -> OutputSet {
+        if s.is_dof() {
+            return OutputSet::of(&[Output::Colour, Output::LightField]);
+        }
         let outputs = light_needs(s.light);
         match s.light_index() {
             Some(_) => outputs.with(Output::LightField),
@@ -228,6 +290,18 @@ impl FilterKind for Sheared {
         frame: &FrameInfo,
         gpu: &Arc<Gpu>,
     ) -> Result<Box<dyn PreparedFilter>> {
+        if s.is_dof() {
+            let lens = frame.scene.camera.lens_radius;
+            if !(lens > 0.0) {
+                bail!(
+                    "the sheared filter's depth of field needs a thin lens, but the scene's \
+                     camera is a pinhole (lens_radius {lens}): set lens_radius > 0 in its \
+                     [camera], or dof = false"
+                );
+            }
+            let p = s.dof_params(lens, frame.width, frame.height);
+            return Ok(Box::new(DofKernel::new(gpu.clone(), p)?));
+        }
         let light = match s.light_index() {
             None => None,
             Some(l) => match frame.scene.sphere_lights.get(l as usize) {

@@ -14,6 +14,7 @@
 //! The ray queries of kernels/arrays/trace.cl and kernels/geometry.cl are mirrored by
 //! [`crate::arrays::trace`] and [`crate::geometry`], which the host also uses (autofocus).
 
+pub mod lens_field;
 pub mod light_field;
 pub mod pathtrace;
 pub mod rng;

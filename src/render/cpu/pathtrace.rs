@@ -386,9 +386,23 @@ pub fn trace_path(
     rays: &mut u32,
     target: ShadowTarget,
 ) -> PathSample {
+    let (o, d) = camera_ray(&s.params, x, y, key);
+    trace_path_from(s, opt, o, d, key, rays, target)
+}
+
+/// The same from a given camera ray (kernels/render/pathtrace.cl trace_path_from).
+pub fn trace_path_from(
+    s: &SceneArrays,
+    opt: ReferenceOptions,
+    o: Vec3,
+    d: Vec3,
+    key: u32,
+    rays: &mut u32,
+    target: ShadowTarget,
+) -> PathSample {
     let params = &s.params;
     let mut ps = PathSample::empty();
-    let (mut o, mut d) = camera_ray(params, x, y, key);
+    let (mut o, mut d) = (o, d);
     let mut throughput = Vec3::ONE;
     let mut count_emission = true;
     let mut want_albedo2 = true;

@@ -1,0 +1,81 @@
+//! The lens-field pass of sheared depth of field (Yan et al. 2015 §3.1, §3.2 "DoF"; issue 16):
+//! l × l radiance samples per pixel on a jittered grid over the thin lens's square [−A, A]²,
+//! their slopes s = W (F/z − 1) / S, the lens-centre hit, and 36 more samples where the slopes
+//! straddle the focal plane, kept per pixel in [`crate::layout::LightFieldPixel`] (the output
+//! [`crate::layout::outputs::Output::LightField`] without the shadow output). The kernel is
+//! kernels/render/lens_field.cl, built from the megakernel's program (it traces whole paths);
+//! src/render/cpu/lens_field.rs is its Rust reference.
+
+use std::time::Duration;
+
+use anyhow::{Context as _, Result, bail};
+use ocl::{Buffer, Kernel, Program};
+
+use super::shadows::light_field::MAX_SIDE;
+use crate::gpu::{Gpu, enqueue, event_duration};
+
+/// Samples the fallback adds where s_min · s_max < 0 (Yan et al. §3.1: "a fixed 36 more").
+pub const EXTRA_SAMPLES: u32 = 36;
+
+/// Checks the grid side and that the whole image is rendered (the pass writes pixel-indexed
+/// lanes and the filter gathers across tile borders).
+pub fn check(side: u32, whole_image: bool) -> Result<()> {
+    if side == 0 || side > MAX_SIDE {
+        bail!(
+            "the lens field's grid side l must be 1..={MAX_SIDE} (Yan et al.: l <= 4), got {side}"
+        );
+    }
+    if !whole_image {
+        bail!(
+            "the light-field output (the sheared filter's depth of field) needs the whole \
+             image, not a tile: the filter gathers across tile borders; render sample ranges \
+             (--samples A..B) instead of tiles"
+        );
+    }
+    Ok(())
+}
+
+/// The lens-field pass of one renderer.
+pub(super) struct LensPass {
+    kernel: Kernel,
+    rays: Buffer<u32>,
+}
+
+impl LensPass {
+    /// The pass over the renderer's scene buffers into `field`.
+    pub(super) fn new(
+        gpu: &Gpu,
+        program: &Program,
+        size: [usize; 2],
+        side: u32,
+        scene: &super::DeviceScene,
+        debug_counters: &Buffer<u32>,
+        field: &Buffer<u8>,
+    ) -> Result<LensPass> {
+        check(side, true)?;
+        let rays = gpu.zeroed::<u32>(size[0] * size[1], "lens-field ray count")?;
+        let mut b = Kernel::builder();
+        b.program(program)
+            .name("lens_field_sample")
+            .queue(gpu.queue.clone())
+            .global_work_size(size);
+        scene.bind(&mut b);
+        b.arg_named("debug_counters", debug_counters)
+            .arg_named("light_field", field)
+            .arg_named("lens_rays", &rays)
+            .arg_named("side", side);
+        let kernel = b.build().context("creating the lens-field kernel")?;
+        Ok(LensPass { kernel, rays })
+    }
+
+    /// Runs the pass; its rays and kernel time.
+    pub(super) fn run(&self) -> Result<(u64, Duration)> {
+        // SAFETY: every buffer argument is owned by the renderer or by self and sized for the
+        // image; enqueue waits for the event.
+        let event = unsafe { enqueue(&self.kernel, "the lens-field pass")? };
+        let time = event_duration(&event)?;
+        let mut counts = vec![0u32; self.rays.len()];
+        self.rays.read(&mut counts).enq()?;
+        Ok((counts.iter().map(|&c| c as u64).sum(), time))
+    }
+}
