@@ -72,6 +72,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr.cl"),
     ),
     (
+        "filters/aaf_pass.cl",
+        include_str!("../kernels/filters/aaf_pass.cl"),
+    ),
+    (
         "filters/aaf_shadows.cl",
         include_str!("../kernels/filters/aaf_shadows.cl"),
     ),

@@ -7,6 +7,7 @@
 //! reader both build. Adding a filter is its own files plus one line in [`builtin_filters!`]
 //! below; `render`, `filter` and `bench` find it through the [`Registry`].
 
+pub mod aaf_pass;
 pub mod placement;
 pub mod registry;
 pub mod settings;
