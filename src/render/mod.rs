@@ -9,6 +9,7 @@ pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
+pub mod indirect;
 pub mod progressive;
 pub mod shadows;
 pub mod split;
@@ -31,6 +32,7 @@ use crate::layout::{
 use crate::scene::Scene;
 pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
+pub use indirect::{IndirectSampling, IndirectStats};
 pub use progressive::{Budget, progress_bar, render_progressively};
 pub use shadows::{ShadowSampling, ShadowStats};
 pub use split::{SplitFrame, SplitRenderer};
@@ -52,6 +54,8 @@ pub struct RenderOptions {
     pub debug_counters: bool,
     /// How the shadow output is sampled (with [`Output::Shadows`]).
     pub shadows: ShadowSampling,
+    /// How the indirect output is sampled (with [`Output::Indirect`]).
+    pub indirect: IndirectSampling,
     /// The render's first sample: it renders the samples from here on (`render --samples
     /// A..B`), counted from here in its statistics. 0 for a whole render.
     pub first_sample: u32,
@@ -69,6 +73,7 @@ impl RenderOptions {
             local_size: None,
             debug_counters: false,
             shadows: ShadowSampling::default(),
+            indirect: IndirectSampling::default(),
             first_sample: 0,
             tile: None,
         }
@@ -177,6 +182,10 @@ pub struct Renderer {
     /// Built with the render kernel, from its program.
     shadow_passes: Option<shadows::ShadowPasses>,
     shadow_stats: Option<ShadowStats>,
+    /// The AAF indirect passes (with [`Output::Indirect`]), run like the shadow passes.
+    indirect_sampling: Option<IndirectSampling>,
+    indirect_passes: Option<indirect::IndirectPasses>,
+    indirect_stats: Option<IndirectStats>,
     _scene: DeviceScene,
     samples_done: u32,
     pub rays_total: u64,
@@ -221,6 +230,17 @@ impl Renderer {
         } else {
             None
         };
+        let indirect_sampling = if outputs.contains(Output::Indirect) {
+            indirect::check_whole(
+                &options.indirect,
+                tile,
+                options.frame.width,
+                options.frame.height,
+            )?;
+            Some(options.indirect)
+        } else {
+            None
+        };
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let scene_info = SceneInfo::new(scene, &arrays);
         let (w, h) = (tile.width, tile.height);
@@ -259,19 +279,30 @@ impl Renderer {
             shadow_sampling: options.shadows,
             shadow_passes: None,
             shadow_stats: None,
+            indirect_sampling,
+            indirect_passes: None,
+            indirect_stats: None,
             _scene: device_scene,
             samples_done: 0,
             rays_total: 0,
             kernel_time_total: Duration::ZERO,
         };
-        let (kernel, shadow_passes) = r.build_kernels()?;
+        let (kernel, shadow_passes, indirect_passes) = r.build_kernels()?;
         (r.kernel, r.shadow_passes) = (Some(kernel), shadow_passes);
+        r.indirect_passes = indirect_passes;
         Ok(r)
     }
 
     /// The megakernel specialised to `self.features`, every argument bound, and the shadow
-    /// passes from its program (with the shadow output).
-    fn build_kernels(&self) -> Result<(Kernel, Option<shadows::ShadowPasses>)> {
+    /// and indirect passes from its program (with their outputs).
+    #[allow(clippy::type_complexity)]
+    fn build_kernels(
+        &self,
+    ) -> Result<(
+        Kernel,
+        Option<shadows::ShadowPasses>,
+        Option<indirect::IndirectPasses>,
+    )> {
         let mut defines = self.features.defines();
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
         let program = self.gpu.program("render/pathtrace.cl", &defines, "")?;
@@ -324,7 +355,19 @@ impl Renderer {
             )?),
             None => None,
         };
-        Ok((kernel, shadow_passes))
+        let indirect_passes = match self.indirect_sampling {
+            Some(sampling) => Some(indirect::IndirectPasses::new(
+                &self.gpu,
+                &program,
+                [self.width() as usize, self.height() as usize],
+                sampling,
+                &self._scene,
+                &self.debug_counters,
+                self.buffer(BufferId::IndirectPixels),
+            )?),
+            None => None,
+        };
+        Ok((kernel, shadow_passes, indirect_passes))
     }
     /// The names of the render kernel's arguments in the order they are bound.
     pub fn argument_names() -> Vec<&'static str> {
@@ -420,6 +463,18 @@ impl Renderer {
             self.rays_total += rays;
             self.kernel_time_total += time;
         }
+        if self.samples_done == 0
+            && let Some(passes) = &self.indirect_passes
+        {
+            // Over the whole image, as the shadow passes.
+            let (rays, time) = passes.run()?;
+            let frame = self.frame();
+            let pixels =
+                frame.host_slice::<crate::layout::IndirectPixel>(BufferId::IndirectPixels)?;
+            self.indirect_stats = Some(indirect::indirect_stats(pixels, rays, time));
+            self.rays_total += rays;
+            self.kernel_time_total += time;
+        }
         let rows = rows.start.min(self.height())..rows.end.min(self.height());
         let stats = if rows.is_empty() {
             LaunchStats {
@@ -499,8 +554,9 @@ impl Renderer {
             .context("uploading the camera")?;
         if features != self.features {
             self.features = features;
-            let (kernel, shadow_passes) = self.build_kernels()?;
+            let (kernel, shadow_passes, indirect_passes) = self.build_kernels()?;
             (self.kernel, self.shadow_passes) = (Some(kernel), shadow_passes);
+            self.indirect_passes = indirect_passes;
         }
         self.scene_info = SceneInfo::new(scene, &self.arrays);
         self.reset()
@@ -535,7 +591,15 @@ impl Renderer {
         Some((self.shadow_passes.as_ref()?.sampling(), self.shadow_stats?))
     }
 
-    /// One of the output buffers (a one-element stand-in when not gathered).
+    /// How the indirect output was sampled, and what it spent (after the first launch); None
+    /// without the indirect output.
+    pub fn indirect_stats(&self) -> Option<(IndirectSampling, IndirectStats)> {
+        Some((
+            self.indirect_passes.as_ref()?.sampling(),
+            self.indirect_stats?,
+        ))
+    }
+
     /// With the light-field output: e1, e2 of the shadow light's frame
     /// ([`shadows::light_field::light_frame`]).
     fn light_field_frame(&self) -> Option<[Float4; 2]> {
