@@ -54,16 +54,13 @@ __kernel void aaf_prepare(__constant const AafShadowParams* p, __global const fl
     visibility[i] = (float4)(v, 0.0f, 0.0f, 0.0f);
 }
 
-__kernel void aaf_compose(__constant const AafShadowParams* p, __global const float* fv,
-                          __global const float* terms, __global const float* pixels,
-                          __global const float4* guide,
-                          __global const float4* visibility, __global float4* image) {
-    uint x = get_global_id(0), y = get_global_id(1);
-    if (x >= p->width || y >= p->height) return;
-    uint i = y * p->width + x;
+// F - the replaced light + r * v at pixel i (F as is when `none`: no receiver).
+inline void aaf_compose_at(__global const float* fv, __global const float* terms,
+                           __global const float* pixels, uint i, bool none, float v,
+                           __global float4* image) {
     __global const float* f = fv + (size_t)i * FILTER_VECTOR_FLOATS;
     float3 beauty = aaf_lane3(f, FILTER_VECTOR_DIRECT) + aaf_lane3(f, FILTER_VECTOR_INDIRECT);
-    if (guide[3 * i].w == AAF_NONE) {
+    if (none) {
         image[i] = (float4)(beauty, 0.0f);
         return;
     }
@@ -71,5 +68,28 @@ __kernel void aaf_compose(__constant const AafShadowParams* p, __global const fl
     __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
     float3 rest = beauty - aaf_lane3(t, SHADOW_TERMS_DIRECT);
     float3 r = aaf_lane3(px, SHADOW_PIXEL_UNSHADOWED) / px[SHADOW_PIXEL_SAMPLES];
-    image[i] = (float4)(rest + r * visibility[i].x, 0.0f);
+    image[i] = (float4)(rest + r * v, 0.0f);
+}
+
+// This filter's compose: the shared pass's guide (the kind in guide[3 i].w) and its values.
+__kernel void aaf_compose(__constant const AafShadowParams* p, __global const float* fv,
+                          __global const float* terms, __global const float* pixels,
+                          __global const float4* guide,
+                          __global const float4* visibility, __global float4* image) {
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= p->width || y >= p->height) return;
+    uint i = y * p->width + x;
+    aaf_compose_at(fv, terms, pixels, i, guide[3 * i].w == AAF_NONE, visibility[i].x, image);
+}
+
+// The sheared filter's (kernels/filters/sheared.cl): one float4 of guide per pixel with the
+// kind in z, one float of visibility.
+__kernel void aaf_compose_sheared(__constant const AafShadowParams* p, __global const float* fv,
+                                  __global const float* terms, __global const float* pixels,
+                                  __global const float4* guide,
+                                  __global const float* visibility, __global float4* image) {
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= p->width || y >= p->height) return;
+    uint i = y * p->width + x;
+    aaf_compose_at(fv, terms, pixels, i, guide[i].z == AAF_NONE, visibility[i], image);
 }
