@@ -130,7 +130,7 @@ fn separable_passes_equal_the_2d_filter_at_constant_beta() {
     let mut rng = TestRng(5);
     let (w, h, d) = (40u32, 30u32, 1.0 / 64.0);
     let noise: Vec<f32> = (0..w * h).map(|_| rng.range(0.05, 1.0)).collect();
-    // z_min = 0.1: β = max(0.2 / 2.8, 6.67 / 64) = 0.1042 (the floor), 6.7 pixels.
+    // z_min = 0.1: β = max(0.2 / 2.8, 1 / 64) = 0.0714, 4.6 pixels.
     let px = plane_pixels(w, h, d, &|x, y| noise[(y * w + x) as usize], &|_, _| 0.1);
     let s = AafIndirectSettings {
         normal_angle: 180.0,
@@ -138,7 +138,7 @@ fn separable_passes_equal_the_2d_filter_at_constant_beta() {
         beta_tolerance: f32::INFINITY,
         ..small()
     };
-    let b = beta(0.1, d, DIFFUSE_BANDLIMIT, SEED_FOOTPRINTS) as f64;
+    let b = beta(0.1, d, DIFFUSE_BANDLIMIT, s.footprints) as f64;
     let r = s.radius as i64;
     let (wi, hi) = (w as i64, h as i64);
     let want: Vec<f64> = (0..wi * hi)

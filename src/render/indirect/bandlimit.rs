@@ -13,8 +13,7 @@
 //!
 //! Eq. 4.4 as printed: β = max(2 z_min / Ω_h^max, d / 0.15). Both terms are in metres. The
 //! second is a floor of 1/0.15 ≈ 6.7 pixel footprints; `footprints` here is that factor, a
-//! setting of the filter, chosen by measurement (src/filters/aaf_indirect says what was
-//! measured). Eq. 4.6 is used as printed, every factor dimensionless.
+//! setting of the filter (1 by default, chosen by measurement: src/filters/aaf_indirect). Eq. 4.6 is used as printed, every factor dimensionless.
 
 /// Ω_h^max of a diffuse receiver (eq. 4.5).
 pub const DIFFUSE_BANDLIMIT: f32 = 2.8;
