@@ -3,7 +3,7 @@
 
 use std::ops::Range;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
@@ -11,7 +11,7 @@ use ocl::{Buffer, Kernel};
 use super::AafIndirectSettings;
 use crate::filters::aaf_pass::DevicePasses;
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
+use crate::gpu::Gpu;
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AafIndirectParams, Float4};
 use crate::render::Frame;
@@ -88,41 +88,28 @@ impl AafIndirectKernel {
         self.filter_rows(frame, 0..self.height)
     }
 
-    /// Filters the pixels of `rows` only (one band of a frame split across devices): prepare
-    /// and the pass along rows run on the band widened by `radius` rows, so the band's pixels
-    /// get the bytes filtering the whole frame gives them. The other rows are black.
+    /// Filters the pixels of `rows` only (one band of a frame split across devices,
+    /// [`DevicePasses::filter_band`]); the other rows are black.
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
-        let h = self.height;
-        let rows = rows.start.min(h)..rows.end.min(h);
-        let widened = rows.start.saturating_sub(self.radius)..(rows.end + self.radius).min(h);
         frame.check_size(self.width, self.height, "the aaf-indirect filter")?;
         frame.require(
             OutputSet::of(&[Output::Colour, Output::Indirect]),
             "the aaf-indirect filter",
         )?;
         let pixels = frame.device(&self.gpu, BufferId::IndirectPixels)?;
-        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
         self.prepare.set_arg("pixels", pixels)?;
         self.compose.set_arg("pixels", pixels)?;
-        self.compose.set_arg("fv", fv)?;
-        let mut kernel_time = Duration::ZERO;
-        // SAFETY (both launches): every buffer is owned by self or the frame, both alive until
-        // the event completes (we wait on it here), and sized for width x height pixels.
-        let event = unsafe {
-            enqueue_rows(&self.prepare, self.width, h, widened.clone(), "the AAF indirect prepare pass")?
-        };
-        kernel_time += event_duration(&event)?;
-        kernel_time += self.passes.run(widened, rows.clone())?;
-        let event = unsafe {
-            enqueue_rows(&self.compose, self.width, h, rows.clone(), "the AAF indirect compose pass")?
-        };
-        kernel_time += event_duration(&event)?;
-        Ok(FilterRun {
-            image: read_rgb_rows(&self.image, self.width, self.height, rows)?,
-            wall_time: start.elapsed(),
-            kernel_time: Some(kernel_time),
-        })
+        self.compose
+            .set_arg("fv", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
+        self.passes.filter_band(
+            &self.prepare,
+            &self.compose,
+            &self.image,
+            self.radius,
+            rows,
+            start,
+        )
     }
 }
 

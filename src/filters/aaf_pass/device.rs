@@ -2,13 +2,14 @@
 //! buffers a filter's prepare kernel writes, and the two passes over them.
 
 use std::ops::Range;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
 use ocl::{Buffer, Kernel};
 
 use super::PassParams;
-use crate::gpu::{Gpu, enqueue_rows, event_duration};
+use crate::filters::FilterRun;
+use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
 use crate::layout::Float4;
 
 /// The guide (three float4 per pixel), two value buffers and the passes along rows (values[0]
@@ -58,6 +59,48 @@ impl DevicePasses {
             values,
             width: p.width,
             height: p.height,
+        })
+    }
+
+    /// A whole AAF filter over the pixels of `rows` (one band of a frame split across
+    /// devices, or all of it): the filter's `prepare` kernel and the pass along rows on the
+    /// band widened by `radius` rows (which the pass along columns reads), so the band's
+    /// pixels get the bytes filtering the whole frame gives them; the pass along columns and
+    /// `compose` (which writes `image`) on the band. The image is read back, its other rows
+    /// black; the kernel time sums the four launches.
+    pub fn filter_band(
+        &self,
+        prepare: &Kernel,
+        compose: &Kernel,
+        image: &Buffer<Float4>,
+        radius: u32,
+        rows: Range<u32>,
+        start: Instant,
+    ) -> Result<FilterRun> {
+        let h = self.height;
+        let rows = rows.start.min(h)..rows.end.min(h);
+        let widened = rows.start.saturating_sub(radius)..(rows.end + radius).min(h);
+        let mut kernel_time = Duration::ZERO;
+        // SAFETY (both launches): the kernels' buffers are owned by the filter or the frame,
+        // alive until the event completes (we wait on it here), sized for width x height.
+        let event = unsafe {
+            enqueue_rows(
+                prepare,
+                self.width,
+                h,
+                widened.clone(),
+                "the AAF prepare pass",
+            )?
+        };
+        kernel_time += event_duration(&event)?;
+        kernel_time += self.run(widened, rows.clone())?;
+        let event =
+            unsafe { enqueue_rows(compose, self.width, h, rows.clone(), "the AAF compose pass")? };
+        kernel_time += event_duration(&event)?;
+        Ok(FilterRun {
+            image: read_rgb_rows(image, self.width, self.height, rows)?,
+            wall_time: start.elapsed(),
+            kernel_time: Some(kernel_time),
         })
     }
 

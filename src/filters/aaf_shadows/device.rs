@@ -11,7 +11,7 @@ use ocl::{Buffer, Kernel};
 use super::AafShadowSettings;
 use crate::filters::aaf_pass::DevicePasses;
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
+use crate::gpu::Gpu;
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AafShadowParams, Float4};
 use crate::render::Frame;
@@ -76,7 +76,6 @@ impl AafShadowKernel {
         let start = Instant::now();
         let h = self.height;
         let rows = rows.start.min(h)..rows.end.min(h);
-        let widened = rows.start.saturating_sub(self.radius)..(rows.end + self.radius).min(h);
         frame.check_size(self.width, self.height, "the aaf-shadows filter")?;
         let Some(p) = &mut self.passes else {
             let mut image = frame.beauty()?;
@@ -97,30 +96,15 @@ impl AafShadowKernel {
             "the aaf-shadows filter",
         )?;
         let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
-        let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
-        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
         for k in [&p.prepare, &p.compose] {
             k.set_arg("pixels", pixels)?;
         }
-        p.compose.set_arg("fv", fv)?;
-        p.compose.set_arg("terms", terms)?;
-        let mut kernel_time = Duration::ZERO;
-        // SAFETY (both launches): every buffer is owned by self or the frame, both alive until
-        // the event completes (we wait on it here), and sized for width x height pixels.
-        let event = unsafe {
-            enqueue_rows(&p.prepare, self.width, h, widened.clone(), "the AAF prepare pass")?
-        };
-        kernel_time += event_duration(&event)?;
-        kernel_time += p.passes.run(widened, rows.clone())?;
-        let event = unsafe {
-            enqueue_rows(&p.compose, self.width, h, rows.clone(), "the AAF compose pass")?
-        };
-        kernel_time += event_duration(&event)?;
-        Ok(FilterRun {
-            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
-            wall_time: start.elapsed(),
-            kernel_time: Some(kernel_time),
-        })
+        p.compose
+            .set_arg("fv", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
+        p.compose
+            .set_arg("terms", frame.device(&self.gpu, BufferId::ShadowTerms)?)?;
+        p.passes
+            .filter_band(&p.prepare, &p.compose, &p.image, self.radius, rows, start)
     }
 }
 

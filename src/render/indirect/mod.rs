@@ -106,37 +106,17 @@ pub(super) fn check_whole(
     Ok(())
 }
 
-/// What the indirect passes spent.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct IndirectStats {
-    /// Indirect samples over every pixel of the image, Σn / N² (pixels that are no receiver
-    /// count with 0).
-    pub average_spp: f64,
-    /// The same over the receivers only.
-    pub receiver_spp: f64,
-    pub receivers: u64,
-    pub max_spp: u32,
-    /// Rays of the two passes.
-    pub rays: u64,
-    pub kernel_time: Duration,
-}
+/// What the indirect passes spent (the shadow passes' statistics: Σn / N² over the image,
+/// pixels that are no receiver counting with 0, and over the receivers).
+pub type IndirectStats = super::ShadowStats;
 
 /// Σn / N² and the rest of [`IndirectStats`] from the indirect pixels.
 pub fn indirect_stats(pixels: &[IndirectPixel], rays: u64, kernel_time: Duration) -> IndirectStats {
-    let total: f64 = pixels.iter().map(|p| p.samples as f64).sum();
-    let receivers = pixels.iter().filter(|p| p.weight > 0.0).count() as u64;
-    IndirectStats {
-        average_spp: total / pixels.len().max(1) as f64,
-        receiver_spp: if receivers > 0 {
-            total / receivers as f64
-        } else {
-            0.0
-        },
-        receivers,
-        max_spp: pixels.iter().map(|p| p.samples as u32).max().unwrap_or(0),
+    super::shadows::pass_stats(
+        pixels.iter().map(|p| (p.samples, p.weight > 0.0)),
         rays,
         kernel_time,
-    }
+    )
 }
 
 /// The indirect passes of one renderer, built from its program.
