@@ -17,7 +17,7 @@ use noisefree::render::indirect::bandlimit::{
     DIFFUSE_BANDLIMIT, SEED_FOOTPRINTS, beta, sample_count,
 };
 use noisefree::render::shadows::bandlimit::adaptive_plan;
-use noisefree::render::{Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, VarianceForm};
+use noisefree::render::{Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, Tile, VarianceForm};
 use noisefree::scene::Scene;
 
 /// Small counts, so the tests stay quick on PoCL.
@@ -292,4 +292,22 @@ fn open_sky_no_reflector_stays_finite() {
     assert_finite(&out, "open sky");
     let diff = max_rel_diff(&out, &reference(&frame, &s).unwrap());
     assert!(diff < 1e-6, "{diff}");
+}
+
+#[test]
+fn the_indirect_output_refuses_a_tile() {
+    let scene = bundled_scene("cornell_diffuse");
+    let mut o = options(&scene, 32, 32, 5);
+    o.outputs = OutputSet::of(&[Output::Indirect]);
+    o.tile = Some(Tile {
+        x: 0,
+        y: 0,
+        width: 16,
+        height: 32,
+    });
+    let e = match Renderer::new(gpu(), &scene, &o) {
+        Ok(_) => panic!("a tile with the indirect output was accepted"),
+        Err(e) => format!("{e:#}"),
+    };
+    assert!(e.contains("needs the whole image, not a tile"), "{e}");
 }
