@@ -327,6 +327,38 @@ typedef struct __attribute__((aligned(16))) {
 #define LIGHT_FIELD_PIXEL_EXTRA 68
 #define LIGHT_FIELD_PIXEL_FLOATS 72
 
+// AAF diffuse indirect light (Wang 2013 ch. 4; kernels/render/indirect.cl): the primary
+// hit through the pixel centre (and the lens centre) and the indirect samples of the
+// sparse and the adaptive pass.
+typedef struct __attribute__((aligned(16))) {
+    float irradiance[3]; // Σ L_i over the indirect samples: the albedo-demodulated indirect irradiance / π  (cosine-weighted hemisphere samples, so albedo · Σ L_i / `weight` is the indirect  light a Lambertian receiver sends to the camera).
+    float samples; // Indirect samples traced (sparse + adaptive), 0 for no receiver.
+    float albedo[3]; // Σ albedo(x_k) over the samples' points x_k on the receiver.
+    float weight; // Samples whose point lay on the centre's receiver (the normaliser of both sums).
+    float position[3]; // World position of the centre's hit.
+    float z_min; // z_min: the nearest first-bounce hit over the sparse samples (eqs. 4.4, 4.6); 0 when  no sample hit a surface.
+    float normal[3]; // Shading normal at the centre's hit, facing the camera.
+    float z_max; // z_max: the farthest first-bounce hit (eq. 4.6 uses it but the seed never defines  it: the maximum reflector distance).
+    float pixel_size; // d: the world size of one pixel at the hit (eq. 4.4; A_p = d²).
+    float target; // n(x) of eq. 4.6 clamped to [sparse, max] (before rounding to whole strata).
+    float object; // The object hit: mesh part for triangles, −1 − index for spheres.
+    float reflectors; // Sparse samples whose first bounce hit a surface (the z's are defined when > 0).
+} IndirectPixel;
+// Float lanes of IndirectPixel (offset / 4).
+#define INDIRECT_PIXEL_IRRADIANCE 0
+#define INDIRECT_PIXEL_SAMPLES 3
+#define INDIRECT_PIXEL_ALBEDO 4
+#define INDIRECT_PIXEL_WEIGHT 7
+#define INDIRECT_PIXEL_POSITION 8
+#define INDIRECT_PIXEL_Z_MIN 11
+#define INDIRECT_PIXEL_NORMAL 12
+#define INDIRECT_PIXEL_Z_MAX 15
+#define INDIRECT_PIXEL_PIXEL_SIZE 16
+#define INDIRECT_PIXEL_TARGET 17
+#define INDIRECT_PIXEL_OBJECT 18
+#define INDIRECT_PIXEL_REFLECTORS 19
+#define INDIRECT_PIXEL_FLOATS 20
+
 // Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
 typedef struct __attribute__((aligned(16))) {
     float4 light; // The filtered sphere light: centre (xyz) and radius (w).
@@ -359,5 +391,17 @@ typedef struct __attribute__((aligned(16))) {
     float pad0;
     float pad1;
 } ShearedParams;
+
+// Parameters of the AAF diffuse-indirect filter (kernels/filters/aaf_indirect.cl).
+typedef struct __attribute__((aligned(16))) {
+    uint width;
+    uint height;
+    int radius; // Half width of the 1-D window, pixels.
+    uint axis; // 0: the pass along rows (x), 1: along columns (y).
+    float bandlimit; // Ω_h^max of eq. 4.5.
+    float footprints; // The floor of β in pixel footprints (eq. 4.4's d / 0.15: 1 / 0.15).
+    float normal_cos; // cos of the largest normal angle between neighbours.
+    float depth_tolerance; // Largest offset along the normal, in units of β.
+} AafIndirectParams;
 
 #endif

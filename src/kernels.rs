@@ -76,6 +76,18 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr.cl"),
     ),
     (
+        "filters/aaf_pass.cl",
+        include_str!("../kernels/filters/aaf_pass.cl"),
+    ),
+    (
+        "filters/aaf_indirect.cl",
+        include_str!("../kernels/filters/aaf_indirect.cl"),
+    ),
+    (
+        "render/indirect.cl",
+        include_str!("../kernels/render/indirect.cl"),
+    ),
+    (
         "filters/aaf_shadows.cl",
         include_str!("../kernels/filters/aaf_shadows.cl"),
     ),

@@ -10,7 +10,8 @@ use common::aaf::floor_scene;
 use common::*;
 use glam::Vec3;
 use noisefree::filters::Configured;
-use noisefree::filters::aaf_shadows::{Guide as AafGuide, compose};
+use noisefree::filters::aaf_pass::PassPixel;
+use noisefree::filters::aaf_shadows::compose;
 use noisefree::filters::sheared::reference::{
     ETA, FILTERED, Guide, KIND, SIGMA, brute_force, factored, g_floats, own_mean, p_floats,
     prepare, step_1a, step_1b, step_2a, step_2b,
@@ -374,21 +375,22 @@ fn every_device_step_matches_its_rust_reference() {
             .all(|v| v.is_finite() && (0.0..=1.0 + 1e-6).contains(v))
     );
     // Compose: AAF's, with the sheared visibility.
-    let aaf_guide: Vec<AafGuide> = dev
+    let aaf_guide: Vec<PassPixel> = dev
         .guide
         .iter()
-        .map(|g| AafGuide {
+        .map(|g| PassPixel {
             kind: g[KIND],
             ..Default::default()
         })
         .collect();
+    let visibility: Vec<[f32; 4]> = dev.visibility.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect();
     let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms).unwrap();
     let reference = compose(
         frame.filter_vectors().unwrap(),
         terms,
         shadow,
         &aaf_guide,
-        &dev.visibility,
+        &visibility,
         w,
         h,
     );

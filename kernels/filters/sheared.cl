@@ -13,7 +13,8 @@
 // 4. sheared_2a (eq. 14, O(bins^2) = O(l^2)): q[bin] = sum_bin' g[bin'] w_y(y_bin' - y_bin).
 // 5. sheared_2b (eq. 15, O(n)): gather along x2 reading the bin of y2 = eta (x2 - x2'); value
 //    over weight.
-// Then AAF's aaf_compose (kernels/filters/aaf_shadows.cl) writes F - replaced + r * visibility.
+// Then AAF's aaf_compose_sheared (kernels/filters/aaf_shadows.cl) writes F - replaced +
+// r * visibility.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"

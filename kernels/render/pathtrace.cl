@@ -11,6 +11,7 @@
 #include "render/lights.cl"
 #include "render/film.cl"
 #include "render/shadows.cl"
+#include "render/indirect.cl"
 
 inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 

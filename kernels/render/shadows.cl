@@ -54,10 +54,9 @@ inline float hit_object(const SceneRefs* s, const Hit* hit) {
                                        : -1.0f - (float)hit->prim;
 }
 
-#if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
-
-// The random numbers of the shadow passes use sample numbers no path sample reaches.
-#define SHADOW_SAMPLE_BASE 0xFFFFFF00u
+// What the AAF passes of both filters share (the shadow passes here, the indirect passes of
+// kernels/render/indirect.cl): the receiver, the kernels' scene parameters, square roots.
+#if (OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS) || OUTPUT_INDIRECT
 
 // The first hit of the ray through the point (x + jx, y + jy) of the image from the lens
 // centre, when it is a receiver: a diffuse surface (the path tracer connects to lights there
@@ -84,6 +83,36 @@ inline bool shadow_receiver(const SceneRefs* s, uint x, uint y, float jx, float 
     r->object = hit_object(s, &hit);
     return true;
 }
+
+#define SHADOW_SCENE_PARAMS                                                                  \
+    __constant const SceneParams *params, __global const BvhNode *nodes,                     \
+        __global const TriangleGeom *tri_geom, __global const TriangleShading *tri_shading,  \
+        __global const Sphere *spheres, __global const Material *materials,                  \
+        __global const TextureInfo *textures, __global const float4 *texels,                 \
+        __global const Light *lights, __global const float *light_cdf,                      \
+        __global uint *debug_counters
+#define SHADOW_SCENE_REFS                                                                    \
+    {params, nodes, tri_geom, tri_shading, spheres, materials,                               \
+     textures, texels, lights, light_cdf, debug_counters}
+
+// The largest k with k^2 <= n, and the smallest with k^2 >= n (n is small: at most max_spp).
+inline uint shadow_isqrt_floor(uint n) {
+    uint k = 0u;
+    while ((k + 1u) * (k + 1u) <= n) ++k;
+    return k;
+}
+
+inline uint shadow_isqrt_ceil(uint n) {
+    uint k = shadow_isqrt_floor(n);
+    return k * k < n ? k + 1u : k;
+}
+
+#endif
+
+#if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
+
+// The random numbers of the shadow passes use sample numbers no path sample reaches.
+#define SHADOW_SAMPLE_BASE 0xFFFFFF00u
 
 // The distance from a receiver's shadow-ray origin to the light's centre (d1; 0 inside the
 // light).
@@ -182,17 +211,6 @@ inline void shadow_samples(const SceneRefs* s, __global const Light* light, uint
     }
 }
 
-#define SHADOW_SCENE_PARAMS                                                                  \
-    __constant const SceneParams *params, __global const BvhNode *nodes,                     \
-        __global const TriangleGeom *tri_geom, __global const TriangleShading *tri_shading,  \
-        __global const Sphere *spheres, __global const Material *materials,                  \
-        __global const TextureInfo *textures, __global const float4 *texels,                 \
-        __global const Light *lights, __global const float *light_cdf,                      \
-        __global uint *debug_counters
-#define SHADOW_SCENE_REFS                                                                    \
-    {params, nodes, tri_geom, tri_shading, spheres, materials,                               \
-     textures, texels, lights, light_cdf, debug_counters}
-
 // Pass 1. `light` indexes the light list (a sphere light); an index past it samples nothing.
 __kernel void shadow_sparse(SHADOW_SCENE_PARAMS, __global float* shadow_pixels,
                             __global uint* shadow_rays, uint light, uint sqrt_spp) {
@@ -280,18 +298,6 @@ __kernel void shadow_fill(__global float* shadow_pixels, __global float4* fill, 
         px[SHADOW_PIXEL_SLOPE_MIN] = acc.y;
         px[SHADOW_PIXEL_SLOPE_SOURCE] = 2.0f;
     }
-}
-
-// The largest k with k^2 <= n, and the smallest with k^2 >= n (n is small: at most max_spp).
-inline uint shadow_isqrt_floor(uint n) {
-    uint k = 0u;
-    while ((k + 1u) * (k + 1u) <= n) ++k;
-    return k;
-}
-
-inline uint shadow_isqrt_ceil(uint n) {
-    uint k = shadow_isqrt_floor(n);
-    return k * k < n ? k + 1u : k;
 }
 
 // Pass 2: pixels with slopes get n(x) of eq. 3.5, clamped to [sparse_spp, max_spp]; the

@@ -565,6 +565,20 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
             stats.kernel_time.as_secs_f64()
         );
     }
+    if let Some((sampling, stats)) = film.primary().indirect_stats() {
+        println!(
+            "indirect samples: {:.2} spp on average over the image (Σn/N²), {:.2} over its {} \
+             receivers, {} at most (sparse {}, max {}); {:.1} Mrays in {:.3} s",
+            stats.average_spp,
+            stats.receiver_spp,
+            stats.receivers,
+            stats.max_spp,
+            sampling.sparse_spp,
+            sampling.max_spp,
+            stats.rays as f64 / 1e6,
+            stats.kernel_time.as_secs_f64()
+        );
+    }
     if let (Some(c), Some(f)) = (chosen, &filter) {
         let what = if f.interactive() {
             "kernel"

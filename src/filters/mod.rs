@@ -7,6 +7,7 @@
 //! reader both build. Adding a filter is its own files plus one line in [`builtin_filters!`]
 //! below; `render`, `filter` and `bench` find it through the [`Registry`].
 
+pub mod aaf_pass;
 pub mod placement;
 pub mod registry;
 pub mod settings;
@@ -43,6 +44,7 @@ builtin_filters! {
     atrous::Atrous, // the edge-avoiding à-trous wavelet filter (Dammertz et al. 2010)
     bmfr::Bmfr,     // blockwise feature regression (single-frame BMFR, Koskela et al. 2019)
     aaf_shadows::AafShadows, // axis-aligned filtering of soft shadows (Wang 2013 ch. 3)
+    aaf_indirect::AafIndirect, // axis-aligned filtering of diffuse indirect light (Wang 2013 ch. 4)
     path_density::PathDensity, // the path-density outlier filter (DeCoro 2009 ch. 5)
     trimmed::Trimmed, // α-trimmed means of the samples (DeCoro 2009 §5.2 baselines)
     stylized::StylizedShadows, // stylized shadows of one sphere light (DeCoro 2009 ch. 3)

@@ -52,8 +52,10 @@ pub fn all_declarations() -> Vec<Declaration> {
         declaration::<ShadowTerms>(true),
         declaration::<ShadowPixel>(true),
         declaration::<LightFieldPixel>(true),
+        declaration::<IndirectPixel>(true),
         declaration::<AafShadowParams>(false),
         declaration::<ShearedParams>(false),
+        declaration::<AafIndirectParams>(false),
     ]
 }
 

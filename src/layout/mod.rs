@@ -461,6 +461,60 @@ device_structs! {
         pub pad3: f32,
     }
 
+    /// AAF diffuse indirect light (Wang 2013 ch. 4; kernels/render/indirect.cl): the primary
+    /// hit through the pixel centre (and the lens centre) and the indirect samples of the
+    /// sparse and the adaptive pass.
+    #[align(16)]
+    pub struct IndirectPixel {
+        /// Σ L_i over the indirect samples: the albedo-demodulated indirect irradiance / π
+        /// (cosine-weighted hemisphere samples, so albedo · Σ L_i / `weight` is the indirect
+        /// light a Lambertian receiver sends to the camera).
+        pub irradiance: [f32; 3],
+        /// Indirect samples traced (sparse + adaptive), 0 for no receiver.
+        pub samples: f32,
+        /// Σ albedo(x_k) over the samples' points x_k on the receiver.
+        pub albedo: [f32; 3],
+        /// Samples whose point lay on the centre's receiver (the normaliser of both sums).
+        pub weight: f32,
+        /// World position of the centre's hit.
+        pub position: [f32; 3],
+        /// z_min: the nearest first-bounce hit over the sparse samples (eqs. 4.4, 4.6); 0 when
+        /// no sample hit a surface.
+        pub z_min: f32,
+        /// Shading normal at the centre's hit, facing the camera.
+        pub normal: [f32; 3],
+        /// z_max: the farthest first-bounce hit (eq. 4.6 uses it but the seed never defines
+        /// it: the maximum reflector distance).
+        pub z_max: f32,
+        /// d: the world size of one pixel at the hit (eq. 4.4; A_p = d²).
+        pub pixel_size: f32,
+        /// n(x) of eq. 4.6 clamped to [sparse, max] (before rounding to whole strata).
+        pub target: f32,
+        /// The object hit: mesh part for triangles, −1 − index for spheres.
+        pub object: f32,
+        /// Sparse samples whose first bounce hit a surface (the z's are defined when > 0).
+        pub reflectors: f32,
+    }
+
+    /// Parameters of the AAF diffuse-indirect filter (kernels/filters/aaf_indirect.cl).
+    #[align(16)]
+    pub struct AafIndirectParams {
+        pub width: u32,
+        pub height: u32,
+        /// Half width of the 1-D window, pixels.
+        pub radius: i32,
+        /// 0: the pass along rows (x), 1: along columns (y).
+        pub axis: u32,
+        /// Ω_h^max of eq. 4.5.
+        pub bandlimit: f32,
+        /// The floor of β in pixel footprints (eq. 4.4's d / 0.15: 1 / 0.15).
+        pub footprints: f32,
+        /// cos of the largest normal angle between neighbours.
+        pub normal_cos: f32,
+        /// Largest offset along the normal, in units of β.
+        pub depth_tolerance: f32,
+    }
+
     /// Sheared filtering (Yan et al. 2015 §3.1, issue 16): the 4-D light field of one pixel,
     /// l × l samples on a jittered grid. Soft shadows: the visibility of the pixel centre's
     /// receiver towards points of the filtered sphere light's square [−R, R]² in one global

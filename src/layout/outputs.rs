@@ -21,8 +21,8 @@
 use std::mem::{offset_of, size_of};
 
 use super::{
-    DepthShift, FilterVector, Float4, LightFieldPixel, SampleVector, ShadowPixel, ShadowTerms,
-    WelfordState, WelfordSums,
+    DepthShift, FilterVector, Float4, IndirectPixel, LightFieldPixel, SampleVector, ShadowPixel,
+    ShadowTerms, WelfordState, WelfordSums,
 };
 
 /// A group of per-pixel outputs switched on together.
@@ -50,6 +50,9 @@ pub enum Output {
     /// 4-D light field): with the shadow output the shadow light's visibility and its axes on
     /// the screen; without it (a thin lens) the radiance through the lens, slopes and hit.
     LightField,
+    /// AAF diffuse indirect light (Wang 2013 ch. 4): the sparse + adaptive indirect samples
+    /// of each pixel's centre receiver, albedo-demodulated, with z_min and z_max.
+    Indirect,
 }
 
 /// A device buffer of the megakernel.
@@ -65,6 +68,7 @@ pub enum BufferId {
     ShadowPixels,
     OddHalves,
     LightFieldPixels,
+    IndirectPixels,
 }
 
 /// How many elements a buffer holds.
@@ -206,6 +210,18 @@ const P_OCCLUDER: usize = lane(offset_of!(ShadowPixel, occluder_distance));
 const P_POSITION: usize = lane(offset_of!(ShadowPixel, position));
 const P_NORMAL: usize = lane(offset_of!(ShadowPixel, normal));
 const P_UNSHADOWED: usize = lane(offset_of!(ShadowPixel, unshadowed));
+const I_IRRADIANCE: usize = lane(offset_of!(IndirectPixel, irradiance));
+const I_SAMPLES: usize = lane(offset_of!(IndirectPixel, samples));
+const I_ALBEDO: usize = lane(offset_of!(IndirectPixel, albedo));
+const I_WEIGHT: usize = lane(offset_of!(IndirectPixel, weight));
+const I_POSITION: usize = lane(offset_of!(IndirectPixel, position));
+const I_Z_MIN: usize = lane(offset_of!(IndirectPixel, z_min));
+const I_NORMAL: usize = lane(offset_of!(IndirectPixel, normal));
+const I_Z_MAX: usize = lane(offset_of!(IndirectPixel, z_max));
+const I_PIXEL_SIZE: usize = lane(offset_of!(IndirectPixel, pixel_size));
+const I_TARGET: usize = lane(offset_of!(IndirectPixel, target));
+const I_OBJECT: usize = lane(offset_of!(IndirectPixel, object));
+const I_REFLECTORS: usize = lane(offset_of!(IndirectPixel, reflectors));
 const L_SAMPLES: usize = lane(offset_of!(LightFieldPixel, samples));
 const L_JITTER: usize = lane(offset_of!(LightFieldPixel, jitter));
 const L_DIR1: usize = lane(offset_of!(LightFieldPixel, dir1));
@@ -332,6 +348,15 @@ pub const BUFFERS: &[BufferDecl] = &[
         merge: Merge::Identical,
         doc: "sheared filtering: l x l light (shadows) or lens (depth of field) samples, jitter, \
               axes on screen, slopes, per pixel",
+    },
+    BufferDecl {
+        id: IndirectPixels,
+        name: "indirect_pixels",
+        element: "IndirectPixel",
+        element_bytes: size_of::<IndirectPixel>(),
+        per: Per::Pixel,
+        merge: Merge::Identical,
+        doc: "AAF indirect: demodulated indirect sums, z_min, z_max and the centre's hit, per pixel",
     },
 ];
 
@@ -554,6 +579,37 @@ pub const OUTPUTS: &[OutputDecl] = &[
         ],
         doc: "sheared filtering: the 4-D light field (l x l samples per pixel) of the shadow light \
               or, with a thin lens, of the lens",
+    },
+    OutputDecl {
+        output: Output::Indirect,
+        name: "indirect",
+        switch: Some("OUTPUT_INDIRECT"),
+        requires: &[Output::Colour],
+        buffers: &[IndirectPixels],
+        channels: &[
+            ch("indirect.irradiance.R", IndirectPixels, I_IRRADIANCE),
+            ch("indirect.irradiance.G", IndirectPixels, I_IRRADIANCE + 1),
+            ch("indirect.irradiance.B", IndirectPixels, I_IRRADIANCE + 2),
+            ch("indirect.samples", IndirectPixels, I_SAMPLES),
+            ch("indirect.albedo.R", IndirectPixels, I_ALBEDO),
+            ch("indirect.albedo.G", IndirectPixels, I_ALBEDO + 1),
+            ch("indirect.albedo.B", IndirectPixels, I_ALBEDO + 2),
+            ch("indirect.weight", IndirectPixels, I_WEIGHT),
+            ch("indirect.position.X", IndirectPixels, I_POSITION),
+            ch("indirect.position.Y", IndirectPixels, I_POSITION + 1),
+            ch("indirect.position.Z", IndirectPixels, I_POSITION + 2),
+            ch("indirect.z_min", IndirectPixels, I_Z_MIN),
+            ch("indirect.normal.X", IndirectPixels, I_NORMAL),
+            ch("indirect.normal.Y", IndirectPixels, I_NORMAL + 1),
+            ch("indirect.normal.Z", IndirectPixels, I_NORMAL + 2),
+            ch("indirect.z_max", IndirectPixels, I_Z_MAX),
+            ch("indirect.pixel_size", IndirectPixels, I_PIXEL_SIZE),
+            ch("indirect.target", IndirectPixels, I_TARGET),
+            ch("indirect.object", IndirectPixels, I_OBJECT),
+            ch("indirect.reflectors", IndirectPixels, I_REFLECTORS),
+        ],
+        doc: "diffuse indirect light: demodulated indirect samples of the centre's receiver, \
+              z_min, z_max, pixel size (AAF ch. 4)",
     },
 ];
 

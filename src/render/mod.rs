@@ -9,6 +9,7 @@ pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
+pub mod indirect;
 pub mod lens_field;
 pub mod progressive;
 pub mod shadows;
@@ -32,6 +33,7 @@ use crate::layout::{
 use crate::scene::Scene;
 pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
+pub use indirect::{IndirectSampling, IndirectStats};
 pub use progressive::{Budget, progress_bar, render_progressively};
 pub use shadows::{ShadowSampling, ShadowStats};
 pub use split::{SplitFrame, SplitRenderer};
@@ -53,6 +55,8 @@ pub struct RenderOptions {
     pub debug_counters: bool,
     /// How the shadow output is sampled (with [`Output::Shadows`]).
     pub shadows: ShadowSampling,
+    /// How the indirect output is sampled (with [`Output::Indirect`]).
+    pub indirect: IndirectSampling,
     /// The render's first sample: it renders the samples from here on (`render --samples
     /// A..B`), counted from here in its statistics. 0 for a whole render.
     pub first_sample: u32,
@@ -70,6 +74,7 @@ impl RenderOptions {
             local_size: None,
             debug_counters: false,
             shadows: ShadowSampling::default(),
+            indirect: IndirectSampling::default(),
             first_sample: 0,
             tile: None,
         }
@@ -181,6 +186,10 @@ pub struct Renderer {
     /// The lens-field pass (sheared depth of field: the light-field output without the shadow
     /// output); run before the first path samples.
     lens_pass: Option<lens_field::LensPass>,
+    /// The AAF indirect passes (with [`Output::Indirect`]), run like the shadow passes.
+    indirect_sampling: Option<IndirectSampling>,
+    indirect_passes: Option<indirect::IndirectPasses>,
+    indirect_stats: Option<IndirectStats>,
     _scene: DeviceScene,
     samples_done: u32,
     pub rays_total: u64,
@@ -231,6 +240,17 @@ impl Renderer {
         } else {
             None
         };
+        let indirect_sampling = if outputs.contains(Output::Indirect) {
+            indirect::check_whole(
+                &options.indirect,
+                tile,
+                options.frame.width,
+                options.frame.height,
+            )?;
+            Some(options.indirect)
+        } else {
+            None
+        };
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let scene_info = SceneInfo::new(scene, &arrays);
         let (w, h) = (tile.width, tile.height);
@@ -270,19 +290,23 @@ impl Renderer {
             shadow_passes: None,
             shadow_stats: None,
             lens_pass: None,
+            indirect_sampling,
+            indirect_passes: None,
+            indirect_stats: None,
             _scene: device_scene,
             samples_done: 0,
             rays_total: 0,
             kernel_time_total: Duration::ZERO,
         };
-        let (kernel, shadow_passes, lens_pass) = r.build_kernels()?;
+        let (kernel, shadow_passes, lens_pass, indirect_passes) = r.build_kernels()?;
         (r.kernel, r.shadow_passes, r.lens_pass) = (Some(kernel), shadow_passes, lens_pass);
+        r.indirect_passes = indirect_passes;
         Ok(r)
     }
 
     /// The megakernel specialised to `self.features`, every argument bound, and the shadow
-    /// passes from its program (with the shadow output), or the lens-field pass (with the
-    /// light-field output alone).
+    /// passes and the indirect passes from its program (with their outputs), or the
+    /// lens-field pass (with the light-field output alone).
     #[allow(clippy::type_complexity)]
     fn build_kernels(
         &self,
@@ -290,6 +314,7 @@ impl Renderer {
         Kernel,
         Option<shadows::ShadowPasses>,
         Option<lens_field::LensPass>,
+        Option<indirect::IndirectPasses>,
     )> {
         let mut defines = self.features.defines();
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
@@ -357,7 +382,19 @@ impl Renderer {
         } else {
             None
         };
-        Ok((kernel, shadow_passes, lens_pass))
+        let indirect_passes = match self.indirect_sampling {
+            Some(sampling) => Some(indirect::IndirectPasses::new(
+                &self.gpu,
+                &program,
+                [self.width() as usize, self.height() as usize],
+                sampling,
+                &self._scene,
+                &self.debug_counters,
+                self.buffer(BufferId::IndirectPixels),
+            )?),
+            None => None,
+        };
+        Ok((kernel, shadow_passes, lens_pass, indirect_passes))
     }
     /// The names of the render kernel's arguments in the order they are bound.
     pub fn argument_names() -> Vec<&'static str> {
@@ -461,6 +498,18 @@ impl Renderer {
             self.rays_total += rays;
             self.kernel_time_total += time;
         }
+        if self.samples_done == 0
+            && let Some(passes) = &self.indirect_passes
+        {
+            // Over the whole image, as the shadow passes.
+            let (rays, time) = passes.run()?;
+            let frame = self.frame();
+            let pixels =
+                frame.host_slice::<crate::layout::IndirectPixel>(BufferId::IndirectPixels)?;
+            self.indirect_stats = Some(indirect::indirect_stats(pixels, rays, time));
+            self.rays_total += rays;
+            self.kernel_time_total += time;
+        }
         let rows = rows.start.min(self.height())..rows.end.min(self.height());
         let stats = if rows.is_empty() {
             LaunchStats {
@@ -540,9 +589,10 @@ impl Renderer {
             .context("uploading the camera")?;
         if features != self.features {
             self.features = features;
-            let (kernel, shadow_passes, lens_pass) = self.build_kernels()?;
+            let (kernel, shadow_passes, lens_pass, indirect_passes) = self.build_kernels()?;
             (self.kernel, self.shadow_passes, self.lens_pass) =
                 (Some(kernel), shadow_passes, lens_pass);
+            self.indirect_passes = indirect_passes;
         }
         self.scene_info = SceneInfo::new(scene, &self.arrays);
         self.reset()
@@ -577,7 +627,15 @@ impl Renderer {
         Some((self.shadow_passes.as_ref()?.sampling(), self.shadow_stats?))
     }
 
-    /// One of the output buffers (a one-element stand-in when not gathered).
+    /// How the indirect output was sampled, and what it spent (after the first launch); None
+    /// without the indirect output.
+    pub fn indirect_stats(&self) -> Option<(IndirectSampling, IndirectStats)> {
+        Some((
+            self.indirect_passes.as_ref()?.sampling(),
+            self.indirect_stats?,
+        ))
+    }
+
     /// With the light-field output: e1, e2 of the shadow light's frame
     /// ([`shadows::light_field::light_frame`]).
     fn light_field_frame(&self) -> Option<[Float4; 2]> {

@@ -9,8 +9,9 @@ use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
 
 use super::AafShadowSettings;
+use crate::filters::aaf_pass::DevicePasses;
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
+use crate::gpu::Gpu;
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AafShadowParams, Float4};
 use crate::render::Frame;
@@ -18,12 +19,9 @@ use crate::render::Frame;
 /// The filter's kernels and buffers for one image size and light.
 struct Passes {
     prepare: Kernel,
-    rows: Kernel,
-    columns: Kernel,
+    passes: DevicePasses,
     compose: Kernel,
-    _params: [Buffer<AafShadowParams>; 2],
-    _guide: Buffer<Float4>,
-    _visibility: [Buffer<f32>; 2],
+    _params: Buffer<AafShadowParams>,
     image: Buffer<Float4>,
 }
 
@@ -78,7 +76,6 @@ impl AafShadowKernel {
         let start = Instant::now();
         let h = self.height;
         let rows = rows.start.min(h)..rows.end.min(h);
-        let widened = rows.start.saturating_sub(self.radius)..(rows.end + self.radius).min(h);
         frame.check_size(self.width, self.height, "the aaf-shadows filter")?;
         let Some(p) = &mut self.passes else {
             let mut image = frame.beauty()?;
@@ -99,30 +96,15 @@ impl AafShadowKernel {
             "the aaf-shadows filter",
         )?;
         let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
-        let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
-        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
-        for k in [&p.prepare, &p.rows, &p.columns, &p.compose] {
+        for k in [&p.prepare, &p.compose] {
             k.set_arg("pixels", pixels)?;
         }
-        p.compose.set_arg("fv", fv)?;
-        p.compose.set_arg("terms", terms)?;
-        let mut kernel_time = Duration::ZERO;
-        for (k, band, what) in [
-            (&p.prepare, &widened, "the AAF prepare pass"),
-            (&p.rows, &widened, "the AAF pass along rows"),
-            (&p.columns, &rows, "the AAF pass along columns"),
-            (&p.compose, &rows, "the AAF compose pass"),
-        ] {
-            // SAFETY: every buffer is owned by self or the frame, both alive until the event
-            // completes (we wait on it here), and sized for width x height pixels.
-            let event = unsafe { enqueue_rows(k, self.width, h, band.clone(), what)? };
-            kernel_time += event_duration(&event)?;
-        }
-        Ok(FilterRun {
-            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
-            wall_time: start.elapsed(),
-            kernel_time: Some(kernel_time),
-        })
+        p.compose
+            .set_arg("fv", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
+        p.compose
+            .set_arg("terms", frame.device(&self.gpu, BufferId::ShadowTerms)?)?;
+        p.passes
+            .filter_band(&p.prepare, &p.compose, &p.image, self.radius, rows, start)
     }
 }
 
@@ -136,15 +118,8 @@ impl Passes {
     ) -> Result<Passes> {
         let program = gpu.program("filters/aaf_shadows.cl", &[], "")?;
         let n = width as usize * height as usize;
-        let params = [
-            gpu.upload(&[s.params(light, width, height, 0)])?,
-            gpu.upload(&[s.params(light, width, height, 1)])?,
-        ];
-        let guide = gpu.zeroed::<Float4>(n, "AAF guide")?;
-        let visibility = [
-            gpu.zeroed::<f32>(n, "AAF visibility")?,
-            gpu.zeroed::<f32>(n, "AAF visibility")?,
-        ];
+        let params = gpu.upload(&[s.params(light, width, height, 0)])?;
+        let passes = DevicePasses::new(gpu, &s.pass_params(width, height))?;
         let image = gpu.zeroed::<Float4>(n, "AAF image")?;
         let size = [width as usize, height as usize];
         let kernel = |name: &str| {
@@ -157,42 +132,27 @@ impl Passes {
         };
         let none = None::<&Buffer<u8>>;
         let prepare = kernel("aaf_prepare")
-            .arg_named("p", &params[0])
+            .arg_named("p", &params)
             .arg_named("pixels", none)
-            .arg(&guide)
-            .arg(&visibility[0])
+            .arg(&passes.guide)
+            .arg(&passes.values[0])
             .build()
             .context("creating the AAF prepare kernel")?;
-        let pass = |axis: usize, from: &Buffer<f32>, to: &Buffer<f32>| {
-            kernel("aaf_pass")
-                .arg_named("p", &params[axis])
-                .arg_named("pixels", none)
-                .arg(&guide)
-                .arg(from)
-                .arg(to)
-                .build()
-                .context("creating an AAF pass kernel")
-        };
-        let rows = pass(0, &visibility[0], &visibility[1])?;
-        let columns = pass(1, &visibility[1], &visibility[0])?;
         let compose = kernel("aaf_compose")
-            .arg_named("p", &params[0])
+            .arg_named("p", &params)
             .arg_named("fv", none)
             .arg_named("terms", none)
             .arg_named("pixels", none)
-            .arg(&guide)
-            .arg(&visibility[0])
+            .arg(&passes.guide)
+            .arg(&passes.values[0])
             .arg(&image)
             .build()
             .context("creating the AAF compose kernel")?;
         Ok(Passes {
             prepare,
-            rows,
-            columns,
+            passes,
             compose,
             _params: params,
-            _guide: guide,
-            _visibility: visibility,
             image,
         })
     }

@@ -45,6 +45,7 @@ use std::sync::Arc;
 
 use anyhow::{Result, bail};
 
+use super::aaf_pass::PassParams;
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
@@ -52,7 +53,7 @@ use crate::layout::{AafShadowParams, Float4};
 use crate::render::shadows::bandlimit::light_sigma;
 use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::AafShadowKernel;
-pub use reference::{Guide, compose, pass, prepare, reference};
+pub use reference::{compose, prepare, reference};
 
 crate::filter_settings! {
     /// The AAF soft-shadow filter's settings: how the shadow output is sampled, and how it is
@@ -119,6 +120,20 @@ impl AafShadowSettings {
             max_spp: self.max_spp,
             fill_radius: self.fill_radius,
             ..ShadowSampling::default()
+        }
+    }
+
+    /// The shared 1-D passes' parameters (src/filters/aaf_pass) for a w × h image.
+    pub fn pass_params(&self, width: u32, height: u32) -> PassParams {
+        let p = self.params([0.0; 4], width, height, 0);
+        PassParams {
+            width,
+            height,
+            radius: p.radius,
+            axis: 0,
+            normal_cos: p.normal_cos,
+            depth_tolerance: p.depth_tolerance,
+            beta_tolerance: p.beta_tolerance,
         }
     }
 

@@ -6,99 +6,44 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::AafShadowSettings;
+use crate::filters::aaf_pass::{self, FILTERED, LIT, NONE, PassPixel};
 use crate::imaging::RgbImage;
 use crate::layout::outputs::BufferId;
 use crate::layout::{AafShadowParams, FilterVector, ShadowPixel, ShadowTerms};
 use crate::render::Frame;
-use crate::render::shadows::bandlimit::beta;
+use crate::render::shadows::bandlimit::beta as beta_of;
 
-/// What a pixel is to the filter (kernels/filters/aaf_shadows.cl `AAF_*`).
-pub const NONE: f32 = 0.0;
-pub const LIT: f32 = 1.0;
-pub const FILTERED: f32 = 2.0;
-
-/// Per pixel: the noisy visibility h_n, β (0 without slopes) and the kind.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Guide {
-    pub visibility: f32,
-    pub beta: f32,
-    pub kind: f32,
-}
-
-/// `aaf_prepare`.
-pub fn prepare(p: &AafShadowParams, pixels: &[ShadowPixel]) -> Vec<Guide> {
+/// `aaf_prepare`: the shared pass's guide and the values (h_n in lane 0).
+pub fn prepare(p: &AafShadowParams, pixels: &[ShadowPixel]) -> (Vec<PassPixel>, Vec<[f32; 4]>) {
     pixels
         .par_iter()
         .map(|px| {
-            let mut g = Guide::default();
+            let (mut v, mut beta, mut kind) = (0.0, 0.0, NONE);
             if px.weight > 0.0 {
-                g.visibility = px.visible / px.weight;
+                v = px.visible / px.weight;
                 if px.slope_source > 0.0 {
-                    g.beta = beta(p.sigma, px.pixel_size, px.slope_min);
-                    g.kind = FILTERED;
+                    beta = beta_of(p.sigma, px.pixel_size, px.slope_min);
+                    kind = FILTERED;
                 } else {
-                    g.kind = LIT;
+                    kind = LIT;
                 }
             }
-            g
+            let position = Vec3::from(px.position);
+            let axis = if kind == FILTERED {
+                (p.light.xyz() - position).normalize()
+            } else {
+                Vec3::ZERO
+            };
+            let g = PassPixel {
+                position,
+                kind,
+                normal: Vec3::from(px.normal),
+                beta,
+                axis,
+            };
+            (g, [v, 0.0, 0.0, 0.0])
         })
-        .collect()
-}
-
-/// `aaf_pass`: one 1-D pass along `p.axis` over `input`.
-pub fn pass(
-    p: &AafShadowParams,
-    pixels: &[ShadowPixel],
-    guide: &[Guide],
-    input: &[f32],
-) -> Vec<f32> {
-    let (w, h) = (p.width as i32, p.height as i32);
-    (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let g = guide[i as usize];
-            if g.kind != FILTERED {
-                return input[i as usize];
-            }
-            let px = &pixels[i as usize];
-            let pos = Vec3::from(px.position);
-            let normal = Vec3::from(px.normal);
-            let to_light = (p.light.xyz() - pos).normalize();
-            let b = g.beta;
-            let inv_two_beta2 = (1.0 / (2.0 * b * b)).min(f32::MAX);
-            let (c, n, stride) = if p.axis == 0 { (x, w, 1) } else { (y, h, w) };
-            let (mut sum, mut sum_w) = (input[i as usize], 1.0f32);
-            for k in (c - p.radius).max(0)..=(c + p.radius).min(n - 1) {
-                if k == c {
-                    continue;
-                }
-                let j = (i + (k - c) * stride) as usize;
-                let gj = guide[j];
-                if gj.kind == NONE {
-                    continue;
-                }
-                let q = &pixels[j];
-                if normal.dot(Vec3::from(q.normal)) < p.normal_cos {
-                    continue;
-                }
-                let delta = Vec3::from(q.position) - pos;
-                let along = delta.dot(to_light);
-                if along.abs() > p.depth_tolerance * b {
-                    continue;
-                }
-                if gj.kind == FILTERED && (b - gj.beta).abs() > p.beta_tolerance * b.max(gj.beta)
-                {
-                    continue;
-                }
-                let r2 = (delta.dot(delta) - along * along).max(0.0);
-                let wgt = (-r2 * inv_two_beta2).exp();
-                sum += wgt * input[j];
-                sum_w += wgt;
-            }
-            sum / sum_w
-        })
-        .collect()
+        .unzip()
 }
 
 /// `aaf_compose`: F − the replaced light + r · visibility (F as is for no receiver).
@@ -106,8 +51,8 @@ pub fn compose(
     fv: &[FilterVector],
     terms: &[ShadowTerms],
     pixels: &[ShadowPixel],
-    guide: &[Guide],
-    visibility: &[f32],
+    guide: &[PassPixel],
+    visibility: &[[f32; 4]],
     width: u32,
     height: u32,
 ) -> RgbImage {
@@ -121,7 +66,7 @@ pub fn compose(
             }
             let (t, p) = (&terms[i], &pixels[i]);
             std::array::from_fn(|c| {
-                (beauty[c] - t.direct[c]) + p.unshadowed[c] / p.samples * visibility[i]
+                (beauty[c] - t.direct[c]) + p.unshadowed[c] / p.samples * visibility[i][0]
             })
         })
         .collect();
@@ -146,10 +91,7 @@ pub fn reference(
     let pixels: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
     let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms)?;
     let p0 = s.params(light, w, h, 0);
-    let p1 = s.params(light, w, h, 1);
-    let guide = prepare(&p0, pixels);
-    let v0: Vec<f32> = guide.iter().map(|g| g.visibility).collect();
-    let v1 = pass(&p0, pixels, &guide, &v0);
-    let v2 = pass(&p1, pixels, &guide, &v1);
+    let (guide, v0) = prepare(&p0, pixels);
+    let v2 = aaf_pass::both(&s.pass_params(w, h), &guide, &v0);
     Ok(compose(frame.filter_vectors()?, terms, pixels, &guide, &v2, w, h))
 }

@@ -1,5 +1,5 @@
 //! The sheared soft-shadow filter on the device (kernels/filters/sheared.cl): prepare, steps
-//! 1a, 1b, 2a, 2b, then AAF's compose pass (kernels/filters/aaf_shadows.cl `aaf_compose`,
+//! 1a, 1b, 2a, 2b, then AAF's compose (kernels/filters/aaf_shadows.cl `aaf_compose_sheared`,
 //! which reads the kind from the same guide lane).
 
 use std::ops::Range;
@@ -251,7 +251,7 @@ impl Passes {
             .arg(&visibility)
             .build()
             .context(what)?;
-        let compose = kernel(gpu, &aaf, "aaf_compose", size)
+        let compose = kernel(gpu, &aaf, "aaf_compose_sheared", size)
             .arg_named("p", &compose_params)
             .arg_named("fv", none)
             .arg_named("terms", none)

@@ -142,7 +142,7 @@ pub(super) fn shadow_light(
     Ok(sampling.light)
 }
 
-/// What the shadow passes spent.
+/// What the shadow passes (or AAF's indirect passes, [`super::IndirectStats`]) spent.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ShadowStats {
     /// Light samples over every pixel of the image, Σn / N² (pixels that are no receiver
@@ -291,17 +291,36 @@ impl ShadowPasses {
 
 /// Σn / N² and the rest of [`ShadowStats`] from the shadow pixels.
 pub fn shadow_stats(pixels: &[ShadowPixel], rays: u64, kernel_time: Duration) -> ShadowStats {
-    let total: f64 = pixels.iter().map(|p| p.samples as f64).sum();
-    let receivers = pixels.iter().filter(|p| p.weight > 0.0).count() as u64;
+    pass_stats(
+        pixels.iter().map(|p| (p.samples, p.weight > 0.0)),
+        rays,
+        kernel_time,
+    )
+}
+
+/// The statistics of a sampling pass (this one's, or AAF's indirect passes') from each
+/// pixel's (samples, whether it is a receiver).
+pub fn pass_stats(
+    pixels: impl Iterator<Item = (f32, bool)>,
+    rays: u64,
+    kernel_time: Duration,
+) -> ShadowStats {
+    let (mut total, mut count, mut receivers, mut max) = (0f64, 0u64, 0u64, 0u32);
+    for (samples, receiver) in pixels {
+        total += samples as f64;
+        count += 1;
+        receivers += receiver as u64;
+        max = max.max(samples as u32);
+    }
     ShadowStats {
-        average_spp: total / pixels.len().max(1) as f64,
+        average_spp: total / count.max(1) as f64,
         receiver_spp: if receivers > 0 {
             total / receivers as f64
         } else {
             0.0
         },
         receivers,
-        max_spp: pixels.iter().map(|p| p.samples as u32).max().unwrap_or(0),
+        max_spp: max,
         rays,
         kernel_time,
     }

@@ -1,0 +1,192 @@
+//! AAF diffuse indirect light, the sampling side (Wang 2013 ch. 4 with the passes of §3.4):
+//! the indirect output ([`crate::layout::outputs::Output::Indirect`]), gathered when a filter
+//! asks for it (src/filters/aaf_indirect).
+//!
+//! The estimator, per pixel. The receiver is the hit of the ray through the pixel centre from
+//! the lens centre (a diffuse surface; its position, normal, object and pixel size d are what
+//! the filter's weights use). Each indirect sample starts at its own random point x_k of the
+//! pixel that lies on the receiver's object, leaves in a direction stratified over the
+//! cosine-weighted hemisphere, and follows the path tracer's rules from the first bounce on,
+//! counting only what the path tracer counts as indirect (kernels/render/indirect.cl
+//! `indirect_radiance`). With cosine sampling the Lambertian estimate is albedo · L_i, so
+//! Σ L_i / n is the albedo-demodulated indirect light (irradiance / π) and Σ albedo(x_k) / n
+//! the albedo that multiplies it back (§2.3 of the digest: filter irradiance, not L_on). The
+//! first bounce's hit distance gives z_min and z_max (the maximum reflector distance: the
+//! seed's z_max is undefined).
+//!
+//! The passes run once, before the first path samples ([`super::Renderer::render_samples`]):
+//! 1. `indirect_sparse`: sparse_spp = k² samples per pixel, one per stratum, with z_min, z_max.
+//! 2. `indirect_adaptive`: n(x) of eq. 4.6 clamped to [sparse_spp, max_spp]; the samples
+//!    beyond the sparse ones as one more square of strata (the shadow passes' plan,
+//!    [`super::shadows::bandlimit::adaptive_plan`]). A receiver whose sparse samples met no
+//!    reflector (every ray left to the sky) has no z and keeps its sparse samples.
+//!
+//! Only the diffuse first hit's indirect light is sampled: a glossy (metal) receiver's indirect
+//! light stays as the path tracer rendered it (the seed's separate glossy buffer with its own
+//! bandlimit, eq. 4.5, is not built). The firefly clamp (`sample_clamp`) does not apply to these
+//! samples.
+
+pub mod bandlimit;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context as _, Result, bail};
+use ocl::{Buffer, Kernel, Program};
+
+use super::DeviceScene;
+use crate::gpu::{Gpu, enqueue, event_duration};
+use crate::layout::IndirectPixel;
+
+/// How the indirect output is sampled (the `aaf-indirect` filter's settings choose it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IndirectSampling {
+    /// Indirect samples per pixel of the sparse pass: a square, k × k strata.
+    pub sparse_spp: u32,
+    /// Most samples per pixel after the adaptive pass (eq. 4.6 is clamped to it).
+    pub max_spp: u32,
+    /// Ω_h^max of eq. 4.5 (2.8: diffuse).
+    pub bandlimit: f32,
+}
+
+impl Default for IndirectSampling {
+    fn default() -> Self {
+        IndirectSampling {
+            sparse_spp: 16,
+            max_spp: 100,
+            bandlimit: bandlimit::DIFFUSE_BANDLIMIT,
+        }
+    }
+}
+
+impl IndirectSampling {
+    /// Checks the counts: the sparse count is a positive square, the maximum at least it.
+    pub fn check(&self) -> Result<()> {
+        let k = super::shadows::bandlimit::isqrt_floor(self.sparse_spp);
+        if self.sparse_spp == 0 || k * k != self.sparse_spp {
+            bail!(
+                "the sparse indirect pass takes whole strata: sparse_spp must be a square \
+                 (1, 4, 9, 16, ...), got {}",
+                self.sparse_spp
+            );
+        }
+        if self.max_spp < self.sparse_spp || self.max_spp > 1 << 20 {
+            bail!(
+                "max_spp must be at least sparse_spp ({}) and at most 2^20, got {}",
+                self.sparse_spp,
+                self.max_spp
+            );
+        }
+        if !(self.bandlimit > 0.0 && self.bandlimit.is_finite()) {
+            bail!(
+                "the bandlimit must be > 0 and finite, got {}",
+                self.bandlimit
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The indirect output needs the whole image: its passes trace every pixel's centre receiver
+/// before the path samples (sample ranges are fine: the passes depend on the pixel alone).
+pub(super) fn check_whole(
+    sampling: &IndirectSampling,
+    tile: super::Tile,
+    w: u32,
+    h: u32,
+) -> Result<()> {
+    sampling.check()?;
+    if tile != super::Tile::whole(w, h) {
+        bail!(
+            "the indirect output (the aaf-indirect filter) needs the whole image, not a tile: \
+             its filter reaches across tile borders; render sample ranges (--samples A..B) \
+             instead of tiles"
+        );
+    }
+    Ok(())
+}
+
+/// What the indirect passes spent (the shadow passes' statistics: Σn / N² over the image,
+/// pixels that are no receiver counting with 0, and over the receivers).
+pub type IndirectStats = super::ShadowStats;
+
+/// Σn / N² and the rest of [`IndirectStats`] from the indirect pixels.
+pub fn indirect_stats(pixels: &[IndirectPixel], rays: u64, kernel_time: Duration) -> IndirectStats {
+    super::shadows::pass_stats(
+        pixels.iter().map(|p| (p.samples, p.weight > 0.0)),
+        rays,
+        kernel_time,
+    )
+}
+
+/// The indirect passes of one renderer, built from its program.
+pub(super) struct IndirectPasses {
+    sampling: IndirectSampling,
+    sparse: Kernel,
+    adaptive: Kernel,
+    rays: Buffer<u32>,
+}
+
+impl IndirectPasses {
+    pub(super) fn new(
+        gpu: &Arc<Gpu>,
+        program: &Program,
+        size: [usize; 2],
+        sampling: IndirectSampling,
+        scene: &DeviceScene,
+        debug_counters: &Buffer<u32>,
+        pixels: &Buffer<u8>,
+    ) -> Result<IndirectPasses> {
+        sampling.check()?;
+        let rays = gpu.zeroed::<u32>(size[0] * size[1], "indirect ray count")?;
+        let build = |name: &str| {
+            let mut b = Kernel::builder();
+            b.program(program)
+                .name(name)
+                .queue(gpu.queue.clone())
+                .global_work_size(size);
+            scene.bind(&mut b);
+            b.arg_named("debug_counters", debug_counters)
+                .arg_named("indirect_pixels", pixels)
+                .arg_named("indirect_rays", &rays);
+            b
+        };
+        let k = super::shadows::bandlimit::isqrt_floor(sampling.sparse_spp);
+        let mut b = build("indirect_sparse");
+        b.arg_named("sqrt_spp", k);
+        let sparse = b.build().context("creating the sparse indirect kernel")?;
+        let mut b = build("indirect_adaptive");
+        b.arg_named("sparse_spp", sampling.sparse_spp)
+            .arg_named("max_spp", sampling.max_spp)
+            .arg_named("bandlimit", sampling.bandlimit);
+        let adaptive = b.build().context("creating the adaptive indirect kernel")?;
+        Ok(IndirectPasses {
+            sampling,
+            sparse,
+            adaptive,
+            rays,
+        })
+    }
+
+    pub(super) fn sampling(&self) -> IndirectSampling {
+        self.sampling
+    }
+
+    /// Runs the sparse and the adaptive pass; returns their rays and kernel time.
+    pub(super) fn run(&self) -> Result<(u64, Duration)> {
+        let (mut rays, mut time) = (0u64, Duration::ZERO);
+        let mut counts = vec![0u32; self.rays.len()];
+        for (k, what) in [
+            (&self.sparse, "the sparse indirect pass"),
+            (&self.adaptive, "the adaptive indirect pass"),
+        ] {
+            // SAFETY: every buffer argument is owned by the renderer or by self and sized for
+            // the image; we wait for the event before the next launch.
+            let event = unsafe { enqueue(k, what)? };
+            time += event_duration(&event)?;
+            self.rays.read(&mut counts).enq()?;
+            rays += counts.iter().map(|&c| c as u64).sum::<u64>();
+        }
+        Ok((rays, time))
+    }
+}
