@@ -138,6 +138,11 @@ pub struct LaunchStats {
     pub samples: u32,
     pub kernel_time: Duration,
     pub rays: u64,
+    /// The passes that run once before the first samples (shadow, lens-field and indirect
+    /// passes), over the whole image: not part of `kernel_time`, which balances a split frame
+    /// by the rows each device renders.
+    pub pass_time: Duration,
+    pub pass_rays: u64,
 }
 
 /// What the debug counters of kernels/arrays/trace.cl count (same order as COUNT_*).
@@ -477,6 +482,7 @@ impl Renderer {
         if count == 0 {
             return Ok(LaunchStats::default());
         }
+        let (mut pass_rays, mut pass_time) = (0u64, Duration::ZERO);
         if self.samples_done == 0
             && let Some(passes) = &self.shadow_passes
         {
@@ -487,16 +493,16 @@ impl Renderer {
             let frame = self.frame();
             let pixels = frame.host_slice::<crate::layout::ShadowPixel>(BufferId::ShadowPixels)?;
             self.shadow_stats = Some(shadows::shadow_stats(pixels, rays, time));
-            self.rays_total += rays;
-            self.kernel_time_total += time;
+            pass_rays += rays;
+            pass_time += time;
         }
         if self.samples_done == 0
             && let Some(pass) = &self.lens_pass
         {
             // Over the whole image, as the shadow passes (the field depends on the pixel alone).
             let (rays, time) = pass.run()?;
-            self.rays_total += rays;
-            self.kernel_time_total += time;
+            pass_rays += rays;
+            pass_time += time;
         }
         if self.samples_done == 0
             && let Some(passes) = &self.indirect_passes
@@ -507,11 +513,11 @@ impl Renderer {
             let pixels =
                 frame.host_slice::<crate::layout::IndirectPixel>(BufferId::IndirectPixels)?;
             self.indirect_stats = Some(indirect::indirect_stats(pixels, rays, time));
-            self.rays_total += rays;
-            self.kernel_time_total += time;
+            pass_rays += rays;
+            pass_time += time;
         }
         let rows = rows.start.min(self.height())..rows.end.min(self.height());
-        let stats = if rows.is_empty() {
+        let mut stats = if rows.is_empty() {
             LaunchStats {
                 samples: count,
                 ..Default::default()
@@ -519,9 +525,10 @@ impl Renderer {
         } else {
             self.launch(count, rows)?
         };
+        (stats.pass_rays, stats.pass_time) = (pass_rays, pass_time);
         self.samples_done += count;
-        self.rays_total += stats.rays;
-        self.kernel_time_total += stats.kernel_time;
+        self.rays_total += stats.rays + pass_rays;
+        self.kernel_time_total += stats.kernel_time + pass_time;
         Ok(stats)
     }
 
@@ -553,6 +560,7 @@ impl Renderer {
             samples: count,
             kernel_time,
             rays: counts.iter().map(|&c| c as u64).sum(),
+            ..Default::default()
         })
     }
 

@@ -242,8 +242,12 @@ impl SplitRenderer {
             ..Default::default()
         };
         let rays: u64 = stats.iter().map(|s| s.rays).sum();
-        self.rays_total += rays;
-        self.kernel_time_total += frame.slowest();
+        // The once-per-render passes run over the whole image on every device (their output
+        // depends on neighbours): count one device's, the slowest.
+        let pass_time = stats.iter().map(|s| s.pass_time).max().unwrap_or_default();
+        let pass_rays = stats.iter().map(|s| s.pass_rays).max().unwrap_or_default();
+        self.rays_total += rays + pass_rays;
+        self.kernel_time_total += frame.slowest() + pass_time;
         if self.parts.len() > 1 {
             let copies = Instant::now();
             self.merged.set(false);
@@ -265,6 +269,8 @@ impl SplitRenderer {
                 .map(SplitFrame::slowest)
                 .unwrap_or_default(),
             rays,
+            pass_time,
+            pass_rays,
         })
     }
 
