@@ -551,32 +551,15 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
             .unwrap_or_default()
     );
     if let Some((sampling, stats)) = film.primary().shadow_stats() {
-        println!(
-            "shadow samples of sphere light {}: {:.2} spp on average over the image (Σn/N²), \
-             {:.2} over its {} receivers, {} at most (sparse {}, max {}); {:.1} Mrays in {:.3} s",
-            sampling.light,
-            stats.average_spp,
-            stats.receiver_spp,
-            stats.receivers,
-            stats.max_spp,
-            sampling.sparse_spp,
-            sampling.max_spp,
-            stats.rays as f64 / 1e6,
-            stats.kernel_time.as_secs_f64()
-        );
+        let what = format!("shadow samples of sphere light {}", sampling.light);
+        print_pass_stats(&what, &stats, sampling.sparse_spp, sampling.max_spp);
     }
     if let Some((sampling, stats)) = film.primary().indirect_stats() {
-        println!(
-            "indirect samples: {:.2} spp on average over the image (Σn/N²), {:.2} over its {} \
-             receivers, {} at most (sparse {}, max {}); {:.1} Mrays in {:.3} s",
-            stats.average_spp,
-            stats.receiver_spp,
-            stats.receivers,
-            stats.max_spp,
+        print_pass_stats(
+            "indirect samples",
+            &stats,
             sampling.sparse_spp,
             sampling.max_spp,
-            stats.rays as f64 / 1e6,
-            stats.kernel_time.as_secs_f64()
         );
     }
     if let (Some(c), Some(f)) = (chosen, &filter) {
@@ -591,4 +574,19 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         );
     }
     Ok(summary)
+}
+
+/// One line on an adaptive sampling pass (AAF's shadow or indirect samples): the average spp
+/// the seed reports (Σn/N²), per receiver, the largest, and what the passes cost.
+fn print_pass_stats(what: &str, stats: &crate::render::ShadowStats, sparse: u32, max: u32) {
+    println!(
+        "{what}: {:.2} spp on average over the image (Σn/N²), {:.2} over its {} receivers, {} \
+         at most (sparse {sparse}, max {max}); {:.1} Mrays in {:.3} s",
+        stats.average_spp,
+        stats.receiver_spp,
+        stats.receivers,
+        stats.max_spp,
+        stats.rays as f64 / 1e6,
+        stats.kernel_time.as_secs_f64()
+    );
 }
