@@ -27,6 +27,8 @@
 //!   re-balancing, and where the filter runs.
 //! - `aaf-shadows` (only when asked): AAF soft shadows against Monte Carlo on Grids, error
 //!   against light samples and against time (Wang 2013 Fig. 3.6), the spp map (`aaf`).
+//! - `aaf-cost` (only when asked): the AAF filters' kernel time against the occluder's
+//!   triangle count (0.2K-200K), beside the sampling passes' and the path tracer's (`aaf_cost`).
 //! - `rpf-readings`, `rpf-scale` (only when asked; hours): RPF's readings against the
 //!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
 //! - `roofline`: each image filter kernel's achieved GFLOP/s and GB/s against the device's
@@ -39,6 +41,7 @@
 //! tables and `plot` the charts and contact sheets.
 
 pub mod aaf;
+pub mod aaf_cost;
 pub mod accuracy_time;
 pub mod balance;
 pub mod curves;
@@ -81,6 +84,9 @@ pub enum Study {
     /// AAF soft shadows against Monte Carlo on Grids, Wang 2013 Fig. 3.6 (not in the default
     /// set).
     AafShadows,
+    /// The AAF filters' cost against the triangle count, beside the sampling passes and the
+    /// path tracer (not in the default set).
+    AafCost,
     /// RPF's readings against the thesis's gain (not in the default set: hours).
     RpfReadings,
     /// RPF against the scene scale, Tables 5.3-5.4 (not in the default set: hours).
@@ -278,6 +284,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
                     | Study::Sweep
                     | Study::RpfScale
                     | Study::AafShadows
+                    | Study::AafCost
                     | Study::Roofline
             )
         });
@@ -335,6 +342,7 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
             | Study::Statistics
             | Study::FilterSpeed
             | Study::Balance
+            | Study::AafCost
             | Study::Roofline => {}
         }
     }
@@ -539,6 +547,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::PathDensity => path_density::path_density(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
             Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
+            Study::AafCost => aaf_cost::aaf_cost(&ctx)?,
             Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
             Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,
             Study::Roofline => roofline::roofline(&ctx)?,
