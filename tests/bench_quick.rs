@@ -319,3 +319,38 @@ fn path_density_study_completes_with_well_formed_results() {
     assert!(out.join("path_density.md").exists());
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// `bench --study aaf-cost --quick` (issue 15; not in the default set): a row per occluder
+/// triangle count and AAF filter, every time a positive number of milliseconds (never compared:
+/// timings are not asserted), triangle counts over a 1000× range, and the figure.
+#[test]
+fn quick_aaf_cost_study_has_a_row_per_triangle_count_and_filter() {
+    let out = tempdir("bench-aaf-cost");
+    quick_study("aaf-cost", &out);
+    let csv = std::fs::read_to_string(out.join("aaf-cost.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header, noisefree::bench::aaf_cost::COLUMNS, "{csv}");
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let counts = noisefree::bench::aaf_cost::TRIANGLES.len();
+    assert_eq!(rows.len(), 2 * counts, "{csv}");
+    let mut triangles = Vec::new();
+    for r in &rows {
+        assert_eq!(r.len(), header.len(), "{r:?}");
+        assert_eq!(r[0], "64x64", "{r:?}");
+        assert!(["aaf-shadows", "aaf-indirect"].contains(&r[2]), "{r:?}");
+        for v in &r[3..] {
+            let x: f64 = v.parse().unwrap_or_else(|_| panic!("{r:?}"));
+            assert!(x.is_finite() && x > 0.0, "{r:?}");
+        }
+        triangles.push(r[1].parse::<f64>().unwrap());
+    }
+    let (lo, hi) = triangles
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+    assert!(hi / lo >= 900.0, "{triangles:?}");
+    assert!(out.join("aaf-cost.md").exists());
+    let png = std::fs::read(out.join("aaf-cost.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let _ = std::fs::remove_dir_all(&out);
+}

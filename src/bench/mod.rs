@@ -27,6 +27,8 @@
 //!   re-balancing, and where the filter runs.
 //! - `aaf-shadows` (only when asked): AAF soft shadows against Monte Carlo on Grids, error
 //!   against light samples and against time (Wang 2013 Fig. 3.6), the spp map (`aaf`).
+//! - `aaf-cost` (only when asked): the AAF filters' kernel time against the occluder's
+//!   triangle count (0.2K-200K), beside the sampling passes' and the path tracer's (`aaf_cost`).
 //! - `rpf-readings`, `rpf-scale` (only when asked; hours): RPF's readings against the
 //!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
 //! - `roofline`: each image filter kernel's achieved GFLOP/s and GB/s against the device's
@@ -36,13 +38,15 @@
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
 //! the headline figures. `ground_truth` is the cache of many-spp reference images (not to be
 //! confused with `render::cpu`, the CPU mirror of the kernels); `table` the resumable CSV
-//! tables and `plot` the charts and contact sheets.
+//! tables, `plot` the charts and contact sheets and `folders` the scenes and results folders.
 
 pub mod aaf;
+pub mod aaf_cost;
 pub mod accuracy_time;
 pub mod balance;
 pub mod curves;
 pub mod filter_speed;
+pub mod folders;
 pub mod ground_truth;
 pub mod oidn;
 pub mod path_density;
@@ -56,13 +60,15 @@ pub mod sweep;
 pub mod sweep_report;
 pub mod table;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 
 use crate::gpu::Gpu;
+use folders::no_scenes_dir;
+pub use folders::{bundled_scenes, device_slug, scenes_dir};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Study {
@@ -81,6 +87,9 @@ pub enum Study {
     /// AAF soft shadows against Monte Carlo on Grids, Wang 2013 Fig. 3.6 (not in the default
     /// set).
     AafShadows,
+    /// The AAF filters' cost against the triangle count, beside the sampling passes and the
+    /// path tracer (not in the default set).
+    AafCost,
     /// RPF's readings against the thesis's gain (not in the default set: hours).
     RpfReadings,
     /// RPF against the scene scale, Tables 5.3-5.4 (not in the default set: hours).
@@ -278,6 +287,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
                     | Study::Sweep
                     | Study::RpfScale
                     | Study::AafShadows
+                    | Study::AafCost
                     | Study::Roofline
             )
         });
@@ -335,6 +345,7 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
             | Study::Statistics
             | Study::FilterSpeed
             | Study::Balance
+            | Study::AafCost
             | Study::Roofline => {}
         }
     }
@@ -427,64 +438,6 @@ pub fn bar(ctx: &Context, len: u64, what: &str) -> indicatif::ProgressBar {
     b
 }
 
-/// A file-system friendly name for the device, e.g. "pocl-cpu" or "nvidia-h100-80gb-hbm3".
-pub fn device_slug(gpu: &Gpu) -> String {
-    let s = &gpu.summary;
-    let raw = if s.platform.contains("Portable Computing Language") {
-        format!("pocl-{}", s.kind.to_lowercase())
-    } else {
-        s.name.to_lowercase()
-    };
-    let mut out = String::new();
-    for c in raw.chars() {
-        if c.is_ascii_alphanumeric() {
-            out.push(c);
-        } else if !out.ends_with('-') {
-            out.push('-');
-        }
-    }
-    out.trim_matches('-').to_string()
-}
-
-/// `scenes/` of the source tree this binary was built from.
-fn built_scenes_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
-}
-
-/// The bundled scenes folder: `given` (--scenes) if any, else `scenes/` of the source tree the
-/// binary was built from, else `./scenes`. None if no default exists; an error if `given` is
-/// not a folder.
-pub fn scenes_dir(given: Option<&Path>) -> Result<Option<PathBuf>> {
-    if let Some(dir) = given {
-        if !dir.is_dir() {
-            bail!("--scenes {}: not a folder", dir.display());
-        }
-        return Ok(Some(dir.to_path_buf()));
-    }
-    Ok([built_scenes_dir(), PathBuf::from("scenes")]
-        .into_iter()
-        .find(|d| d.is_dir()))
-}
-
-fn no_scenes_dir() -> anyhow::Error {
-    anyhow!(
-        "no bundled scenes: neither {} (the source tree this binary was built from) nor ./scenes \
-         is a folder; pass --scenes DIR with the scenes/ folder of a noisefree checkout",
-        built_scenes_dir().display()
-    )
-}
-
-/// The bundled scenes in `dir`, the five of the thesis and their depth-of-field variants.
-pub fn bundled_scenes(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)?
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    v.sort();
-    Ok(v)
-}
-
 pub fn run(args: &BenchArgs) -> Result<()> {
     let Selection {
         studies,
@@ -539,6 +492,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::PathDensity => path_density::path_density(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
             Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
+            Study::AafCost => aaf_cost::aaf_cost(&ctx)?,
             Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
             Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,
             Study::Roofline => roofline::roofline(&ctx)?,
