@@ -32,8 +32,7 @@ use crate::filters::Configured;
 use crate::filters::aaf_shadows::{AafShadowSettings, AafShadows};
 use crate::filters::sheared::{STEPS, Sheared, ShearedKernel, ShearedSettings};
 use crate::imaging::write_rgb8_png;
-use crate::layout::LightFieldPixel;
-use crate::layout::outputs::{BufferId, Output, OutputSet};
+use crate::layout::outputs::{Output, OutputSet};
 use crate::metrics::mse_rgb;
 use crate::render::Renderer;
 
@@ -143,15 +142,10 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
             };
             let mut r = aaf_renderer(ctx, &study, &s, &c)?;
             r.render_samples(AAF_PATH_SPP)?;
-            let (_, stats) = r.shadow_stats().expect("the shadow output");
             let frame = r.frame();
-            // The light field's l² samples of every receiver, over the image (Σ / N²).
-            let field_spp = if frame.outputs().contains(Output::LightField) {
-                let lf: &[LightFieldPixel] = frame.host_slice(BufferId::LightFieldPixels)?;
-                lf.iter().map(|p| p.count as f64).sum::<f64>() / lf.len().max(1) as f64
-            } else {
-                0.0
-            };
+            // The sparse + adaptive light samples and the light field's l² of every
+            // receiver, over the image (Σ / N²).
+            let light = frame.pass_spp()?;
             let run = c.prepare(frame.info(), &ctx.gpu)?.run(&frame)?;
             let filter_time = run.kernel_time.unwrap_or(run.wall_time);
             // The spp map of one adaptive row (max 100, the default) as a picture.
@@ -165,7 +159,6 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
             if method == "sheared" && setting == 3 {
                 sheared_steps(ctx, &frame, &s)?;
             }
-            let light = stats.average_spp + field_spp;
             (run.image, AAF_PATH_SPP, light, secs, map)
         };
         let mse = mse_rgb(&img, &reference)?;

@@ -16,6 +16,8 @@ use crate::metrics;
 #[derive(Clone, Copy, Debug)]
 struct Point {
     spp: u32,
+    /// Samples per pixel of the filter's own sampling passes (AAF's), besides `spp`.
+    pass_spp: f64,
     seconds: f64,
     error: f64,
 }
@@ -25,7 +27,9 @@ struct Point {
 /// equal-time error ratio of each filter at 8 spp.
 pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
-    let columns = ["scene", "method", "spp", "seconds", "mse_luv", "rel_mse"];
+    let columns = [
+        "scene", "method", "spp", "pass_spp", "seconds", "mse_luv", "rel_mse",
+    ];
     let mut t = ctx.table("accuracy-time", &columns, 3, fresh)?;
     let unfiltered_max = if ctx.quick { 32 } else { 1024 };
     // RPF's cost grows with every stored sample (minutes per 512x512 frame at 8 spp on a
@@ -79,12 +83,14 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                     let start = Instant::now();
                     r2.render_samples(spp - r2.samples_done())?;
                     render_time += start.elapsed();
-                    let (img, filter_time) = prepared.run(&r2.frame())?;
+                    let frame = r2.frame();
+                    let (img, filter_time) = prepared.run(&frame)?;
                     let key = vec![name.clone(), label.clone(), spp.to_string()];
                     if !t.has(&key) {
                         let m = metrics::compare(&img, &reference)?;
                         let mut row = key;
                         row.extend([
+                            num(frame.pass_spp()?),
                             num((render_time + filter_time).as_secs_f64()),
                             num(m.mse_luv),
                             num(m.rel_mse),
@@ -125,6 +131,7 @@ fn accuracy_time_report(ctx: &Context, t: &ResultTable) -> Result<()> {
                     .filter(|r| r["scene"] == name && r["method"] == label)
                     .map(|r| Point {
                         spp: r["spp"].parse().unwrap_or(0),
+                        pass_spp: r["pass_spp"].parse().unwrap_or(f64::NAN),
                         seconds: r["seconds"].parse().unwrap_or(f64::NAN),
                         error: r["mse_luv"].parse().unwrap_or(f64::NAN),
                     })
@@ -173,7 +180,7 @@ fn accuracy_time_report(ctx: &Context, t: &ResultTable) -> Result<()> {
                 num(at8.seconds),
                 num(spp_equal),
                 mark(ex1),
-                num(spp_equal / 8.0),
+                num(spp_equal / (8.0 + at8.pass_spp)),
                 num(err_equal_time),
                 mark(ex2),
                 num(err_equal_time / at8.error),
@@ -185,7 +192,7 @@ fn accuracy_time_report(ctx: &Context, t: &ResultTable) -> Result<()> {
          Error (MSE in CIELUV against the reference) against wall-clock time of rendering plus\n\
          filtering, for unfiltered path tracing at 1, 2, 4, ... spp and for each filter. From the\n\
          curves, for each filter at 8 spp:\n\n\
-         - **equal-quality sample reduction**: the unfiltered spp that reaches the filter's error,\n  divided by 8 (log-log interpolation; past the end of the unfiltered curve it is extended\n  with slope -1, MSE ~ 1/spp, and marked);\n\
+         - **equal-quality sample reduction**: the unfiltered spp that reaches the filter's error,\n  divided by the filter's samples per pixel, 8 plus its sampling passes' `pass_spp` (log-log interpolation; past the end of the unfiltered curve it is extended\n  with slope -1, MSE ~ 1/spp, and marked);\n\
          - **equal-time error ratio**: the unfiltered error at the same wall-clock time, divided\n  by the filter's error (above 1: the filter is the better use of the time).\n\n",
     );
     md.push_str(&super::study::methods_markdown());

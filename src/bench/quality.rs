@@ -18,7 +18,7 @@ use crate::imaging::{RgbImage, write_exr, write_png};
 pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
     let columns = [
-        "scene", "method", "spp", "mse_luv", "rel_mse", "mse_rgb", "ssim", "filter_s",
+        "scene", "method", "spp", "pass_spp", "mse_luv", "rel_mse", "mse_rgb", "ssim", "filter_s",
     ];
     let mut t = ctx.table("quality", &columns, 3, fresh)?;
     let images = ctx.out.join("images");
@@ -81,6 +81,7 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
             write_exr(&exr, &img)?;
             if !t.has(&key) {
                 let mut row = key;
+                row.push(num(frame.pass_spp()?));
                 row.extend(metric_cells(&img, &reference)?);
                 row.push(num(secs));
                 t.push(row)?;

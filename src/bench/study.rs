@@ -9,7 +9,7 @@ use anyhow::Result;
 use super::Context;
 use super::ground_truth::{self, ReferenceRequest};
 use super::table::num;
-use crate::filters::{Configured, FilterRequest, Registry};
+use crate::filters::{Configured, FilterRequest, Purpose, Registry};
 use crate::imaging::RgbImage;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::metrics;
@@ -158,22 +158,41 @@ impl StudyScene {
             .collect()
     }
 
-    /// The filters compared: every registered filter with its defaults (Table 7.2 for the
-    /// thesis's), specialised to this scene.
+    /// The filters compared: every registered denoiser with its defaults (Table 7.2 for the
+    /// thesis's), specialised to this scene, less those that change nothing here (a shadow
+    /// filter without a sphere light): [`Configured::applies`].
     pub fn methods(&self) -> Result<Vec<Configured>> {
         let r = Registry::builtin();
-        r.filters()
-            .iter()
-            .map(|f| r.configure(*f, &FilterRequest::default(), &self.info))
-            .collect()
+        let mut methods = Vec::new();
+        for f in r.filters() {
+            if f.purpose() != Purpose::Denoise {
+                continue;
+            }
+            let c = r.configure(*f, &FilterRequest::default(), &self.info)?;
+            if c.applies() {
+                methods.push(c);
+            }
+        }
+        Ok(methods)
     }
 }
 
 /// The compared filters and their default settings, for the reports (`auto` settings are
 /// decided per scene; `noisefree render SCENE --filter NAME --explain` shows the decisions).
 pub fn methods_markdown() -> String {
-    let mut md = String::from("Settings of the compared filters (their defaults):\n\n");
-    for f in Registry::builtin().filters() {
+    let mut md = String::from(
+        "Settings of the compared filters (their defaults). A filter has rows only on the \
+         scenes where it changes the image (the shadow filters need a sphere light); \
+         `pass_spp` counts the samples of a filter's own sampling passes per pixel (AAF's \
+         light and indirect samples, the sheared filters' fields), besides `spp` path \
+         samples:\n\n",
+    );
+    let registry = Registry::builtin();
+    for f in registry
+        .filters()
+        .iter()
+        .filter(|f| f.purpose() == Purpose::Denoise)
+    {
         let text = crate::filters::settings::describe(&f.defaults(), f.fields());
         let inline: Vec<&str> = text.lines().collect();
         md.push_str(&format!(

@@ -51,6 +51,16 @@ builtin_filters! {
     sheared::Sheared, // 4-D sheared filtering of soft shadows (Yan et al. 2015)
 }
 
+/// What a filter is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Purpose {
+    /// It estimates the converged image from a noisy one: compared with the ground truth.
+    Denoise,
+    /// It changes the look on purpose (DeCoro's stylized shadows): its error against the
+    /// ground truth measures the style, not the filter, so the error studies leave it out.
+    Stylize,
+}
+
 /// A filter, as its module declares it. Implement this; the registry sees it as a [`Filter`].
 pub trait FilterKind: Send + Sync + 'static {
     type Settings: DeclaredSettings;
@@ -59,6 +69,9 @@ pub trait FilterKind: Send + Sync + 'static {
     const NAME: &'static str;
     /// One line for `--help` and reports.
     const SUMMARY: &'static str;
+    /// What the filter is for; the error studies compare only [`Purpose::Denoise`] filters
+    /// with the ground truth.
+    const PURPOSE: Purpose = Purpose::Denoise;
 
     /// Checks settings; the error names the setting and the allowed values.
     fn check(_settings: &Self::Settings) -> Result<()> {
@@ -69,6 +82,14 @@ pub trait FilterKind: Send + Sync + 'static {
     /// for"): returns one note per decision, for `--explain`.
     fn specialise(_settings: &mut Self::Settings, _scene: &SceneInfo) -> Vec<String> {
         Vec::new()
+    }
+
+    /// Whether these settings, specialised to a scene, change anything: false where the
+    /// image passes through as rendered (a shadow filter on a scene without a sphere light).
+    /// The studies leave such a filter out of that scene, so that a row never repeats the
+    /// unfiltered image under a filter's name.
+    fn applies(_settings: &Self::Settings) -> bool {
+        true
     }
 
     /// The outputs the renderer must gather for these settings.
@@ -90,6 +111,7 @@ pub trait FilterKind: Send + Sync + 'static {
 pub trait Filter: Send + Sync {
     fn name(&self) -> &'static str;
     fn summary(&self) -> &'static str;
+    fn purpose(&self) -> Purpose;
     fn fields(&self) -> &'static [FieldDoc];
     fn flag_prefix(&self) -> &'static str;
     /// The default settings as a table.
@@ -106,6 +128,10 @@ impl<K: FilterKind> Filter for K {
 
     fn summary(&self) -> &'static str {
         K::SUMMARY
+    }
+
+    fn purpose(&self) -> Purpose {
+        K::PURPOSE
     }
 
     fn fields(&self) -> &'static [FieldDoc] {

@@ -18,7 +18,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::{Arg, ArgAction, ArgMatches};
 
 use super::settings::{self, FieldDoc, display_value, overlay};
-use super::{Filter, FilterKind, PreparedFilter};
+use super::{Filter, FilterKind, PreparedFilter, Purpose};
 use crate::gpu::Gpu;
 use crate::layout::outputs::OutputSet;
 use crate::render::{FrameInfo, RenderOptions, SceneInfo};
@@ -34,6 +34,8 @@ pub struct Configured {
     effective: toml::Table,
     notes: Vec<String>,
     needs: OutputSet,
+    purpose: Purpose,
+    applies: bool,
     prepare: Box<Prepare>,
     render: Box<AdjustRender>,
 }
@@ -56,6 +58,7 @@ impl Configured {
         use super::DeclaredSettings as _;
         let effective = settings::to_table(&typed);
         let needs = K::needs(&typed);
+        let applies = K::applies(&typed);
         let for_render = typed.clone();
         Configured {
             name: K::NAME,
@@ -64,6 +67,8 @@ impl Configured {
             effective,
             notes,
             needs,
+            purpose: K::PURPOSE,
+            applies,
             prepare: Box::new(move |frame, gpu| K::prepare(&typed, frame, gpu)),
             render: Box::new(move |options| K::render_options(&for_render, options)),
         }
@@ -85,6 +90,16 @@ impl Configured {
     /// The outputs the renderer must gather.
     pub fn needs(&self) -> OutputSet {
         self.needs
+    }
+
+    /// What the filter is for.
+    pub fn purpose(&self) -> Purpose {
+        self.purpose
+    }
+
+    /// Whether the filter changes anything on this scene ([`FilterKind::applies`]).
+    pub fn applies(&self) -> bool {
+        self.applies
     }
 
     /// Sets how the renderer gathers what the filter needs (after `outputs` is chosen).

@@ -21,7 +21,7 @@ use crate::arrays::SceneArrays;
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
 use crate::layout::outputs::{BufferId, Output, OutputSet};
-use crate::layout::{FilterVector, Float16};
+use crate::layout::{FilterVector, Float16, IndirectPixel, LightFieldPixel, ShadowPixel};
 use crate::scene::{CameraBasis, Scene, Setting};
 
 /// What filters may know about the scene a frame was rendered from. Recorded in AOV and
@@ -465,6 +465,33 @@ impl Frame {
 
     pub fn filter_vectors(&self) -> Result<&[FilterVector]> {
         self.host_slice(BufferId::FilterVectors)
+    }
+
+    /// The samples per pixel of the sampling passes that run before the path samples,
+    /// averaged over the image (Σ / N², pixels that take none count 0), read from the
+    /// outputs that hold them: the shadow output's light samples (AAF's sparse + adaptive
+    /// passes), the light field's l² (and the depth-of-field fallback's 36 where it applies),
+    /// the indirect output's samples. 0 without these outputs. The path samples are
+    /// [`FrameInfo::spp`]; the studies report both, as the seeds count the passes' samples.
+    pub fn pass_spp(&self) -> Result<f64> {
+        let pixels = (self.info.width as f64 * self.info.height as f64).max(1.0);
+        let mut total = 0.0;
+        if self.outputs.contains(Output::Shadows) {
+            let p: &[ShadowPixel] = self.host_slice(BufferId::ShadowPixels)?;
+            total += p.iter().map(|p| p.samples as f64).sum::<f64>();
+        }
+        if self.outputs.contains(Output::LightField) {
+            let p: &[LightFieldPixel] = self.host_slice(BufferId::LightFieldPixels)?;
+            total += p
+                .iter()
+                .map(|p| (p.count + p.extra_samples) as f64)
+                .sum::<f64>();
+        }
+        if self.outputs.contains(Output::Indirect) {
+            let p: &[IndirectPixel] = self.host_slice(BufferId::IndirectPixels)?;
+            total += p.iter().map(|p| p.samples as f64).sum::<f64>();
+        }
+        Ok(total / pixels)
     }
 
     /// direct + indirect: the unfiltered image.

@@ -232,6 +232,10 @@ impl FilterKind for AafShadows {
         specialise_light(&mut s.light, scene)
     }
 
+    fn applies(s: &AafShadowSettings) -> bool {
+        s.light_index().is_some()
+    }
+
     /// The shadow output, when there is a light to filter.
     fn needs(s: &AafShadowSettings) -> OutputSet {
         light_needs(s.light)

@@ -270,6 +270,11 @@ impl FilterKind for Sheared {
         notes
     }
 
+    /// Depth of field wherever the camera has a lens, else the shadows of a sphere light.
+    fn applies(s: &ShearedSettings) -> bool {
+        s.is_dof() || s.light_index().is_some()
+    }
+
     fn needs(s: &ShearedSettings) -> OutputSet {
         if s.is_dof() {
             return OutputSet::of(&[Output::Colour, Output::LightField]);

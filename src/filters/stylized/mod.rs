@@ -84,7 +84,7 @@ use std::sync::Arc;
 use anyhow::{Result, bail};
 
 use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
-use super::{Auto, FilterKind, PreparedFilter};
+use super::{Auto, FilterKind, PreparedFilter, Purpose};
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
 use crate::layout::outputs::{BufferId, OutputSet};
@@ -219,6 +219,8 @@ impl FilterKind for StylizedShadows {
     const NAME: &'static str = "stylized-shadows";
     const SUMMARY: &'static str = "art-directed shadows of one sphere light: inflation, \
          softness, brightness, abstraction (DeCoro 2009 ch. 3; on the device)";
+    /// Art direction, not an estimate of the converged image: out of the error studies.
+    const PURPOSE: Purpose = Purpose::Stylize;
 
     fn check(s: &StylizedSettings) -> Result<()> {
         s.validate()
