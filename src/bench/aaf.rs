@@ -1,5 +1,6 @@
 //! `aaf-shadows`: Wang 2013 Fig. 3.6 and its claim ("adaptive AAF at 27 average spp matches
-//! Monte Carlo at 165 spp") on Grids, the scene it was measured on. Not in the default set.
+//! Monte Carlo at 165 spp") on Grids, the scene it was measured on, and on every other scene of
+//! the run with a sphere light (Curved: shadows on a curved receiver). Not in the default set.
 //!
 //! Three curves of error against samples per pixel, each point one render at the study's size
 //! against the 2048-spp reference:
@@ -21,7 +22,7 @@
 //! table gives both counts and the Monte Carlo spp of equal MSE for both. Every row has its
 //! kernel time (render, shadow passes and filter), for the error-against-time figure.
 
-use anyhow::{Result, bail};
+use anyhow::{Context as _, Result, bail};
 
 use super::curves::{loglog_at, loglog_where};
 use super::plot::{Chart, Series, line_chart};
@@ -102,30 +103,57 @@ const COLUMNS: [&str; 10] = [
     "seconds",
 ];
 
-/// `aaf-shadows` (module docs).
+/// `aaf-shadows` (module docs): on every scene of the run with a sphere light (the bundled
+/// Grids and Curved), or Grids when there is none (`--quick` keeps only the Cornell box).
 pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
-    let path = ctx.scene_file("grids")?;
-    if !path.exists() {
-        bail!(
-            "the aaf-shadows study renders {}, which is missing",
-            path.display()
-        );
+    let mut scenes = Vec::new();
+    for path in &ctx.scenes {
+        let study = StudyScene::load(path, &s, STUDY_SEED)?;
+        if !study.info.sphere_lights.is_empty() {
+            scenes.push((path.clone(), study));
+        }
+    }
+    if scenes.is_empty() {
+        let path = ctx.scene_file("grids")?;
+        if !path.exists() {
+            bail!(
+                "the aaf-shadows study renders {}, which is missing",
+                path.display()
+            );
+        }
+        let study = StudyScene::load(&path, &s, STUDY_SEED)?;
+        scenes.push((path, study));
     }
     let mut t = ctx.table("aaf-shadows", &COLUMNS, 4, fresh)?;
     let size = format!("{}x{}", s.width, s.height);
-    let study = StudyScene::load(&path, &s, STUDY_SEED)?;
-    let reference = reference_image(ctx, &path, &s)?;
+    for (path, study) in &scenes {
+        study_scene(ctx, &mut t, path, study, &size)?;
+    }
+    let names: Vec<&str> = scenes.iter().map(|(_, st)| st.name.as_str()).collect();
+    report(ctx, &t, &names, &size)
+}
+
+/// The rows of one scene.
+fn study_scene(
+    ctx: &Context,
+    t: &mut ResultTable,
+    path: &std::path::Path,
+    study: &StudyScene,
+    size: &str,
+) -> Result<()> {
+    let s = sizes(ctx);
+    let reference = reference_image(ctx, path, &s)?;
     let cells = plan(ctx.quick);
     let pb = bar(ctx, cells.len() as u64, "aaf-shadows");
     for (method, setting, cell) in cells {
         let key = vec![
             study.name.clone(),
-            size.clone(),
+            size.to_string(),
             method.to_string(),
             setting.to_string(),
         ];
-        pb.set_message(format!("aaf-shadows: {method} {setting}"));
+        pb.set_message(format!("aaf-shadows: {} {method} {setting}", study.name));
         if t.has(&key) {
             pb.inc(1);
             continue;
@@ -140,7 +168,7 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
                 Cell::Aaf(a) => Configured::typed::<AafShadows>(a, &study.info)?,
                 Cell::Sheared(sh) => Configured::typed::<Sheared>(sh, &study.info)?,
             };
-            let mut r = aaf_renderer(ctx, &study, &s, &c)?;
+            let mut r = aaf_renderer(ctx, study, &s, &c)?;
             r.render_samples(AAF_PATH_SPP)?;
             let frame = r.frame();
             // The sparse + adaptive light samples and the light field's l² of every
@@ -157,7 +185,7 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
             };
             let secs = r.kernel_time_total + filter_time;
             if method == "sheared" && setting == 3 {
-                sheared_steps(ctx, &frame, &s)?;
+                sheared_steps(ctx, &frame, &s, &study.name)?;
             }
             (run.image, AAF_PATH_SPP, light, secs, map)
         };
@@ -174,15 +202,16 @@ pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
-    report(ctx, &t, &study.name, &size)
+    Ok(())
 }
 
-/// sheared-steps.md: the kernel time of each step of the sheared filter (l = 3) on `frame`,
+/// sheared-steps-SCENE.md: the kernel time of each step of the sheared filter (l = 3) on `frame`,
 /// filtered once more by its own kernel, and its memory.
 fn sheared_steps(
     ctx: &Context,
     frame: &crate::render::Frame,
     s: &super::study::Sizes,
+    scene: &str,
 ) -> Result<()> {
     let settings = ShearedSettings::default();
     let info = &frame.info().scene;
@@ -192,7 +221,7 @@ fn sheared_steps(
     let times = k.step_times();
     let total: f64 = times.iter().map(|t| t.as_secs_f64()).sum();
     let mut md = format!(
-        "# Sheared filter: kernel time per step (l = 3, {} x {}, one run)\n\n\
+        "# Sheared filter on {scene}: kernel time per step (l = 3, {} x {}, one run)\n\n\
          | step | ms | share |\n|---|---|---|\n",
         s.width, s.height
     );
@@ -211,7 +240,7 @@ fn sheared_steps(
         settings.memory_bytes(1, 1),
         settings.memory_bytes(s.width, s.height) as f64 / (1u64 << 20) as f64
     ));
-    std::fs::write(ctx.out.join("sheared-steps.md"), md)?;
+    std::fs::write(ctx.out.join(format!("sheared-steps-{scene}.md")), md)?;
     Ok(())
 }
 
@@ -236,7 +265,7 @@ fn sheared_section(t: &ResultTable, at: (&str, &str)) -> String {
     let aaf = curve(t, at, "aaf-adaptive", "light_spp");
     let aaf_time = curve(t, at, "aaf-adaptive", "seconds");
     let mut md = String::from(
-        "\n## Sheared filtering against adaptive AAF at equal quality (Yan et al. 2015)\n\n\
+        "\n### Sheared filtering against adaptive AAF at equal quality (Yan et al. 2015)\n\n\
          | method | l | light spp | RMS | seconds | AAF light spp at equal MSE | sample ratio | \
          AAF seconds at equal MSE | time ratio | AAF RMS at equal light spp / RMS |\n\
          |---|---|---|---|---|---|---|---|---|---|\n",
@@ -285,26 +314,38 @@ fn curve(t: &ResultTable, at: (&str, &str), method: &str, x_column: &str) -> Vec
     v
 }
 
-/// aaf-shadows.md (the table with Monte Carlo's spp at equal MSE) and the two figures.
-fn report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<()> {
+/// aaf-shadows.md (per scene: the table with Monte Carlo's spp at equal MSE, and the sheared
+/// rows against AAF) and each scene's two figures.
+fn report(ctx: &Context, t: &ResultTable, scenes: &[&str], size: &str) -> Result<()> {
     let reference_spp = sizes(ctx).reference_spp;
+    let mut md = format!(
+        "# AAF soft shadows against Monte Carlo (Wang 2013 Fig. 3.6)\n\n\
+         `noisefree bench --study aaf-shadows`: each scene with a sphere light at {}, each \
+         render against the {}-spp reference (MSE in linear RGB). AAF renders take 16 path \
+         samples per pixel for the rest of the image plus the light samples of the shadow \
+         passes; `light_spp` counts the latter (the seed's axis: Σn / N² for the adaptive \
+         rows), `shadow_rays_spp` both. \"MC spp at equal MSE\" is the Monte Carlo spp of \
+         equal MSE (log-log interpolation of the Monte Carlo rows, slope −1 beyond them: \
+         marked *), the ratios it over light spp and over shadow rays spp, and \"MC seconds at \
+         equal MSE\" Monte Carlo's time for that MSE, interpolated the same way. Seconds: \
+         kernel time of the render, the shadow passes and the filter.\n\n",
+        size, reference_spp
+    );
+    for scene in scenes {
+        md.push_str(&scene_report(ctx, t, scene, size)?);
+    }
+    std::fs::write(ctx.out.join("aaf-shadows.md"), md).context("writing aaf-shadows.md")
+}
+
+/// One scene's section of aaf-shadows.md, and its figures.
+fn scene_report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<String> {
     let at = (scene, size);
     let mc = curve(t, at, "mc", "light_spp");
     let mc_time = curve(t, at, "mc", "seconds");
     let mut md = format!(
-        "# AAF soft shadows against Monte Carlo (Wang 2013 Fig. 3.6)\n\n\
-         `noisefree bench --study aaf-shadows`: Grids at {}, each render against the {}-spp \
-         reference (MSE in linear RGB). AAF renders take 16 path samples per pixel for the \
-         rest of the image plus the light samples of the shadow passes; `light_spp` counts \
-         the latter (the seed's axis: Σn / N² for the adaptive rows), `shadow_rays_spp` both. \
-         \"MC spp at equal MSE\" is the Monte Carlo spp of equal MSE (log-log interpolation of \
-         the Monte Carlo rows, slope −1 beyond them: marked *), the ratios it over light spp \
-         and over shadow rays spp, and \"MC seconds at equal MSE\" Monte Carlo's time for that \
-         MSE, interpolated the same way. Seconds: kernel time of the render, the shadow passes \
-         and the filter.\n\n\
+        "## {scene}\n\n\
          | method | setting | light spp | shadow rays spp | RMS | seconds | MC spp at equal MSE | ratio (light) | ratio (rays) | MC seconds at equal MSE |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
-        size, reference_spp
+         |---|---|---|---|---|---|---|---|---|---|\n"
     );
     for r in t
         .records()
@@ -349,7 +390,6 @@ fn report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<()>
          any pixel took).\n"
     ));
     md.push_str(&sheared_section(t, at));
-    std::fs::write(ctx.out.join("aaf-shadows.md"), md)?;
     let rms = |c: Vec<(f64, f64)>| c.into_iter().map(|(x, m)| (x, m.sqrt())).collect();
     let methods = [
         ("mc", "Monte Carlo"),
@@ -388,5 +428,6 @@ fn report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Result<()>
             "kernel seconds (render, shadow passes, filter)",
         ),
         &series("seconds"),
-    )
+    )?;
+    Ok(md)
 }
