@@ -19,7 +19,10 @@
 // edge) times min(1, m / (4K)), m the block's surface pixels.
 //
 // bmfr_residuals, bmfr_select (with `select`): each pixel blended between the fit and its
-// unfiltered light by the error the half buffers estimate (at the end of this file).
+// unfiltered light by the error the half buffers estimate (after bmfr_apply).
+//
+// bmfr_albedo_prefilter (with `albedo_prefilter`): runs first, on a copy of F that every other
+// kernel then reads (at the end of this file).
 //
 // Build options (src/filters/bmfr/device.rs):
 //   BMFR_BLOCK, BMFR_WG, BMFR_GRIDS    block side, work-items per block, shifted grids
@@ -27,6 +30,7 @@
 //   BMFR_NOISE, BMFR_ALBEDO_EPSILON, BMFR_PIVOT_MIN   float literals
 //   BMFR_SELECT_RADIUS                 half width of the selection's window, pixels
 //   BMFR_SELECT_SCALE                  kappa, the trust in the fit (float literal)
+//   BMFR_PREFILTER_K, BMFR_PREFILTER_EPSILON   the albedo prefilter's k and epsilon (literals)
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -35,7 +39,7 @@
 #if !defined(BMFR_BLOCK) || !defined(BMFR_WG) || !defined(BMFR_GRIDS) || !defined(BMFR_DEPTH) \
     || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
     || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
-    || !defined(BMFR_SELECT_SCALE)
+    || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif
 
@@ -387,4 +391,54 @@ __kernel void bmfr_select(__global const FilterVector* fv,
                              f->direct[2] + f->indirect[2]);
     float3 fit = fitted[i].xyz;
     fitted[i] = (float4)(beauty + lambda * (fit - beauty), 0.0f);
+}
+
+// bmfr_albedo_prefilter (with `albedo_prefilter`, src/filters/bmfr/prefilter.rs): F copied to
+// `out` with each surface pixel's mean albedo replaced by its per-pixel non-local mean over
+// the (2 radius + 1)^2 window (Rousselle et al. 2012 eq. 4 at patch size 1: the distance less
+// the noise the two means' variances explain), the variance of a mean being the Welford sum
+// times `factor` (1 / (n - 1)) over spp. Kept pixels neither change nor lend their albedo.
+inline float3 bmfr_albedo_variance(__global const WelfordSums* s, float factor, float spp) {
+    return (float3)(s->albedo[0] * factor / spp, s->albedo[1] * factor / spp,
+                    s->albedo[2] * factor / spp);
+}
+
+__kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
+                                    __global const WelfordSums* sums,
+                                    __global const float4* positions,
+                                    uint width, uint height, float spp, float factor,
+                                    uint radius,
+                                    __global FilterVector* out) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    __global const FilterVector* f = fv + i;
+    out[i] = *f;
+    if (bmfr_kept(f, positions + i, spp)) return;
+    float k2 = BMFR_PREFILTER_K * BMFR_PREFILTER_K;
+    int r = (int)radius;
+    float3 vi = bmfr_albedo_variance(sums + i, factor, spp);
+    float ai[3] = {f->albedo[0], f->albedo[1], f->albedo[2]};
+    float vis[3] = {vi.x, vi.y, vi.z};
+    float sum[3] = {0.0f, 0.0f, 0.0f};
+    float wsum = 0.0f;
+    for (int yy = max(y - r, 0); yy <= min(y + r, (int)height - 1); ++yy) {
+        for (int xx = max(x - r, 0); xx <= min(x + r, (int)width - 1); ++xx) {
+            uint j = (uint)yy * width + (uint)xx;
+            __global const FilterVector* g = fv + j;
+            if (bmfr_kept(g, positions + j, spp)) continue;
+            float3 vj = bmfr_albedo_variance(sums + j, factor, spp);
+            float vjs[3] = {vj.x, vj.y, vj.z};
+            float d2 = 0.0f;
+            for (int c = 0; c < 3; ++c) {
+                float diff = ai[c] - g->albedo[c];
+                d2 += (diff * diff - (vis[c] + fmin(vis[c], vjs[c])))
+                    / (BMFR_PREFILTER_EPSILON + k2 * (vis[c] + vjs[c]));
+            }
+            float wt = exp(-fmax(d2 / 3.0f, 0.0f));
+            for (int c = 0; c < 3; ++c) sum[c] += wt * g->albedo[c];
+            wsum += wt;
+        }
+    }
+    for (int c = 0; c < 3; ++c) out[i].albedo[c] = sum[c] / wsum;
 }

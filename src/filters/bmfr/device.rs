@@ -7,13 +7,14 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
 
+use super::prefilter::{PREFILTER_EPSILON, PREFILTER_K};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
     grid_blocks, grid_offset,
 };
 use crate::filters::{FilterRun, PreparedFilter};
 use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
-use crate::layout::{Float2, Float4};
+use crate::layout::{FilterVector, Float2, Float4};
 use crate::layout::outputs::{BufferId, OutputSet};
 use crate::render::Frame;
 
@@ -24,6 +25,9 @@ pub struct BmfrKernel {
     apply: Kernel,
     /// With `select`: `bmfr_residuals`, then `bmfr_select` (select.rs).
     select: Option<(Kernel, Kernel)>,
+    /// With `albedo_prefilter`: `bmfr_albedo_prefilter` and the copy of F it writes, which
+    /// the other kernels then read (prefilter.rs).
+    prefilter: Option<(Kernel, Buffer<u8>)>,
     needs: OutputSet,
     _weights: Buffer<f32>,
     _info: Buffer<f32>,
@@ -70,6 +74,8 @@ impl BmfrKernel {
             ("BMFR_PIVOT_MIN", format!("{PIVOT_MIN:e}f")),
             ("BMFR_SELECT_RADIUS", s.select_radius.to_string()),
             ("BMFR_SELECT_SCALE", format!("{:e}f", s.select_scale as f32)),
+            ("BMFR_PREFILTER_K", format!("{PREFILTER_K:e}f")),
+            ("BMFR_PREFILTER_EPSILON", format!("{PREFILTER_EPSILON:e}f")),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -154,11 +160,38 @@ impl BmfrKernel {
         } else {
             None
         };
+        let prefilter = if s.prefilters_albedo() {
+            let pixels = width as usize * height as usize;
+            let copy = gpu.zeroed::<u8>(
+                pixels * std::mem::size_of::<FilterVector>(),
+                "bmfr prefiltered F",
+            )?;
+            let kernel = Kernel::builder()
+                .program(&program)
+                .name("bmfr_albedo_prefilter")
+                .queue(gpu.queue.clone())
+                .global_work_size([width as usize, height as usize])
+                .arg_named("fv", None::<&Buffer<u8>>)
+                .arg_named("sums", None::<&Buffer<u8>>)
+                .arg_named("positions", None::<&Buffer<u8>>)
+                .arg(width)
+                .arg(height)
+                .arg_named("spp", 0f32)
+                .arg_named("factor", 0f32)
+                .arg(s.albedo_radius)
+                .arg(&copy)
+                .build()
+                .context("creating the bmfr albedo prefilter kernel")?;
+            Some((kernel, copy))
+        } else {
+            None
+        };
         Ok(BmfrKernel {
             gpu,
             fits,
             apply,
             select,
+            prefilter,
             needs: s.needs(),
             _weights: weights,
             _info: info,
@@ -174,9 +207,21 @@ impl BmfrKernel {
         let start = Instant::now();
         frame.check_size(self.width, self.height, "the bmfr filter")?;
         frame.require(self.needs, "the bmfr filter")?;
-        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
+        let mut fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
         let pos = frame.device(&self.gpu, BufferId::Positions)?;
         let spp = frame.info().spp as f32;
+        let mut events = Vec::with_capacity(self.fits.len() + 4);
+        if let Some((kernel, copy)) = &self.prefilter {
+            kernel.set_arg("fv", fv)?;
+            kernel.set_arg("sums", frame.device(&self.gpu, BufferId::WelfordSums)?)?;
+            kernel.set_arg("positions", pos)?;
+            kernel.set_arg("spp", spp)?;
+            kernel.set_arg("factor", frame.variance_factor())?;
+            // SAFETY: the buffers are sized for the image; the in-order queue runs the fits
+            // on the copy after this launch, and we wait for every event below.
+            events.push(unsafe { enqueue(kernel, "the bmfr albedo prefilter")? });
+            fv = copy;
+        }
         for k in self.fits.iter().chain(std::iter::once(&self.apply)) {
             k.set_arg("fv", fv)?;
             k.set_arg("positions", pos)?;
@@ -190,7 +235,6 @@ impl BmfrKernel {
             blend.set_arg("fv", fv)?;
         }
         let selection = self.select.iter().flat_map(|(r, b)| [r, b]);
-        let mut events = Vec::with_capacity(self.fits.len() + 3);
         for k in self.fits.iter().chain(std::iter::once(&self.apply)).chain(selection) {
             // SAFETY: every buffer outlives its launch (we wait for all of them below) and is
             // sized for the image and the grids the kernels were built for; the in-order queue

@@ -48,8 +48,14 @@
 //! unfiltered light by the fit's error and the light's variance, both estimated over a small
 //! window from the residual and the two half buffers (even and odd samples, NFOR), so that
 //! where the fit is biased the output follows the samples as they converge.
+//!
+//! Albedo prefilter (`albedo_prefilter`, prefilter.rs; on with a thin lens): before the fit,
+//! each pixel's mean albedo is averaged with the neighbours' whose albedo differs by no more
+//! than the two means' noise explains, so that a defocused texture's noisy mean is not
+//! multiplied back into the output unfiltered.
 
 mod device;
+pub mod prefilter;
 mod reference;
 pub mod select;
 
@@ -57,11 +63,12 @@ use std::sync::Arc;
 
 use anyhow::{Result, bail};
 
-use super::{FilterKind, PreparedFilter};
+use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{FrameInfo, SceneInfo};
 pub use device::BmfrKernel;
+pub use prefilter::MAX_ALBEDO_RADIUS;
 pub use reference::reference;
 
 /// Albedo channels are clamped below at this before the light is divided by them (and the same
@@ -110,6 +117,13 @@ crate::filter_settings! {
         pub select_radius: u32 = 2,
         /// κ, the trust in the fit: the blend weight is min(1, κ V / R) (select.rs).
         pub select_scale: f64 = 2.0,
+        /// Filter each pixel's mean albedo by the neighbours whose albedo differs by no more
+        /// than its noise explains, before the fit (prefilter.rs): out of focus each lens
+        /// sample sees another texel. auto: on when the camera has a thin lens.
+        pub albedo_prefilter: Auto<bool> = Auto::Auto,
+        /// Half width of the albedo prefilter's window, pixels (measured at k = 1 on the four
+        /// depth-of-field boxes and outside_dof: 2 best, 1, 3, 5, 7 up to 10 % worse).
+        pub albedo_radius: u32 = 2,
     }
 }
 
@@ -120,7 +134,15 @@ impl BmfrSettings {
         if self.select {
             outputs.push(Output::Halves);
         }
+        if self.prefilters_albedo() {
+            outputs.push(Output::Variance);
+        }
         OutputSet::of(&outputs)
+    }
+
+    /// Whether the albedo prefilter runs (`auto` reads as off until specialised).
+    pub fn prefilters_albedo(&self) -> bool {
+        self.albedo_prefilter.or(false)
     }
 
     /// Number of features K (columns of the fit, the constant included).
@@ -148,6 +170,12 @@ impl BmfrSettings {
             bail!(
                 "the bmfr select_scale must be a number in [1, 100], got {}",
                 self.select_scale
+            );
+        }
+        if self.albedo_radius > MAX_ALBEDO_RADIUS {
+            bail!(
+                "the bmfr albedo_radius must be at most {MAX_ALBEDO_RADIUS} pixels, got {}",
+                self.albedo_radius
             );
         }
         if !(self.noise >= 0.0 && self.noise <= 1.0) {
@@ -204,8 +232,21 @@ impl FilterKind for Bmfr {
         s.validate()
     }
 
-    fn specialise(_s: &mut BmfrSettings, _scene: &SceneInfo) -> Vec<String> {
-        Vec::new()
+    fn specialise(s: &mut BmfrSettings, scene: &SceneInfo) -> Vec<String> {
+        let mut notes = Vec::new();
+        if s.albedo_prefilter.is_auto() {
+            let lens = scene.camera.lens_radius > 0.0;
+            s.albedo_prefilter = Auto::Set(lens);
+            notes.push(format!(
+                "albedo_prefilter = {lens}: {}",
+                if lens {
+                    "a thin lens, so defocused pixels' mean albedo is noisy (prefilter.rs)"
+                } else {
+                    "a pinhole camera, so every pixel's mean albedo is exact after a few samples"
+                }
+            ));
+        }
+        notes
     }
 
     /// Colour, normals and albedos of F, and the mean world positions; with `select`, the

@@ -5,6 +5,7 @@
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
+use super::prefilter::prefilter;
 use super::select;
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
@@ -195,11 +196,27 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     if w == 0 || h == 0 {
         bail!("the image must be at least 1x1 pixels, got {w}x{h}");
     }
-    let fv: &[FilterVector] = frame.filter_vectors()?;
     let pos: &[Float4] = frame.host_slice(BufferId::Positions)?;
+    let spp = frame.info().spp as f32;
+    let prefiltered;
+    let fv: &[FilterVector] = if s.prefilters_albedo() {
+        let sums = frame.host_slice(BufferId::WelfordSums)?;
+        let factor = frame.variance_factor();
+        prefiltered = prefilter(
+            frame.filter_vectors()?,
+            sums,
+            pos,
+            (w, h),
+            spp,
+            factor,
+            s.albedo_radius,
+        );
+        &prefiltered
+    } else {
+        frame.filter_vectors()?
+    };
     let b = s.block_size;
     let k = s.features();
-    let spp = frame.info().spp as f32;
     let stride = blocks_per_grid(w, h, b) as usize;
     // (grid, block) -> fit, for every block of every grid.
     let fits: Vec<Vec<(Vec<f32>, [f32; INFO_FLOATS])>> = (0..s.grids)
