@@ -84,6 +84,8 @@ use std::sync::Arc;
 use anyhow::{Result, bail};
 
 use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
+use crate::layout::outputs::MAX_SHADOW_PLANES;
+use crate::render::LightPlanes;
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
@@ -99,9 +101,12 @@ crate::filter_settings! {
     /// and how the distance and the blur are sampled.
     pub struct StylizedSettings, flags "stylized-" {
         /// The sphere light whose shadows are stylized, counting from 0 in the scene's order;
-        /// auto: the first, or none when the scene has no sphere light (the image passes
-        /// through); -1: none.
+        /// auto: the first `lights` sphere lights (every one by default), or none when the
+        /// scene has no sphere light (the image passes through); -1: none.
         pub light: Auto<i32> = Auto::Auto,
+        /// With light = auto: how many sphere lights are stylized, the scene's first ones
+        /// (0: all of them; at most 8, the shadow output's planes).
+        pub lights: u32 = 0,
         /// Inflation i: the shadow's new boundary is the isocontour D = i of the signed
         /// L8-averaged distance (world units; negative deflates).
         pub inflation: [f32; 3] = [0.0, 0.0, 0.0],
@@ -138,6 +143,13 @@ pub const DISTANCE_SEED: u32 = 0x5717_12ed;
 impl StylizedSettings {
     pub fn validate(&self) -> Result<()> {
         check_light(self.light)?;
+        if self.lights > MAX_SHADOW_PLANES {
+            bail!(
+                "lights: at most {MAX_SHADOW_PLANES} sphere lights are stylized at once (one \
+                 plane of the shadow output each), got {}",
+                self.lights
+            );
+        }
         let k = (self.unshadowed_spp as f64).sqrt().round() as u32;
         if self.unshadowed_spp == 0 || k * k != self.unshadowed_spp || k > 64 {
             bail!(
@@ -193,16 +205,25 @@ impl StylizedSettings {
         }
     }
 
-    /// The sphere light stylized, if any (after specialisation; `auto` counts as the first).
-    pub fn light_index(&self) -> Option<u32> {
-        light_index(self.light)
+    /// The sphere lights stylized: `light` alone when set, else the first `lights` (after
+    /// specialisation `lights` is the scene's count; before it, 0 counts as the first light).
+    pub fn stylized_lights(&self) -> Vec<u32> {
+        match self.light {
+            Auto::Auto => (0..self.lights.max(1)).collect(),
+            Auto::Set(_) => light_index(self.light).into_iter().collect(),
+        }
     }
 
-    /// The shadow output this filter needs: `unshadowed_spp` light samples for r and no
-    /// adaptive pass (the centre ray gives V).
+    /// The shadow output this filter needs: a plane per stylized light, `unshadowed_spp`
+    /// light samples for r and no adaptive pass (the centre ray gives V).
     pub fn sampling(&self) -> ShadowSampling {
+        let lights = self.stylized_lights();
         ShadowSampling {
-            light: self.light_index().unwrap_or(0),
+            lights: if lights.is_empty() {
+                LightPlanes::one(0)
+            } else {
+                LightPlanes::of(&lights)
+            },
             sparse_spp: self.unshadowed_spp,
             max_spp: self.unshadowed_spp,
             fill_radius: 0,
@@ -224,13 +245,30 @@ impl FilterKind for StylizedShadows {
         s.validate()
     }
 
-    /// `light = auto` becomes the first sphere light, or none when the scene has none.
+    /// `light = auto` becomes the scene's first `lights` sphere lights (all by default), or
+    /// none when the scene has none; a set `light` is checked against the scene.
     fn specialise(s: &mut StylizedSettings, scene: &SceneInfo) -> Vec<String> {
-        specialise_light(&mut s.light, scene)
+        let count = scene.sphere_lights.len() as u32;
+        if !s.light.is_auto() {
+            return specialise_light(&mut s.light, scene);
+        }
+        if count == 0 {
+            return specialise_light(&mut s.light, scene);
+        }
+        let n = if s.lights == 0 { count } else { s.lights.min(count) };
+        s.lights = n;
+        vec![format!(
+            "lights = {n}: sphere light(s) 0..{n} of {count} stylized, each with its own \
+             contour, distance and blur"
+        )]
     }
 
     fn needs(s: &StylizedSettings) -> OutputSet {
-        light_needs(s.light)
+        if s.stylized_lights().is_empty() {
+            OutputSet::colour()
+        } else {
+            light_needs(Auto::Set(0))
+        }
     }
 
     fn render_options(s: &StylizedSettings, options: &mut RenderOptions) {
@@ -242,8 +280,10 @@ impl FilterKind for StylizedShadows {
         frame: &FrameInfo,
         gpu: &Arc<Gpu>,
     ) -> Result<Box<dyn PreparedFilter>> {
-        if let Some(l) = s.light_index()
-            && l as usize >= frame.scene.sphere_lights.len()
+        let lights = s.stylized_lights();
+        if let Some(l) = lights
+            .iter()
+            .find(|&&l| l as usize >= frame.scene.sphere_lights.len())
         {
             bail!(
                 "the stylized-shadows filter is set to sphere light {l}, but the scene has {} \
@@ -254,14 +294,15 @@ impl FilterKind for StylizedShadows {
         Ok(Box::new(StylizedKernel::new(
             gpu.clone(),
             s,
-            s.light_index().is_some(),
+            &lights,
             frame.width,
             frame.height,
         )?))
     }
 }
 
-/// What the reference computes, step by step (tests compare each with the kernels').
+/// What the reference computes, step by step, for one stylized light (tests compare each
+/// with the kernels').
 pub struct Stages {
     /// The contour list (two float4s per point).
     pub contour: Vec<crate::layout::Float4>,
@@ -273,57 +314,100 @@ pub struct Stages {
     pub blurred: Vec<f32>,
     /// S per pixel.
     pub matte: Vec<f32>,
+    /// The image after this light's compose (the last light's: the filter's output).
     pub image: RgbImage,
 }
 
-/// The whole filter in plain Rust on `frame` (which holds the shadow output).
+/// The whole filter in plain Rust on `frame` (which holds the shadow output): the stages of
+/// the first stylized light, with the image of them all (see [`reference_lights`]).
 pub fn reference(frame: &Frame, s: &StylizedSettings) -> Result<Stages> {
-    s.validate()?;
-    let (w, h) = (frame.width(), frame.height());
-    let pixels: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
-    let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms)?;
-    let normal_cos = s.normal_cos();
-    let contour = contour::compact(&contour::slots(pixels, w, h, normal_cos, s.surface_gap));
-    let sampling = distance::Sampling::new(
-        (contour.len() / 2) as u32,
-        s.contour_samples,
-        DISTANCE_SEED,
-        normal_cos,
-    );
-    let (dist, occluder) = distance::distances(pixels, &contour, &sampling);
-    let controls = s.controls();
-    let n = s.blur_samples;
-    let mut blurred = dist.clone();
-    for pass in 0..2 {
-        let stencil = blur::stencil(pass * n, n);
-        blurred = blur::pass(
-            pixels,
-            &controls,
-            &occluder,
-            &stencil,
-            &blurred,
-            w,
-            h,
-            normal_cos,
-            s.surface_gap,
+    let controls = vec![s.controls(); s.stylized_lights().len()];
+    let mut all = reference_lights(frame, s, &controls)?;
+    let image = all.last().map(|l| l.image.clone());
+    let mut first = all.swap_remove(0);
+    first.image = image.expect("one light at least");
+    Ok(first)
+}
+
+/// The plane `light` of a per-light buffer of `frame` (src/layout/outputs.rs `Per::Light`).
+pub fn light_plane<T: ocl::OclPrm>(frame: &Frame, id: BufferId, light: u32) -> Result<Vec<T>> {
+    let info = frame.info();
+    let Some(plane) = info.shadow_plane(light) else {
+        bail!(
+            "the frame's shadow output holds sphere light(s) {:?}, not {light}",
+            info.shadow_lights
         );
+    };
+    let planes = info.shadow_lights.len();
+    let all: &[T] = frame.host_slice(id)?;
+    Ok(all.iter().skip(plane).step_by(planes).copied().collect())
+}
+
+/// Every stylized light of `s` in plain Rust, light k with `controls[k]`: each light's stages,
+/// the image after each light's compose (eq. 3.1: F − Σ_l direct_l + Σ_l r_l·S_l, a light at a
+/// time, as the kernels compose). Without a light: one stage set whose image is F.
+pub fn reference_lights(
+    frame: &Frame,
+    s: &StylizedSettings,
+    controls: &[Controls],
+) -> Result<Vec<Stages>> {
+    s.validate()?;
+    let lights = s.stylized_lights();
+    if controls.len() != lights.len() {
+        bail!("{} controls for {} stylized lights", controls.len(), lights.len());
     }
-    let (matte, image) = transfer::compose(
-        frame.filter_vectors()?,
-        terms,
-        pixels,
-        &controls,
-        &occluder,
-        &blurred,
-        w,
-        h,
-    );
-    Ok(Stages {
-        contour,
-        distance: dist,
-        occluder,
-        blurred,
-        matte,
-        image,
-    })
+    let (w, h) = (frame.width(), frame.height());
+    let mut image = frame.beauty()?;
+    if lights.is_empty() {
+        return Ok(vec![Stages {
+            contour: Vec::new(),
+            distance: Vec::new(),
+            occluder: Vec::new(),
+            blurred: Vec::new(),
+            matte: Vec::new(),
+            image,
+        }]);
+    }
+    let mut out = Vec::new();
+    for (&light, controls) in lights.iter().zip(controls) {
+        let pixels: Vec<ShadowPixel> = light_plane(frame, BufferId::ShadowPixels, light)?;
+        let terms: Vec<ShadowTerms> = light_plane(frame, BufferId::ShadowTerms, light)?;
+        let normal_cos = s.normal_cos();
+        let contour = contour::compact(&contour::slots(&pixels, w, h, normal_cos, s.surface_gap));
+        let sampling = distance::Sampling::new(
+            (contour.len() / 2) as u32,
+            s.contour_samples,
+            DISTANCE_SEED,
+            normal_cos,
+        );
+        let (dist, occluder) = distance::distances(&pixels, &contour, &sampling);
+        let n = s.blur_samples;
+        let mut blurred = dist.clone();
+        for pass in 0..2 {
+            let stencil = blur::stencil(pass * n, n);
+            blurred = blur::pass(
+                &pixels,
+                controls,
+                &occluder,
+                &stencil,
+                &blurred,
+                w,
+                h,
+                normal_cos,
+                s.surface_gap,
+            );
+        }
+        let (matte, next) =
+            transfer::compose(&image, &terms, &pixels, controls, &occluder, &blurred);
+        image = next;
+        out.push(Stages {
+            contour,
+            distance: dist,
+            occluder,
+            blurred,
+            matte,
+            image: image.clone(),
+        });
+    }
+    Ok(out)
 }
