@@ -49,7 +49,7 @@ fn frame(lights: &[u32]) -> Frame {
 /// Both lights stylized (light = auto, specialised to the scene's two sphere lights).
 fn both() -> StylizedSettings {
     StylizedSettings {
-        lights: 2,
+        light_count: 2,
         contour_samples: 64,
         blur_samples: 32,
         ..Default::default()
@@ -290,7 +290,7 @@ fn auto_stylizes_every_sphere_light_and_the_cap_is_an_error() {
     );
     assert!(e.contains("1 to 8") && e.contains("fewer lights"), "{e}");
     let e = StylizedSettings {
-        lights: 9,
+        light_count: 9,
         ..Default::default()
     }
     .validate()
@@ -374,4 +374,71 @@ fn the_aov_file_and_merged_sample_ranges_hold_every_plane() {
     // compose subtracts two lights' terms from F, so the cancellation is twice aaf-shadows'
     // (tests/partial.rs bounds its one light at 1e-5); bound 3e-5.
     assert!(d <= 3e-5, "{d:e}");
+}
+
+#[test]
+fn per_light_tables_override_the_controls_of_their_light() {
+    // As a scene file writes them: the filter's controls for every light, light 1's own
+    // softness and abstraction.
+    let table: toml::Table = toml::from_str(
+        "inflation = [0.05, 0.0, 0.0]\nlight_count = 2\ncontour_samples = 64\n\
+         blur_samples = 32\n[lights.1]\nsoftness = [0.3, 0.0, 0.0]\n\
+         abstraction = [3.0, 0.0, 0.0]\n",
+    )
+    .unwrap();
+    let s: StylizedSettings = noisefree::filters::settings::from_table(&table).unwrap();
+    s.validate().unwrap();
+    let shared = s.controls();
+    let own = s.controls_of(1);
+    assert_eq!(s.controls_of(0), shared);
+    assert_eq!(own.inflation, shared.inflation);
+    assert_eq!(own.softness, [0.3, 0.0, 0.0]);
+    assert_eq!(own.abstraction, [3.0, 0.0, 0.0]);
+    let frame = frame(&[0, 1]);
+    let cpu = reference_lights(&frame, &s, &[shared, own]).unwrap();
+    let mut k = StylizedKernel::new(gpu(), &s, &s.stylized_lights(), W, H).unwrap();
+    let image = k.filter(&frame).unwrap().image;
+    assert_eq!(bits(&image), bits(&cpu[1].image), "device and reference");
+    // Light 0 has the shared controls: its matte is that of the settings without the table.
+    let plain = StylizedSettings {
+        lights: Default::default(),
+        ..s.clone()
+    };
+    let mut k0 = StylizedKernel::new(gpu(), &plain, &[0, 1], W, H).unwrap();
+    let other = k0.filter(&frame).unwrap().image;
+    assert_eq!(
+        k.light_stages(0).unwrap().matte,
+        k0.light_stages(0).unwrap().matte
+    );
+    assert_ne!(
+        k.light_stages(1).unwrap().matte,
+        k0.light_stages(1).unwrap().matte
+    );
+    assert_ne!(bits(&image), bits(&other));
+
+    // stylize = false leaves a light's shadow as rendered: light 1 alone is stylized.
+    let table: toml::Table = toml::from_str("[lights.0]\nstylize = false\n").unwrap();
+    let mut s: StylizedSettings = noisefree::filters::settings::from_table(&table).unwrap();
+    s.light_count = 2;
+    assert_eq!(s.stylized_lights(), vec![1]);
+    assert_eq!(s.sampling().lights, LightPlanes::one(1));
+    // A table named by anything but a light number is refused, naming it.
+    let table: toml::Table = toml::from_str("[lights.key]\nsoftness = [1.0, 0.0, 0.0]\n").unwrap();
+    let s: StylizedSettings = noisefree::filters::settings::from_table(&table).unwrap();
+    let e = format!("{:#}", s.validate().err().expect("lights.key"));
+    assert!(e.contains("lights.key") && e.contains("number"), "{e}");
+    let table: toml::Table = toml::from_str("[lights.1]\nsoftnes = [1.0, 0.0, 0.0]\n").unwrap();
+    let e = noisefree::filters::settings::from_table::<StylizedSettings>(&table)
+        .err()
+        .expect("unknown key");
+    assert!(format!("{e:#}").contains("softnes"), "{e:#}");
+    // On the command line: an inline table.
+    let v = noisefree::filters::settings::parse_flag_value(
+        "{1 = {softness = [0.4, 0, 0]}}",
+        &toml::Value::Table(Default::default()),
+    );
+    let mut t = toml::Table::new();
+    t.insert("lights".into(), v);
+    let s: StylizedSettings = noisefree::filters::settings::from_table(&t).unwrap();
+    assert_eq!(s.controls_of(1).softness, [0.4, 0.0, 0.0]);
 }

@@ -385,9 +385,10 @@ impl Passes {
     fn new(gpu: &Gpu, s: &StylizedSettings, light: u32, width: u32, height: u32) -> Result<Passes> {
         let n = width as usize * height as usize;
         let b = s.blur_samples;
+        let own = s.controls_of(light);
         let controls = gpu.zeroed::<f32>(LANES, "stylized-shadow controls")?;
         controls
-            .write(&s.controls().lanes()[..])
+            .write(&own.lanes()[..])
             .enq()
             .context("writing the stylized-shadow controls")?;
         Ok(Passes {
@@ -406,7 +407,7 @@ impl Passes {
                 gpu.upload(&blur::stencil(b, b))?,
             ],
             controls,
-            controls_now: s.controls(),
+            controls_now: own,
             matte: gpu.zeroed::<f32>(n, "stylized matte")?,
             blur_stale: true,
         })

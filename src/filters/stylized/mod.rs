@@ -77,6 +77,7 @@ pub mod blur;
 pub mod contour;
 mod device;
 pub mod distance;
+pub mod lights;
 pub mod transfer;
 
 use std::sync::Arc;
@@ -93,6 +94,7 @@ use crate::layout::outputs::{BufferId, OutputSet};
 use crate::layout::{ShadowPixel, ShadowTerms};
 use crate::render::{Frame, FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::{DeviceStages, StylizedKernel};
+pub use lights::{LightControls, LightTable};
 pub use transfer::Controls;
 
 crate::filter_settings! {
@@ -101,12 +103,17 @@ crate::filter_settings! {
     /// and how the distance and the blur are sampled.
     pub struct StylizedSettings, flags "stylized-" {
         /// The sphere light whose shadows are stylized, counting from 0 in the scene's order;
-        /// auto: the first `lights` sphere lights (every one by default), or none when the
-        /// scene has no sphere light (the image passes through); -1: none.
+        /// auto: every sphere light (the first `light_count`), or none when the scene has no
+        /// sphere light (the image passes through); -1: none.
         pub light: Auto<i32> = Auto::Auto,
         /// With light = auto: how many sphere lights are stylized, the scene's first ones
         /// (0: all of them; at most 8, the shadow output's planes).
-        pub lights: u32 = 0,
+        pub light_count: u32 = 0,
+        /// Per-light tables overriding the four controls for one light, or leaving its shadow
+        /// as rendered (`[filter.stylized-shadows.lights.1]` with `inflation = [...]`,
+        /// `softness`, `brightness`, `abstraction` or `stylize = false`); the controls above
+        /// are every light's default.
+        pub lights: LightTable = LightTable::new(),
         /// Inflation i: the shadow's new boundary is the isocontour D = i of the signed
         /// L8-averaged distance (world units; negative deflates).
         pub inflation: [f32; 3] = [0.0, 0.0, 0.0],
@@ -143,13 +150,14 @@ pub const DISTANCE_SEED: u32 = 0x5717_12ed;
 impl StylizedSettings {
     pub fn validate(&self) -> Result<()> {
         check_light(self.light)?;
-        if self.lights > MAX_SHADOW_PLANES {
+        if self.light_count > MAX_SHADOW_PLANES {
             bail!(
-                "lights: at most {MAX_SHADOW_PLANES} sphere lights are stylized at once (one \
-                 plane of the shadow output each), got {}",
-                self.lights
+                "light_count: at most {MAX_SHADOW_PLANES} sphere lights are stylized at once \
+                 (one plane of the shadow output each), got {}",
+                self.light_count
             );
         }
+        lights::check(&self.lights)?;
         let k = (self.unshadowed_spp as f64).sqrt().round() as u32;
         if self.unshadowed_spp == 0 || k * k != self.unshadowed_spp || k > 64 {
             bail!(
@@ -166,15 +174,21 @@ impl StylizedSettings {
                 bail!("{name} must be in 1..={MAX_SAMPLES}, got {v}");
             }
         }
-        let c = self.controls();
-        for (q, name) in [
-            (c.inflation, "inflation"),
-            (c.softness, "softness"),
-            (c.brightness, "brightness"),
-            (c.abstraction, "abstraction"),
-        ] {
-            if q.iter().any(|v| !v.is_finite()) {
-                bail!("{name} takes three finite coefficients [c0, c1, c2], got {q:?}");
+        let every = std::iter::once((String::new(), self.controls())).chain(
+            self.lights
+                .iter()
+                .map(|(k, e)| (format!("lights.{k}."), e.over(&self.controls()))),
+        );
+        for (at, c) in every {
+            for (q, name) in [
+                (c.inflation, "inflation"),
+                (c.softness, "softness"),
+                (c.brightness, "brightness"),
+                (c.abstraction, "abstraction"),
+            ] {
+                if q.iter().any(|v| !v.is_finite()) {
+                    bail!("{at}{name} takes three finite coefficients [c0, c1, c2], got {q:?}");
+                }
             }
         }
         if !(self.normal_angle >= 0.0) || !(self.surface_gap > 0.0) {
@@ -205,13 +219,22 @@ impl StylizedSettings {
         }
     }
 
-    /// The sphere lights stylized: `light` alone when set, else the first `lights` (after
-    /// specialisation `lights` is the scene's count; before it, 0 counts as the first light).
+    /// The controls of sphere light `l`: the filter's, with its table's overrides.
+    pub fn controls_of(&self, l: u32) -> Controls {
+        lights::controls_of(&self.lights, &self.controls(), l)
+    }
+
+    /// The sphere lights stylized: `light` alone when set, else the first `light_count`
+    /// (after specialisation the scene's count; before it, 0 counts as the first light);
+    /// less those whose table says `stylize = false`.
     pub fn stylized_lights(&self) -> Vec<u32> {
-        match self.light {
-            Auto::Auto => (0..self.lights.max(1)).collect(),
+        let set: Vec<u32> = match self.light {
+            Auto::Auto => (0..self.light_count.max(1)).collect(),
             Auto::Set(_) => light_index(self.light).into_iter().collect(),
-        }
+        };
+        set.into_iter()
+            .filter(|&l| lights::stylized(&self.lights, l))
+            .collect()
     }
 
     /// The shadow output this filter needs: a plane per stylized light, `unshadowed_spp`
@@ -255,11 +278,15 @@ impl FilterKind for StylizedShadows {
         if count == 0 {
             return specialise_light(&mut s.light, scene);
         }
-        let n = if s.lights == 0 { count } else { s.lights.min(count) };
-        s.lights = n;
+        let n = if s.light_count == 0 {
+            count
+        } else {
+            s.light_count.min(count)
+        };
+        s.light_count = n;
         vec![format!(
-            "lights = {n}: sphere light(s) 0..{n} of {count} stylized, each with its own \
-             contour, distance and blur"
+            "light_count = {n}: sphere light(s) 0..{n} of {count} stylized (less any with \
+             stylize = false), each with its own contour, distance and blur"
         )]
     }
 
@@ -321,7 +348,11 @@ pub struct Stages {
 /// The whole filter in plain Rust on `frame` (which holds the shadow output): the stages of
 /// the first stylized light, with the image of them all (see [`reference_lights`]).
 pub fn reference(frame: &Frame, s: &StylizedSettings) -> Result<Stages> {
-    let controls = vec![s.controls(); s.stylized_lights().len()];
+    let controls: Vec<Controls> = s
+        .stylized_lights()
+        .iter()
+        .map(|&l| s.controls_of(l))
+        .collect();
     let mut all = reference_lights(frame, s, &controls)?;
     let image = all.last().map(|l| l.image.clone());
     let mut first = all.swap_remove(0);
