@@ -119,38 +119,42 @@ fn identity_controls_give_f_minus_every_direct_plus_r_v() {
     let frame = frame(&[0, 1]);
     let (image, _) = device(&frame, &s);
     let fv = frame.filter_vectors().unwrap();
-    let mut changed = 0;
+    let planes: Vec<(Vec<ShadowPixel>, Vec<ShadowTerms>)> = [0u32, 1]
+        .iter()
+        .map(|&l| {
+            (
+                light_plane(&frame, BufferId::ShadowPixels, l).unwrap(),
+                light_plane(&frame, BufferId::ShadowTerms, l).unwrap(),
+            )
+        })
+        .collect();
+    let (mut changed, mut worst_err) = (0, 0f32);
     for k in 0..fv.len() {
         let mut want: [f32; 3] = std::array::from_fn(|c| fv[k].direct[c] + fv[k].indirect[c]);
         let beauty = want;
-        for l in [0u32, 1] {
-            let p: Vec<ShadowPixel> = light_plane(&frame, BufferId::ShadowPixels, l).unwrap();
-            let t: Vec<ShadowTerms> = light_plane(&frame, BufferId::ShadowTerms, l).unwrap();
+        for (p, t) in &planes {
             let (p, t) = (&p[k], &t[k]);
             if p.weight > 0.0 {
-                for c in 0..3 {
-                    want[c] =
-                        want[c] - t.direct[c] + p.unshadowed[c] / p.samples * p.centre_visible;
+                for (c, w) in want.iter_mut().enumerate() {
+                    *w = *w - t.direct[c] + p.unshadowed[c] / p.samples * p.centre_visible;
                 }
             }
         }
         for c in 0..3 {
-            // Measured: equal to the float (the kernel and this sum round alike); 1e-6 of
-            // the value for another driver.
-            assert!(
-                (image.pixels[k][c] - want[c]).abs() <= 1e-6 * want[c].abs().max(1.0),
-                "pixel {k} channel {c}: {} against {}",
-                image.pixels[k][c],
-                want[c]
-            );
+            worst_err =
+                worst_err.max((image.pixels[k][c] - want[c]).abs() / want[c].abs().max(1.0));
         }
         changed += (want != beauty) as usize;
     }
     eprintln!(
-        "{changed} of {} pixels changed by the two lights' hard shadows",
+        "{changed} of {} pixels changed by the two lights' hard shadows; worst error \
+         {worst_err:e}",
         fv.len()
     );
     assert!(changed > fv.len() / 4);
+    // The kernel composes in this order, a light at a time: measured 0 on PoCL (the same
+    // floats); 1e-6 of the value for another driver's rounding.
+    assert!(worst_err <= 1e-6, "{worst_err:e}");
 }
 
 fn styled_for(l: u32) -> Controls {
@@ -221,7 +225,8 @@ fn an_edit_of_light_1_changes_the_image_by_its_own_term_alone() {
             };
             let got = after.pixels[k][c] - before.pixels[k][c];
             // The compose adds light 1's term last, so the difference is r_1·(S_1′ − S_1) up
-            // to the rounding of the sums (measured below 2e-7 of the pixel; bound 1e-6).
+            // to the rounding of the sums (measured 1.4e-8 on PoCL, relative to max(|v|, 1);
+            // bound 2.4e-7, two float steps at 1).
             let err = (got - want).abs()
                 / before.pixels[k][c]
                     .abs()
@@ -232,7 +237,7 @@ fn an_edit_of_light_1_changes_the_image_by_its_own_term_alone() {
         }
     }
     eprintln!("{moved} channel values moved by light 1's edit; worst error {worst_err:e}");
-    assert!(worst_err <= 1e-6, "{worst_err:e}");
+    assert!(worst_err <= 2.4e-7, "{worst_err:e}");
     assert!(moved > 100);
 }
 
@@ -255,8 +260,8 @@ fn one_light_stylized_reads_its_plane_and_gives_the_one_light_bytes() {
     let e = StylizedKernel::new(gpu(), &s, &[1], W, H)
         .unwrap()
         .filter(&frame(&[0]))
-        .err()
-        .expect("no plane for light 1");
+        .map(|_| ())
+        .expect_err("no plane for light 1");
     let e = format!("{e:#}");
     assert!(e.contains("sphere light 1") && e.contains("[0]"), "{e}");
 }
@@ -294,8 +299,7 @@ fn auto_stylizes_every_sphere_light_and_the_cap_is_an_error() {
         ..Default::default()
     }
     .validate()
-    .err()
-    .expect("lights = 9");
+    .expect_err("lights = 9");
     assert!(format!("{e:#}").contains("at most 8"), "{e:#}");
 }
 
@@ -425,12 +429,11 @@ fn per_light_tables_override_the_controls_of_their_light() {
     // A table named by anything but a light number is refused, naming it.
     let table: toml::Table = toml::from_str("[lights.key]\nsoftness = [1.0, 0.0, 0.0]\n").unwrap();
     let s: StylizedSettings = noisefree::filters::settings::from_table(&table).unwrap();
-    let e = format!("{:#}", s.validate().err().expect("lights.key"));
+    let e = format!("{:#}", s.validate().expect_err("lights.key"));
     assert!(e.contains("lights.key") && e.contains("number"), "{e}");
     let table: toml::Table = toml::from_str("[lights.1]\nsoftnes = [1.0, 0.0, 0.0]\n").unwrap();
     let e = noisefree::filters::settings::from_table::<StylizedSettings>(&table)
-        .err()
-        .expect("unknown key");
+        .expect_err("unknown key");
     assert!(format!("{e:#}").contains("softnes"), "{e:#}");
     // On the command line: an inline table.
     let v = noisefree::filters::settings::parse_flag_value(
@@ -441,4 +444,26 @@ fn per_light_tables_override_the_controls_of_their_light() {
     t.insert("lights".into(), v);
     let s: StylizedSettings = noisefree::filters::settings::from_table(&t).unwrap();
     assert_eq!(s.controls_of(1).softness, [0.4, 0.0, 0.0]);
+}
+
+#[test]
+fn aaf_shadows_reads_the_plane_of_its_light() {
+    // A frame of both planes (a render for the stylized filter, or its AOV file) filtered by
+    // aaf-shadows for light 1: the bytes of the render of light 1 alone. F and plane 1 are
+    // the same bytes in both (each_plane_holds_the_bytes_of_a_one_light_render); the sparse
+    // sampling of aaf differs from the stylized filter's, so both frames use aaf's.
+    let aaf = noisefree::filters::aaf_shadows::AafShadowSettings {
+        light: Auto::Set(1),
+        ..Default::default()
+    };
+    let planes = |lights: &[u32]| ShadowSampling {
+        lights: LightPlanes::of(lights),
+        ..aaf.sampling()
+    };
+    let two = shadow_renderer(&scene(), W, H, 4, 7, planes(&[0, 1])).frame();
+    let one = shadow_renderer(&scene(), W, H, 4, 7, planes(&[1])).frame();
+    let a = common::aaf::aaf_filtered(&two, &aaf);
+    let b = common::aaf::aaf_filtered(&one, &aaf);
+    assert_eq!(bits(&a), bits(&b));
+    assert_ne!(bits(&a), bits(&one.beauty().unwrap()));
 }

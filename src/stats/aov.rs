@@ -339,8 +339,12 @@ pub fn aov_pictures(frame: &Frame, exposure: f32) -> Result<Vec<(&'static str, V
 
 /// AAF's shadow output as pictures: `shadow_spp`, the light samples per pixel (the spp map,
 /// colour-mapped from 0 to the most any pixel took), and `shadow_visibility`, the noisy
-/// visibility h_n (grey; black where no receiver). The frame must hold the shadow output.
+/// visibility h_n (grey; black where no receiver), of the first light plane's light. The frame
+/// must hold the shadow output.
 pub fn shadow_pictures(frame: &Frame) -> Result<[(&'static str, Vec<u8>); 2]> {
+    let first = frame.info().shadow_lights.first().copied().unwrap_or(0);
+    let own = frame.light_plane(first, "the shadow pictures")?;
+    let frame = own.as_ref().unwrap_or(frame);
     let px: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
     let most = px.iter().map(|p| p.samples).fold(0.0f32, f32::max).max(1.0);
     let spp: Vec<u8> = px

@@ -106,7 +106,20 @@ impl ShearedKernel {
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
         let own = match self.light_index {
-            Some(l) if self.passes.is_some() => frame.light_plane(l, "the sheared filter")?,
+            Some(l) if self.passes.is_some() => {
+                // The light field is sampled for the first plane's light only
+                // (kernels/render/light_field.cl).
+                if let Some(&first) = frame.info().shadow_lights.first()
+                    && first != l
+                {
+                    bail!(
+                        "the sheared filter reads the light field of sphere light {l}, but \
+                         the frame's is of sphere light {first} (its first shadow plane): \
+                         render it for the sheared filter"
+                    );
+                }
+                frame.light_plane(l, "the sheared filter")?
+            }
             _ => None,
         };
         let frame = own.as_ref().unwrap_or(frame);

@@ -19,16 +19,17 @@
 //! its plain Rust reference and says what the seed leaves open and what is done. Steps 1-2
 //! depend on the render alone, step 3 on α, step 4 on i, s, b: [`StylizedKernel`] runs them
 //! separately, so a change of i, s or b re-runs only the compose, a change of α the blur and
-//! the compose (the thesis's "> 100 fps" and "> 50 fps" edits, §3.3.3 "Sampling").
+//! the compose (the thesis's "> 100 fps" and "> 50 fps" edits, §3.3.3 "Sampling"). Several
+//! lights: see "Several lights" below.
 //!
 //! Adaptations to a path tracer (digest §1.4):
 //! - **Binary V** from one ray to the sphere light's centre: the port's lights are spheres
 //!   (soft shadows), the thesis's input is a hard matte; stylizing soft visibility is its
 //!   future work (§3.4).
-//! - **One light per render**, `light` (auto: the first sphere light), like aaf-shadows: the
-//!   shadow output holds one light's terms. The other lights' shadows stay as rendered. The
-//!   seed stylizes every light (eq. 3.1: Σ_l, S_l in place of V_l); "Several lights" below is
-//!   the design for that, not built yet.
+//! - **Sphere lights only**: the lights with a centre and a shadow ray to it. `light = auto`
+//!   stylizes every sphere light (at most 8, the shadow output's planes; `light_count` takes
+//!   the first n), `light = n` light n alone; other lights' shadows (triangle lights, the
+//!   environment, lights left out) stay as rendered.
 //! - **b applies to the direct light of the light only**: the path tracer's indirect light is
 //!   kept, so b = 0 (the default) is the physical shadow and b adds "ambient" on top (digest
 //!   §1.4: b would otherwise double-count indirect light).
@@ -44,34 +45,40 @@
 //!   filter has no bounded reach ([`PreparedFilter::reach`] is None) and runs on the merged
 //!   film when a frame is split across devices (without a light it passes bands through).
 //!
-//! # Several lights (design, not built)
+//! # Several lights (eq. 3.1)
 //!
-//! Eq. 3.1 sums over the lights, each with its own S_l. What one light per render lacks, and
-//! how each piece would grow (issue 17, §2):
-//! - **The shadow output per light.** `ShadowTerms` (the light's direct term that the path
+//! Eq. 3.1 sums over the lights, each with its own S_l (issue 17, §2). What is built:
+//! - **The shadow output per light.** `ShadowTerms` (a light's direct term that the path
 //!   tracer put into F) and `ShadowPixel` (V from the centre ray, r, d(x), position, normal)
-//!   hold one light, chosen by `ShadowSampling::light`. They would become planes of
-//!   `pixels × L` elements for the scene's L sphere lights (src/layout/outputs.rs sizes them as
-//!   it sizes the sample vectors by `sample_capacity`; the AOV channels get the light's number,
-//!   `shadow.l1.direct.R`; merging partial renders merges each plane as it merges the one).
-//! - **The megakernel** (kernels/render/pathtrace.cl) folds `ps.shadow_direct` only when the
-//!   next-event estimate chose `shadow_light` (or the first bounce hit it): with planes it adds
-//!   to `shadow_direct[chosen]`, a private array of L float3 (L a build define, capped; the
-//!   film's `PixelStats.shadow` grows with it). Next-event estimation already picks one light
-//!   per vertex, so the per-light terms are disjoint parts of F and can all be subtracted.
-//! - **The shadow passes** (src/render/shadows) run once per light before the first samples,
-//!   writing plane l; their cost is L times today's, paid once per render. aaf-shadows and
-//!   sheared filtering, which read the same output, read the plane of their `light`.
-//! - **The filter** keeps one `device.rs` pipeline per light (contour, D, blur, each light's
-//!   V_l has its own contour) and one compose over all of them:
-//!   F − Σ_l direct_l + Σ_l r_l·S_l. A change of light l's i, s or b re-runs only the
-//!   compose; of its α, its blur and the compose.
-//! - **Settings**: today's four quadratics are the default of every light, with a table per
-//!   light overriding them (`[filter.stylized-shadows.lights.1] inflation = ...`); `light`
-//!   becomes the set of lights stylized (auto: all sphere lights).
-//! - **Tests**: with two lights, changing light 1's controls changes the image by exactly
-//!   r_1·(S_1′ − S_1) and leaves light 0's part alone; identity controls give
-//!   F − Σ direct_l + Σ r_l·V_l, and with one light stylized the bytes of today's filter.
+//!   are per-light planes, `pixels × L` elements, pixel-major (src/layout/outputs.rs
+//!   `Per::Light`: pixel p's plane l at p·L + l, so a row of pixels stays contiguous and the
+//!   device split and the merge work on them as on per-pixel buffers). The planes are a set
+//!   of the scene's sphere lights (`render::LightPlanes`, `ShadowSampling::lights`), only
+//!   those a filter asks for: aaf-shadows and sheared ask for their `light` (one plane, the
+//!   bytes of before), this filter for the lights it stylizes. The frame records the light of
+//!   each plane (`FrameInfo::shadow_lights`), the AOV channels carry it
+//!   (`shadow.l1.direct.R`), partial files list it; merging merges every plane.
+//! - **The megakernel** (kernels/render/pathtrace.cl) keeps a private float3 per plane
+//!   (`SHADOW_PLANES`, a build define, at most 8: beyond that `ShadowSampling::check` refuses
+//!   with the cap) and folds a next-event estimate (or a first-bounce hit of the light) into
+//!   the plane of the light that was chosen. Next-event estimation picks one light per vertex,
+//!   so the planes' terms are disjoint parts of F and can all be subtracted.
+//! - **The shadow passes** (src/render/shadows) run once per plane before the first samples,
+//!   each writing its plane with the same random numbers as a render of that light alone:
+//!   plane l is byte for byte the one-light output (tests/stylized_lights.rs). Their cost is
+//!   L times one light's, paid once per render.
+//! - **The filter** keeps one pipeline per light (contour, D, blur, controls, matte:
+//!   `device.rs`), each reading its light's plane, and composes them a light at a time into
+//!   F − Σ_l direct_l + Σ_l r_l·S_l (`st_compose` starts from F, then from the image so far).
+//!   [`StylizedKernel::set_light_controls`] changes one light's controls: i, s or b re-run
+//!   only the compose, α that light's blur and the compose. In place of the design's single
+//!   compose over all lights, the per-light launches keep one kernel and one reference for
+//!   any number of lights, and with one light are the one-light filter's kernel (the same
+//!   bytes: results/stylized/contact-sheet.png is reproduced exactly).
+//! - **Settings**: the four quadratics are every light's default, `[...lights.N]` tables
+//!   ([`lights`]) override them for light N or leave its shadow as rendered
+//!   (`stylize = false`); `light` chooses one light or, auto, every sphere light (the first
+//!   `light_count`).
 
 pub mod blur;
 pub mod contour;

@@ -469,7 +469,7 @@ fn check_header(h: &Header) -> Result<RenderIdentity> {
             outputs.closed().names().join(", ")
         );
     }
-    if outputs.contains(Output::Shadows) != !h.shadow_lights.is_empty() {
+    if outputs.contains(Output::Shadows) == h.shadow_lights.is_empty() {
         bail!(
             "the header's shadow output has {} light plane(s) (shadow_lights = {:?}): a file \
              with the shadow output names the light of each plane (files written before the \
