@@ -107,7 +107,8 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
     // The header first: a damaged one can claim an image too large to allocate.
     let per_pixel: usize = crate::layout::outputs::BUFFERS
         .iter()
-        .filter(|b| b.per == crate::layout::outputs::Per::Pixel)
+        // One plane of the per-light buffers: the check bounds the image, not every plane.
+        .filter(|b| b.per != Per::Sample)
         .map(|b| b.element_bytes)
         .sum();
     crate::imaging::check_exr_memory(path, per_pixel as u64).map_err(|e| fail(&e))?;
