@@ -467,3 +467,51 @@ fn aaf_shadows_reads_the_plane_of_its_light() {
     assert_eq!(bits(&a), bits(&b));
     assert_ne!(bits(&a), bits(&one.beauty().unwrap()));
 }
+
+#[test]
+fn sheared_reads_its_plane_and_refuses_another_lights_light_field() {
+    use noisefree::filters::sheared::{Sheared, ShearedSettings};
+    // The light field is sampled for the first plane's light: sheared filtering of light 0 on
+    // a render of planes {0, 1} gives the bytes of a render of light 0 alone; of light 1 it
+    // is refused, naming the light whose field the frame holds.
+    let scene = scene();
+    let render = |lights: &[u32], s: &ShearedSettings| {
+        let mut o = options(&scene, W, H, 5);
+        o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
+        o.shadows = ShadowSampling {
+            lights: LightPlanes::of(lights),
+            ..s.sampling()
+        };
+        let mut r = Renderer::new(gpu(), &scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
+        r.render_samples(2).unwrap();
+        r.frame()
+    };
+    let filter = |frame: &Frame, s: &ShearedSettings| {
+        Configured::typed::<Sheared>(s.clone(), &frame.info().scene)
+            .unwrap()
+            .prepare(frame.info(), &gpu())
+            .unwrap()
+            .run(frame)
+            .map(|r| r.image)
+    };
+    let s0 = ShearedSettings {
+        light: Auto::Set(0),
+        ..Default::default()
+    };
+    let two = render(&[0, 1], &s0);
+    let a = filter(&two, &s0).unwrap();
+    let b = filter(&render(&[0], &s0), &s0).unwrap();
+    assert_eq!(bits(&a), bits(&b));
+    let s1 = ShearedSettings {
+        light: Auto::Set(1),
+        ..Default::default()
+    };
+    let e = format!(
+        "{:#}",
+        filter(&two, &s1).expect_err("light 1's field is not there")
+    );
+    assert!(
+        e.contains("sphere light 1") && e.contains("sphere light 0"),
+        "{e}"
+    );
+}
