@@ -140,9 +140,8 @@ fn identity_controls_give_f_minus_every_direct_plus_r_v() {
                 }
             }
         }
-        for c in 0..3 {
-            worst_err =
-                worst_err.max((image.pixels[k][c] - want[c]).abs() / want[c].abs().max(1.0));
+        for (got, w) in image.pixels[k].iter().zip(&want) {
+            worst_err = worst_err.max((got - w).abs() / w.abs().max(1.0));
         }
         changed += (want != beauty) as usize;
     }
