@@ -58,6 +58,7 @@ fn indirect_frame(w: u32, h: u32, pixels: &[IndirectPixel]) -> Frame {
             height: h,
             spp: 1,
             sample_capacity: 0,
+            shadow_lights: Vec::new(),
             scene: SceneInfo::unknown(),
         },
         OutputSet::of(&[Output::Colour, Output::Indirect]),

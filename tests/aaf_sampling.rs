@@ -353,7 +353,7 @@ fn bad_sampling_settings_and_missing_lights_are_refused() {
         ),
         (
             ShadowSampling {
-                light: 1,
+                lights: noisefree::render::LightPlanes::one(1),
                 ..Default::default()
             },
             "has 1 sphere light",

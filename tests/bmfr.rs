@@ -41,6 +41,7 @@ fn frame_of(w: u32, h: u32, fv: &[FilterVector], pos: &[Float4]) -> Frame {
             height: h,
             spp: 8,
             sample_capacity: 0,
+            shadow_lights: Vec::new(),
             scene: SceneInfo::unknown(),
         },
         OutputSet::of(&[Output::Colour, Output::Features, Output::Position]),

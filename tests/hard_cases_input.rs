@@ -1769,7 +1769,12 @@ fn check_image_file(bytes: &[u8], ext: &str) -> Result<(), TestCaseError> {
                     let h = frame.host(b.id).unwrap();
                     prop_assert_eq!(
                         h.len_bytes() as u64,
-                        b.bytes(info.width, info.height, info.sample_capacity)
+                        b.bytes(
+                            info.width,
+                            info.height,
+                            info.sample_capacity,
+                            info.shadow_planes()
+                        )
                     );
                     prop_assert!(h.floats().iter().all(|v| v.is_finite()), "{}", b.name);
                 }

@@ -69,6 +69,11 @@ fn identity(scene: &noisefree::scene::Scene) -> RenderIdentity {
         seed: SEED,
         spp: SPP,
         outputs: o.outputs.closed(),
+        shadow_lights: if o.outputs.closed().contains(Output::Shadows) {
+            o.shadows.lights.lights()
+        } else {
+            Vec::new()
+        },
         record,
     }
 }
@@ -206,6 +211,7 @@ fn shadow_output_merges_from_sample_ranges_and_refuses_tiles() {
     let (one, _) = render(0..SPP);
     let mut id = identity(&scene);
     id.outputs = one.outputs();
+    id.shadow_lights = one.info().shadow_lights.clone();
     let dir = tempdir("partial-shadows");
     let paths: Vec<PathBuf> = [0..7, 7..SPP]
         .into_iter()

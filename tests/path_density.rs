@@ -43,6 +43,7 @@ fn frame_of(s: &FilmSamples) -> Frame {
             height: s.height,
             spp: s.spp,
             sample_capacity: s.spp,
+            shadow_lights: Vec::new(),
             scene: SceneInfo::unknown(),
         },
         OutputSet::of(&[Output::Samples]),

@@ -210,6 +210,7 @@ fn device_filter(
             height: p.height,
             spp: 1,
             sample_capacity: 0,
+            shadow_lights: Vec::new(),
             scene: SceneInfo::unknown(),
         },
         OutputSet::of(&[Output::Colour, Output::LightField]),

@@ -86,7 +86,7 @@ fn the_shadow_grows_with_inflation_and_s_stays_in_b_to_1() {
         ..Default::default()
     };
     let frame = grids_frame(&base);
-    let mut k = StylizedKernel::new(gpu(), &base, true, 64, 48).unwrap();
+    let mut k = StylizedKernel::new(gpu(), &base, &[0], 64, 48).unwrap();
     k.distance(&frame).unwrap();
     let mut last = -1.0f64;
     let mut areas = Vec::new();
@@ -244,7 +244,7 @@ fn a_reused_kernel_gives_a_fresh_kernels_bytes() {
         &none,
     );
     let mut s = styled();
-    let mut k = StylizedKernel::new(gpu(), &s, true, 48, 40).unwrap();
+    let mut k = StylizedKernel::new(gpu(), &s, &[0], 48, 40).unwrap();
     for (step, frame) in [&a, &a, &b, &b, &a].into_iter().enumerate() {
         if step == 3 {
             s.inflation = [0.05, 0.0, 0.0];

@@ -50,19 +50,24 @@ inline float st_quadratic(__constant const float* c, int at, float d) {
     return c[at] + (c[at + 1] + c[at + 2] * d) * d;
 }
 
-__kernel void st_contour(__global const float* pixels, __global float4* slots, uint width,
-                         uint height, float normal_cos, float gap) {
+// Pixel i's element of the light plane `plane` of `planes` in the shadow output (pixel-major,
+// src/layout/outputs.rs Per::Light): each stylized light reads its own plane.
+#define ST_PX(i) (pixels + ((size_t)(i) * planes + plane) * SHADOW_PIXEL_FLOATS)
+
+__kernel void st_contour(__global const float* pixels, uint plane, uint planes,
+                         __global float4* slots, uint width, uint height, float normal_cos,
+                         float gap) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= width || y >= height) return;
     uint i = y * width + x;
-    __global const float* a = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    __global const float* a = ST_PX(i);
     for (uint dir = 0u; dir < 2u; ++dir) {
         size_t slot = ((size_t)i * 2u + dir) * 2u;
         slots[slot] = (float4)(0.0f);
         slots[slot + 1u] = (float4)(0.0f);
         uint nx = x + (dir == 0u ? 1u : 0u), ny = y + (dir == 1u ? 1u : 0u);
         if (nx >= width || ny >= height) continue;
-        __global const float* b = pixels + ((size_t)ny * width + nx) * SHADOW_PIXEL_FLOATS;
+        __global const float* b = ST_PX((size_t)ny * width + nx);
         if (!st_in_matte(a) || !st_in_matte(b)) continue;
         float va = a[SHADOW_PIXEL_CENTRE_VISIBLE], vb = b[SHADOW_PIXEL_CENTRE_VISIBLE];
         if (va == vb) continue;
@@ -85,14 +90,15 @@ __kernel void st_contour(__global const float* pixels, __global float4* slots, u
 // `contour` holds `count` points as (position, occluder distance), (normal, 1) pairs; `n` is
 // the number of samples, `scale` = count / n as a float (the host's, so that the reference
 // picks the same entries).
-__kernel void st_distance(__global const float* pixels, __global const float4* contour,
+__kernel void st_distance(__global const float* pixels, uint plane, uint planes,
+                          __global const float4* contour,
                           uint count, uint n, float scale, uint seed, float normal_cos,
                           uint width, uint height, __global float* dist,
                           __global float* occluder) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= width || y >= height) return;
     uint i = y * width + x;
-    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    __global const float* px = ST_PX(i);
     float own_occluder = px[SHADOW_PIXEL_OCCLUDER_DISTANCE];
     bool lit = px[SHADOW_PIXEL_CENTRE_VISIBLE] != 0.0f;
     if (!st_in_matte(px)) {
@@ -151,7 +157,8 @@ __kernel void st_distance(__global const float* pixels, __global const float4* c
 // One blur pass over `in`. `stencil` holds this pass's n offsets of a unit Gaussian truncated
 // at 3 (Halton points, made by the host: src/filters/stylized/blur.rs `stencil`); the pixel
 // reads the neighbours at rint(sigma * offset), sigma = alpha(d) / sqrt(2).
-__kernel void st_blur(__global const float* pixels, __constant const float* controls,
+__kernel void st_blur(__global const float* pixels, uint plane, uint planes,
+                      __constant const float* controls,
                       __global const float* occluder, __global const float2* stencil,
                       __global const float* in, __global float* out, uint width, uint height,
                       uint n, float normal_cos, float gap) {
@@ -159,7 +166,7 @@ __kernel void st_blur(__global const float* pixels, __constant const float* cont
     if (x >= (int)width || y >= (int)height) return;
     int i = y * (int)width + x;
     float own = in[i];
-    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    __global const float* px = ST_PX(i);
     float alpha = st_quadratic(controls, ST_ABSTRACTION, occluder[i]);
     if (!(alpha > 0.0f) || !isfinite(own) || !st_in_matte(px)) {
         out[i] = own;
@@ -168,7 +175,7 @@ __kernel void st_blur(__global const float* pixels, __constant const float* cont
     float sigma = alpha * M_SQRT1_2_F;          // two passes of alpha / sqrt(2)
     float3 nrm = st_lane3(px, SHADOW_PIXEL_NORMAL);
     float3 pos = st_lane3(px, SHADOW_PIXEL_POSITION);
-    float plane = gap * px[SHADOW_PIXEL_PIXEL_SIZE];
+    float slab = gap * px[SHADOW_PIXEL_PIXEL_SIZE];
     float sum = 0.0f;
     uint kept = 0u;
     for (uint k = 0u; k < n; ++k) {
@@ -176,11 +183,11 @@ __kernel void st_blur(__global const float* pixels, __constant const float* cont
         int qx = x + (int)rint(sigma * o.x), qy = y + (int)rint(sigma * o.y);
         if (qx < 0 || qy < 0 || qx >= (int)width || qy >= (int)height) continue;
         int j = qy * (int)width + qx;
-        __global const float* q = pixels + (size_t)j * SHADOW_PIXEL_FLOATS;
+        __global const float* q = ST_PX(j);
         float dj = in[j];
         if (!st_in_matte(q) || !isfinite(dj)) continue;
         if (dot(nrm, st_lane3(q, SHADOW_PIXEL_NORMAL)) < normal_cos) continue;
-        if (fabs(dot(nrm, st_lane3(q, SHADOW_PIXEL_POSITION) - pos)) > plane) continue;
+        if (fabs(dot(nrm, st_lane3(q, SHADOW_PIXEL_POSITION) - pos)) > slab) continue;
         sum += dj;
         kept += 1u;
     }
@@ -200,17 +207,23 @@ inline float st_transfer(float D, float i, float s, float b) {
     return (1.0f - b) * t + b;
 }
 
-__kernel void st_compose(__global const float* fv, __global const float* terms,
-                         __global const float* pixels, __constant const float* controls,
-                         __global const float* occluder, __global const float* dist,
-                         uint width, uint height, __global float* matte,
-                         __global float4* image) {
+// Eq. 3.1, one light per launch: the first stylized light starts from F, each next one from
+// the image so far (`first` = 0), so that after every light the image is
+// F - sum_l direct_l + sum_l r_l S_l (the terms are disjoint parts of F: next-event estimation
+// picks one light per vertex).
+__kernel void st_compose(__global const float* fv, uint first, __global const float* terms,
+                         __global const float* pixels, uint plane, uint planes,
+                         __constant const float* controls, __global const float* occluder,
+                         __global const float* dist, uint width, uint height,
+                         __global float* matte, __global float4* image) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= width || y >= height) return;
     uint i = y * width + x;
     __global const float* f = fv + (size_t)i * FILTER_VECTOR_FLOATS;
-    float3 beauty = st_lane3(f, FILTER_VECTOR_DIRECT) + st_lane3(f, FILTER_VECTOR_INDIRECT);
-    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    float3 beauty = first != 0u
+        ? st_lane3(f, FILTER_VECTOR_DIRECT) + st_lane3(f, FILTER_VECTOR_INDIRECT)
+        : image[i].xyz;
+    __global const float* px = ST_PX(i);
     float d = occluder[i];
     float inflation = st_quadratic(controls, ST_INFLATION, d);
     float softness = fmax(st_quadratic(controls, ST_SOFTNESS, d), 0.0f);
@@ -221,7 +234,7 @@ __kernel void st_compose(__global const float* fv, __global const float* terms,
         image[i] = (float4)(beauty, 0.0f);
         return;
     }
-    __global const float* t = terms + (size_t)i * SHADOW_TERMS_FLOATS;
+    __global const float* t = terms + ((size_t)i * planes + plane) * SHADOW_TERMS_FLOATS;
     float3 rest = beauty - st_lane3(t, SHADOW_TERMS_DIRECT);
     float3 r = st_lane3(px, SHADOW_PIXEL_UNSHADOWED) / px[SHADOW_PIXEL_SAMPLES];
     image[i] = (float4)(rest + r * S, 0.0f);

@@ -16,6 +16,12 @@
 #include "render/outputs.cl"
 #include "render/rng.cl"
 
+// The light planes of the shadow output (a build define from the host: the shadow output's
+// lights, src/render/shadows `LightPlanes`; 1 in builds that do not set it).
+#ifndef SHADOW_PLANES
+#define SHADOW_PLANES 1
+#endif
+
 #if FILTER_VECTOR_FLOATS != 16 || WELFORD_SUMS_FLOATS != 16 || WELFORD_STATE_FLOATS != 20 \
     || DEPTH_SHIFT_FLOATS != 2 || SHADOW_TERMS_FLOATS != 4
 #error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16, ShadowTerms as float4"
@@ -39,8 +45,9 @@ typedef struct {
     float3 normal2;    // shading normal at the second hit, 0 if none
 #endif
 #if OUTPUT_SHADOWS
-    float3 shadow_direct;      // light straight from the shadow light to the first surface,
-                               // when that is the pixel centre's receiver (ShadowTerms)
+    float3 shadow_direct[SHADOW_PLANES]; // per light plane: light straight from the plane's
+                                         // light to the first surface, when that is the pixel
+                                         // centre's receiver (ShadowTerms)
 #endif
 } PathSample;
 
@@ -62,7 +69,7 @@ inline PathSample path_sample_empty(void) {
     ps.normal2 = (float3)(0.0f);
 #endif
 #if OUTPUT_SHADOWS
-    ps.shadow_direct = (float3)(0.0f);
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) ps.shadow_direct[l] = (float3)(0.0f);
 #endif
     return ps;
 }
@@ -81,7 +88,8 @@ typedef struct {
     float position[4];                     // mean first-hit position (xyz), hits (w)
 #endif
 #if OUTPUT_SHADOWS
-    float shadow[SHADOW_TERMS_FLOATS];     // ShadowTerms: the mean of the replaced light
+    float shadow[SHADOW_PLANES * SHADOW_TERMS_FLOATS]; // ShadowTerms per light plane: the mean
+                                                       // of the replaced light
 #endif
 #if OUTPUT_HALVES
     float odd[4];                          // mean light of the odd-numbered samples, count
@@ -103,7 +111,8 @@ inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
     vstore4(vload4(pixel, positions), 0, p->position);
 #endif
 #if OUTPUT_SHADOWS
-    vstore4(vload4(pixel, shadow_terms), 0, p->shadow);
+    for (uint l = 0u; l < SHADOW_PLANES; ++l)
+        vstore4(vload4(pixel * SHADOW_PLANES + l, shadow_terms), l, p->shadow);
 #endif
 #if OUTPUT_HALVES
     vstore4(vload4(pixel, odd_halves), 0, p->odd);
@@ -125,7 +134,8 @@ inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pi
     vstore4(vload4(0, p->position), pixel, positions);
 #endif
 #if OUTPUT_SHADOWS
-    vstore4(vload4(0, p->shadow), pixel, shadow_terms);
+    for (uint l = 0u; l < SHADOW_PLANES; ++l)
+        vstore4(vload4(l, p->shadow), pixel * SHADOW_PLANES + l, shadow_terms);
 #endif
 #if OUTPUT_HALVES
     vstore4(vload4(0, p->odd), pixel, odd_halves);
@@ -216,10 +226,12 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count, uin
     accumulate3(p, FILTER_VECTOR_ALBEDO2, WELFORD_SUMS_ALBEDO2, ps->albedo2, n);
 #endif
 #if OUTPUT_SHADOWS
-    float* sh = p->shadow;
-    running_mean(&sh[SHADOW_TERMS_DIRECT], ps->shadow_direct.x, n);
-    running_mean(&sh[SHADOW_TERMS_DIRECT + 1], ps->shadow_direct.y, n);
-    running_mean(&sh[SHADOW_TERMS_DIRECT + 2], ps->shadow_direct.z, n);
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) {
+        float* sh = p->shadow + l * SHADOW_TERMS_FLOATS;
+        running_mean(&sh[SHADOW_TERMS_DIRECT], ps->shadow_direct[l].x, n);
+        running_mean(&sh[SHADOW_TERMS_DIRECT + 1], ps->shadow_direct[l].y, n);
+        running_mean(&sh[SHADOW_TERMS_DIRECT + 2], ps->shadow_direct[l].z, n);
+    }
 #endif
 #if OUTPUT_POSITION
     // The mean over the samples whose camera ray hit a surface; w counts them. A pixel whose

@@ -42,7 +42,9 @@ inline float3 lens_sample(const SceneRefs* s, uint x, uint y, uint key, float u1
     float3 focus = o + dir * (p->focal_distance / dot(dir, forward));
     o = o + u1 * p->camera_right.xyz - u2 * p->camera_up.xyz;
     dir = normalize(focus - o);
-    PathSample ps = trace_path_from(s, o, dir, key, rays, 0xFFFFFFFFu, NAN);
+    float none[SHADOW_PLANES];
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) none[l] = NAN;
+    PathSample ps = trace_path_from(s, o, dir, key, rays, 0u, none);
     float z = ps.hit ? dot(ps.world1 - p->camera_origin.xyz, forward) : INFINITY;
     // s = k (1/z - 1/F), k = H / (2 tan(fov/2)); 1/inf = 0.
     *slope = slope_k * (1.0f / z - 1.0f / p->focal_distance);

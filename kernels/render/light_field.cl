@@ -54,15 +54,17 @@ inline void light_field_axis(__constant const SceneParams* p, float3 pos, float3
     *scale = footprint * dx / len;
 }
 
+// The shadow output's plane 0 (sheared filtering asks for one light: `planes` is 1 in its
+// renders; a render gathering more planes keeps the light field of the first).
 __kernel void light_field_sample(SHADOW_SCENE_PARAMS, __global float* shadow_pixels,
-                                 __global float* light_field, __global uint* shadow_rays,
+                                 uint planes, __global float* light_field, __global uint* shadow_rays,
                                  uint light, uint side, float4 frame_u, float4 frame_v) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
     __global float* lf = light_field + (size_t)pixel * LIGHT_FIELD_PIXEL_FLOATS;
     for (uint i = 0u; i < LIGHT_FIELD_PIXEL_FLOATS; ++i) lf[i] = 0.0f;
-    __global float* px = shadow_pixels + (size_t)pixel * SHADOW_PIXEL_FLOATS;
+    __global float* px = SHADOW_AT(shadow_pixels, pixel, 0u, planes);
     shadow_rays[pixel] = 0u;
     if (!(px[SHADOW_PIXEL_WEIGHT] > 0.0f) || light >= params->light_count) return;
     SceneRefs s = SHADOW_SCENE_REFS;

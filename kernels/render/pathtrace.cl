@@ -22,14 +22,24 @@ inline void add_light(PathSample* ps, uint bounce, float3 value) {
     if (bounce <= 1u) ps->direct += value; else ps->indirect += value;
 }
 
+// The light plane of light `light` in the shadow output's set `lights` (a bit mask; planes in
+// increasing light order, src/render/shadows `LightPlanes`), or -1 when it has none.
+inline int shadow_plane(uint lights, uint light) {
+    if (light >= 32u || ((lights >> light) & 1u) == 0u) return -1;
+    return (int)popcount(lights & ((1u << light) - 1u));
+}
+
 // Algorithm 1 for one sample. `bounce` counts the surfaces the path has left. With
-// OUTPUT_SHADOWS, `shadow_light` is the light whose soft shadows AAF filters and
-// `shadow_object` the object the pixel centre's receiver belongs to (NaN: none): the samples
-// whose first hit is on it record the light's terms (kernels/render/shadows.cl).
+// OUTPUT_SHADOWS, `shadow_lights` is the set of lights whose shadows are filtered (one plane
+// each) and `shadow_objects[plane]` the object the pixel centre's receiver of that plane
+// belongs to (NaN: none): the samples whose first hit is on it record the plane's light's
+// terms (kernels/render/shadows.cl). Next-event estimation picks one light per vertex, so the
+// planes' terms are disjoint parts of F.
 // trace_path_from: the same from a given camera ray (o, d) (the lens-field pass of sheared
 // depth of field, kernels/render/lens_field.cl, chooses the lens point).
 inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint key,
-                                  uint* ray_count, uint shadow_light, float shadow_object) {
+                                  uint* ray_count, uint shadow_lights,
+                                  const float* shadow_objects) {
     __constant const SceneParams* params = s->params;
     PathSample ps = path_sample_empty();
     float3 throughput = (float3)(1.0f);       // "weight" in Alg. 1
@@ -38,7 +48,7 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
     bool want_albedo2 = true;
 #endif
 #if OUTPUT_SHADOWS
-    bool on_receiver = false;                 // the first hit is the centre's receiver
+    uint on_receiver = 0u;                    // planes whose centre's receiver is the first hit
 #endif
     for (uint bounce = 0u; bounce < params->max_vertices; ++bounce) {
 #if HAS_RUSSIAN_ROULETTE
@@ -83,9 +93,9 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
                 add_light(&ps, bounce, throughput * m->emission.xyz);
 #if OUTPUT_SHADOWS
                 // Without light sampling, the shadow light's direct term arrives here.
-                if (bounce == 1u && on_receiver && sf.light >= 0
-                    && (uint)sf.light == shadow_light)
-                    ps.shadow_direct += throughput * m->emission.xyz;
+                int plane = sf.light >= 0 ? shadow_plane(shadow_lights, (uint)sf.light) : -1;
+                if (bounce == 1u && plane >= 0 && ((on_receiver >> plane) & 1u))
+                    ps.shadow_direct[plane] += throughput * m->emission.xyz;
 #endif
             }
 #if OUTPUT_FEATURES
@@ -109,9 +119,10 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
         }
 #endif
 #if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
-        if (bounce == 0u && m->kind == MATERIAL_DIFFUSE && shadow_light < params->light_count
-            && hit_object(s, &hit) == shadow_object) {
-            on_receiver = true;
+        if (bounce == 0u && m->kind == MATERIAL_DIFFUSE && shadow_lights != 0u) {
+            float object = hit_object(s, &hit);
+            for (uint l = 0u; l < SHADOW_PLANES; ++l)
+                if (object == shadow_objects[l]) on_receiver |= 1u << l;
         }
 #endif
 #if HAS_LIGHTS && NEXT_EVENT_ESTIMATION
@@ -123,8 +134,9 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
                                             &chosen);
             add_light(&ps, bounce + 1u, throughput * albedo * INV_PI_F * li);
 #if OUTPUT_SHADOWS
-            if (bounce == 0u && on_receiver && chosen == shadow_light)
-                ps.shadow_direct += throughput * albedo * INV_PI_F * li;
+            int plane = shadow_plane(shadow_lights, chosen);
+            if (bounce == 0u && plane >= 0 && ((on_receiver >> plane) & 1u))
+                ps.shadow_direct[plane] += throughput * albedo * INV_PI_F * li;
 #endif
         }
 #endif
@@ -150,7 +162,7 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
             ps.direct *= k;
             ps.indirect *= k;
 #if OUTPUT_SHADOWS
-            ps.shadow_direct *= k;
+            for (uint l = 0u; l < SHADOW_PLANES; ++l) ps.shadow_direct[l] *= k;
 #endif
         }
     }
@@ -158,10 +170,10 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
 }
 
 inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint* ray_count,
-                             uint shadow_light, float shadow_object) {
+                             uint shadow_lights, const float* shadow_objects) {
     float3 o, d;
     camera_ray(s, x, y, key, &o, &d);
-    return trace_path_from(s, o, d, key, ray_count, shadow_light, shadow_object);
+    return trace_path_from(s, o, d, key, ray_count, shadow_lights, shadow_objects);
 }
 
 #include "render/lens_field.cl"
@@ -195,7 +207,7 @@ __kernel void render(__constant const SceneParams* params,
                      uint range_first,
                      uint sample_base,
                      uint sample_count,
-                     uint shadow_light) {                // OUTPUT_SHADOWS builds only
+                     uint shadow_lights) {               // OUTPUT_SHADOWS builds only
     uint tx = get_global_id(0), ty = get_global_id(1);
     if (tx >= tile_width || ty >= tile_height) return;
     uint x = tile_x + tx, y = tile_y + ty;
@@ -205,18 +217,22 @@ __kernel void render(__constant const SceneParams* params,
                    textures, texels, lights, light_cdf, debug_counters};
     PixelStats stats;
     pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, slot);
-    float shadow_object = NAN;
+    float shadow_objects[SHADOW_PLANES];
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) shadow_objects[l] = NAN;
 #if OUTPUT_SHADOWS
     // The shadow passes ran before the first path samples (whole images only: the host
     // refuses tiles with the shadow output, so slot == pixel).
-    __global const float* centre = shadow_pixels + (size_t)slot * SHADOW_PIXEL_FLOATS;
-    if (centre[SHADOW_PIXEL_WEIGHT] > 0.0f) shadow_object = centre[SHADOW_PIXEL_OBJECT];
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) {
+        __global const float* centre =
+            shadow_pixels + ((size_t)slot * SHADOW_PLANES + l) * SHADOW_PIXEL_FLOATS;
+        if (centre[SHADOW_PIXEL_WEIGHT] > 0.0f) shadow_objects[l] = centre[SHADOW_PIXEL_OBJECT];
+    }
 #endif
     uint rays = 0u;
     for (uint k = 0u; k < sample_count; ++k) {
         uint sample = sample_base + k;
         uint key = rng_sample_key(params->seed, pixel, sample);
-        PathSample ps = trace_path(&s, x, y, key, &rays, shadow_light, shadow_object);
+        PathSample ps = trace_path(&s, x, y, key, &rays, shadow_lights, shadow_objects);
         uint index = sample - range_first;              // 0 for the render's first sample
         film_accumulate(&stats, &ps, index + 1u, sample);
 #if OUTPUT_SAMPLES

@@ -211,14 +211,21 @@ inline void shadow_samples(const SceneRefs* s, __global const Light* light, uint
     }
 }
 
+// Element `plane` of pixel `pixel` in the shadow output's light planes (pixel-major:
+// src/layout/outputs.rs Per::Light).
+#define SHADOW_AT(buffer, pixel, plane, planes) \
+    ((buffer) + ((size_t)(pixel) * (planes) + (plane)) * SHADOW_PIXEL_FLOATS)
+
 // Pass 1. `light` indexes the light list (a sphere light); an index past it samples nothing.
-__kernel void shadow_sparse(SHADOW_SCENE_PARAMS, __global float* shadow_pixels,
-                            __global uint* shadow_rays, uint light, uint sqrt_spp) {
+// Each light plane runs the passes with its light (`plane` of `planes`).
+__kernel void shadow_sparse(SHADOW_SCENE_PARAMS, __global float* shadow_pixels, uint plane,
+                            uint planes, __global uint* shadow_rays, uint light,
+                            uint sqrt_spp) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
     SceneRefs s = SHADOW_SCENE_REFS;
-    __global float* px = shadow_pixels + (size_t)pixel * SHADOW_PIXEL_FLOATS;
+    __global float* px = SHADOW_AT(shadow_pixels, pixel, plane, planes);
     for (uint i = 0u; i < SHADOW_PIXEL_FLOATS; ++i) px[i] = 0.0f;
     uint rays = 0u;
     ShadowReceiver r;
@@ -260,18 +267,19 @@ inline bool shadow_has_own_slopes(__global const float* q) {
 
 // The slope fill, pass 0 along rows into `fill` (s1, s2, found), pass 1 along columns of
 // `fill`, writing slopes (source 2) into the receivers that had none.
-__kernel void shadow_fill(__global float* shadow_pixels, __global float4* fill, uint width,
-                          uint height, int radius, uint pass) {
+__kernel void shadow_fill(__global float* shadow_pixels, uint plane, uint planes,
+                          __global float4* fill, uint width, uint height, int radius,
+                          uint pass) {
     int x = (int)get_global_id(0), y = (int)get_global_id(1);
     if (x >= (int)width || y >= (int)height) return;
     uint pixel = (uint)y * width + (uint)x;
-    __global float* px = shadow_pixels + (size_t)pixel * SHADOW_PIXEL_FLOATS;
+    __global float* px = SHADOW_AT(shadow_pixels, pixel, plane, planes);
     float object = px[SHADOW_PIXEL_OBJECT];
     if (pass == 0u) {
         float4 acc = (float4)(0.0f, INFINITY, 0.0f, 0.0f);
         for (int i = max(0, x - radius); i <= min((int)width - 1, x + radius); ++i) {
-            __global const float* q = shadow_pixels + ((size_t)y * width + (uint)i)
-                                                      * SHADOW_PIXEL_FLOATS;
+            __global const float* q = SHADOW_AT(shadow_pixels, (uint)y * width + (uint)i,
+                                                plane, planes);
             if (shadow_has_own_slopes(q) && q[SHADOW_PIXEL_OBJECT] == object) {
                 acc.x = fmax(acc.x, q[SHADOW_PIXEL_SLOPE_MAX]);
                 acc.y = fmin(acc.y, q[SHADOW_PIXEL_SLOPE_MIN]);
@@ -286,7 +294,7 @@ __kernel void shadow_fill(__global float* shadow_pixels, __global float4* fill, 
     for (int j = max(0, y - radius); j <= min((int)height - 1, y + radius); ++j) {
         uint q = (uint)j * width + (uint)x;
         float4 f = fill[q];
-        if (f.z > 0.0f && shadow_pixels[(size_t)q * SHADOW_PIXEL_FLOATS + SHADOW_PIXEL_OBJECT]
+        if (f.z > 0.0f && SHADOW_AT(shadow_pixels, q, plane, planes)[SHADOW_PIXEL_OBJECT]
                               == object) {
             acc.x = fmax(acc.x, f.x);
             acc.y = fmin(acc.y, f.y);
@@ -303,14 +311,14 @@ __kernel void shadow_fill(__global float* shadow_pixels, __global float4* fill, 
 // Pass 2: pixels with slopes get n(x) of eq. 3.5, clamped to [sparse_spp, max_spp]; the
 // samples beyond the sparse ones come as one more k x k square, the smallest that covers them
 // (the released code's ceil(sqrt)^2) and no larger than max_spp - sparse_spp allows.
-__kernel void shadow_adaptive(SHADOW_SCENE_PARAMS, __global float* shadow_pixels,
-                              __global uint* shadow_rays, uint light, uint sparse_spp,
-                              uint max_spp) {
+__kernel void shadow_adaptive(SHADOW_SCENE_PARAMS, __global float* shadow_pixels, uint plane,
+                              uint planes, __global uint* shadow_rays, uint light,
+                              uint sparse_spp, uint max_spp) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
     shadow_rays[pixel] = 0u;
-    __global float* px = shadow_pixels + (size_t)pixel * SHADOW_PIXEL_FLOATS;
+    __global float* px = SHADOW_AT(shadow_pixels, pixel, plane, planes);
     if (!(px[SHADOW_PIXEL_WEIGHT] > 0.0f) || px[SHADOW_PIXEL_SLOPE_SOURCE] == 0.0f) return;
     __global const Light* l = lights + light;
     float n = aaf_sample_count(px[SHADOW_PIXEL_SLOPE_MAX], px[SHADOW_PIXEL_SLOPE_MIN],

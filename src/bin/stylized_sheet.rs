@@ -81,7 +81,7 @@ fn main() -> Result<()> {
     write_png(&out.join("unfiltered.png"), &frame.beauty()?, 0.0)?;
 
     let device = gpu.summary.name.clone();
-    let mut k = StylizedKernel::new(gpu, &settings, true, WIDTH, HEIGHT)?;
+    let mut k = StylizedKernel::new(gpu, &settings, &settings.stylized_lights(), WIDTH, HEIGHT)?;
     let distance = k.distance(&frame)?;
     let (mut blur_times, mut compose_times) = (Vec::new(), Vec::new());
     let cols = ROWS[0].1.len() as u32;

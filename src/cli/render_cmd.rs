@@ -391,6 +391,11 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         seed: options.frame.seed,
         spp,
         outputs: outputs.closed(),
+        shadow_lights: if outputs.closed().contains(Output::Shadows) {
+            options.shadows.lights.lights()
+        } else {
+            Vec::new()
+        },
         record: RenderRecord::default(),
     });
 
@@ -551,7 +556,11 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
             .unwrap_or_default()
     );
     if let Some((sampling, stats)) = film.primary().shadow_stats() {
-        let what = format!("shadow samples of sphere light {}", sampling.light);
+        let lights = sampling.lights.lights();
+        let what = match lights.as_slice() {
+            [one] => format!("shadow samples of sphere light {one}"),
+            many => format!("shadow samples of sphere lights {many:?} (all planes)"),
+        };
         print_pass_stats(&what, &stats, sampling.sparse_spp, sampling.max_spp);
     }
     if let Some((sampling, stats)) = film.primary().indirect_stats() {

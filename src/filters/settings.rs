@@ -193,6 +193,12 @@ pub fn parse_flag_value(raw: &str, default: &toml::Value) -> toml::Value {
     }
     match default {
         toml::Value::Array(_) => toml::Value::Array(raw.split(',').map(scalar).collect()),
+        // A table of tables (stylized-shadows' per-light controls): an inline TOML table,
+        // `--stylized-lights '{1 = {softness = [0.4, 0, 0]}}'`.
+        toml::Value::Table(_) => toml::from_str::<toml::Table>(&format!("v = {raw}"))
+            .ok()
+            .and_then(|t| t.get("v").cloned())
+            .unwrap_or_else(|| toml::Value::String(raw.to_string())),
         _ => scalar(raw),
     }
 }

@@ -77,7 +77,16 @@ pub enum Per {
     Pixel,
     /// `sample_capacity` elements per pixel, pixel-major (index = pixel · capacity + sample).
     Sample,
+    /// One element per pixel for each light plane of the shadow output (the sphere lights a
+    /// filter asks for, [`crate::render::ShadowSampling::lights`]), pixel-major (index =
+    /// pixel · planes + plane): a row of pixels stays contiguous, so splitting and merging by
+    /// rows or by elements works as for [`Per::Pixel`].
+    Light,
 }
+
+/// Most light planes of the shadow output (`SHADOW_PLANES` is a build define of the
+/// megakernel: each plane is a private float4 of every path sample's state).
+pub const MAX_SHADOW_PLANES: u32 = 8;
 
 /// How the buffers of renders of disjoint sample ranges (or tiles) of one image combine into
 /// the buffer of a single render of all those samples (`noisefree merge`, src/stats/merge/).
@@ -317,18 +326,18 @@ pub const BUFFERS: &[BufferDecl] = &[
         name: "shadow_terms",
         element: "ShadowTerms",
         element_bytes: size_of::<ShadowTerms>(),
-        per: Per::Pixel,
+        per: Per::Light,
         merge: Merge::Means,
-        doc: "AAF shadows: the direct light the filtered term replaces, per pixel",
+        doc: "shadows: the direct light the filtered term replaces, per pixel and light",
     },
     BufferDecl {
         id: ShadowPixels,
         name: "shadow_pixels",
         element: "ShadowPixel",
         element_bytes: size_of::<ShadowPixel>(),
-        per: Per::Pixel,
+        per: Per::Light,
         merge: Merge::Identical,
-        doc: "AAF shadows: visibility sums, slopes and the pixel centre's hit, per pixel",
+        doc: "shadows: visibility sums, slopes and the pixel centre's hit, per pixel and light",
     },
     BufferDecl {
         id: OddHalves,
@@ -480,8 +489,10 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.unshadowed.G", ShadowPixels, P_UNSHADOWED + 1),
             ch("shadow.unshadowed.B", ShadowPixels, P_UNSHADOWED + 2),
         ],
-        doc: "soft shadows of one sphere light: unshadowed term, visibility sums, slopes, the \
-              centre's binary visibility",
+        // One plane per light: the channels are named `shadow.l<light>.<rest>` for the scene's
+        // sphere light of each plane ([`channel_name`]).
+        doc: "soft shadows of sphere lights: unshadowed term, visibility sums, slopes, the \
+              centre's binary visibility (one plane per light)",
     },
     OutputDecl {
         output: Output::Halves,
@@ -716,26 +727,33 @@ impl OutputSet {
     }
 
     /// Bytes the buffers of this set take for a w × h image holding `sample_capacity` samples
-    /// per pixel in its per-sample buffers.
-    pub fn bytes(self, width: u32, height: u32, sample_capacity: u32) -> u64 {
+    /// per pixel in its per-sample buffers and `planes` light planes in the shadow output.
+    pub fn bytes(self, width: u32, height: u32, sample_capacity: u32, planes: u32) -> u64 {
         self.buffers()
-            .map(|b| b.bytes(width, height, sample_capacity))
+            .map(|b| b.bytes(width, height, sample_capacity, planes))
             .sum()
     }
 }
 
 impl BufferDecl {
     /// Elements of this buffer for a w × h image.
-    pub fn elements(&self, width: u32, height: u32, sample_capacity: u32) -> u64 {
+    pub fn elements(&self, width: u32, height: u32, sample_capacity: u32, planes: u32) -> u64 {
         let pixels = width as u64 * height as u64;
         match self.per {
             Per::Pixel => pixels,
             Per::Sample => pixels * sample_capacity as u64,
+            Per::Light => pixels * planes as u64,
         }
     }
 
-    pub fn bytes(&self, width: u32, height: u32, sample_capacity: u32) -> u64 {
-        self.elements(width, height, sample_capacity) * self.element_bytes as u64
+    pub fn bytes(&self, width: u32, height: u32, sample_capacity: u32, planes: u32) -> u64 {
+        self.elements(width, height, sample_capacity, planes) * self.element_bytes as u64
+    }
+
+    /// Elements per pixel: 1, `sample_capacity` or `planes` (what a row of pixels holds per
+    /// pixel).
+    pub fn per_pixel(&self, sample_capacity: u32, planes: u32) -> usize {
+        self.elements(1, 1, sample_capacity, planes) as usize
     }
 
     /// The AOV channels that come from this buffer.
@@ -745,6 +763,19 @@ impl BufferDecl {
             .iter()
             .flat_map(|o| o.channels.iter())
             .filter(move |c| c.buffer == id)
+    }
+}
+
+/// The AOV name of channel `c` for the light plane holding the scene's sphere light `light`
+/// (None: a buffer with one element per pixel): `shadow.direct.R` of light 1 is
+/// `shadow.l1.direct.R`.
+pub fn channel_name(c: &ChannelDecl, light: Option<u32>) -> String {
+    match light {
+        None => c.name.to_string(),
+        Some(l) => match c.name.split_once('.') {
+            Some((layer, rest)) => format!("{layer}.l{l}.{rest}"),
+            None => format!("l{l}.{}", c.name),
+        },
     }
 }
 
@@ -825,8 +856,14 @@ mod tests {
     #[test]
     fn bytes_per_pixel_and_per_sample() {
         let s = OutputSet::of(&[Output::Variance]).closed();
-        assert_eq!(s.bytes(2, 3, 0), 6 * (64 + 8 + 64 + 80));
+        assert_eq!(s.bytes(2, 3, 0, 0), 6 * (64 + 8 + 64 + 80));
         let r = OutputSet::of(&[Output::Samples]).closed();
-        assert_eq!(r.bytes(2, 3, 4), 6 * (64 + 8) + 6 * 4 * 104);
+        assert_eq!(r.bytes(2, 3, 4, 0), 6 * (64 + 8) + 6 * 4 * 104);
+        let t = OutputSet::of(&[Output::Shadows]).closed();
+        let plane = (size_of::<ShadowTerms>() + size_of::<ShadowPixel>()) as u64;
+        assert_eq!(t.bytes(2, 3, 0, 2), 6 * 64 + 6 * 2 * plane);
+        let c = &Output::Shadows.decl().channels[0];
+        assert_eq!(channel_name(c, Some(3)), "shadow.l3.direct.R");
+        assert_eq!(channel_name(c, None), "shadow.direct.R");
     }
 }

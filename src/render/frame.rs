@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 use crate::arrays::SceneArrays;
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
-use crate::layout::outputs::{BufferId, Output, OutputSet};
+use crate::layout::outputs::{BufferId, Output, OutputSet, Per};
 use crate::layout::{FilterVector, Float16, IndirectPixel, LightFieldPixel, ShadowPixel};
 use crate::scene::{CameraBasis, Scene, Setting};
 
@@ -124,6 +124,9 @@ pub struct FrameInfo {
     pub spp: u32,
     /// Samples per pixel the per-sample buffers hold (0 without them).
     pub sample_capacity: u32,
+    /// The scene's sphere light of each plane of the shadow output, in plane order (empty
+    /// without it; src/layout/outputs.rs `Per::Light`).
+    pub shadow_lights: Vec<u32>,
     pub scene: SceneInfo,
 }
 
@@ -135,6 +138,16 @@ impl FrameInfo {
     /// Samples per pixel stored in the per-sample buffers.
     pub fn samples_stored(&self) -> u32 {
         self.spp.min(self.sample_capacity)
+    }
+
+    /// Light planes of the shadow output.
+    pub fn shadow_planes(&self) -> u32 {
+        self.shadow_lights.len() as u32
+    }
+
+    /// The plane of the shadow output holding sphere light `light`, if any.
+    pub fn shadow_plane(&self, light: u32) -> Option<usize> {
+        self.shadow_lights.iter().position(|&l| l == light)
     }
 }
 
@@ -294,7 +307,12 @@ impl Frame {
         buffers: Vec<(BufferId, HostBuffer)>,
     ) -> Result<Frame> {
         for b in outputs.buffers() {
-            let want = b.bytes(info.width, info.height, info.sample_capacity) as usize;
+            let want = b.bytes(
+                info.width,
+                info.height,
+                info.sample_capacity,
+                info.shadow_planes(),
+            ) as usize;
             match buffers.iter().find(|(id, _)| *id == b.id) {
                 None => bail!("the {} buffer of the frame is missing", b.name),
                 Some((_, h)) if h.len_bytes() != want => bail!(
@@ -345,6 +363,7 @@ impl Frame {
                 height,
                 spp,
                 sample_capacity: 0,
+                shadow_lights: Vec::new(),
                 scene,
             },
             OutputSet::of(&[Output::Features]),
@@ -456,6 +475,45 @@ impl Frame {
             .with_context(|| format!("reading the {} buffer back", id.decl().name))?;
         let _ = slot.host.set(h);
         Ok(slot.host.get().expect("just set"))
+    }
+
+    /// This frame with the shadow output of sphere light `light` alone (one plane), for the
+    /// filters that read one light's plane (aaf-shadows, sheared filtering): None when the
+    /// frame holds that plane alone already (use it as is), a host copy otherwise.
+    pub fn light_plane(&self, light: u32, who: &str) -> Result<Option<Frame>> {
+        let lights = &self.info.shadow_lights;
+        if lights.as_slice() == [light] || !self.outputs.contains(Output::Shadows) {
+            return Ok(None);
+        }
+        let Some(plane) = self.info.shadow_plane(light) else {
+            bail!(
+                "{who} reads the shadows of sphere light {light}, but the frame's shadow output \
+                 holds sphere light(s) {lights:?}: render it with {who} asking for light {light}"
+            );
+        };
+        let planes = lights.len();
+        let mut buffers = Vec::new();
+        for b in self.outputs.buffers() {
+            let host = self.host(b.id)?;
+            let h = if b.per == Per::Light {
+                let e = b.element_bytes;
+                let all = host.as_bytes();
+                let mut h = HostBuffer::zeroed(all.len() / planes);
+                for (k, out) in h.as_bytes_mut().chunks_exact_mut(e).enumerate() {
+                    let at = (k * planes + plane) * e;
+                    out.copy_from_slice(&all[at..at + e]);
+                }
+                h
+            } else {
+                host.clone()
+            };
+            buffers.push((b.id, h));
+        }
+        let info = FrameInfo {
+            shadow_lights: vec![light],
+            ..self.info.clone()
+        };
+        Frame::on_host(info, self.outputs, self.variances, buffers).map(Some)
     }
 
     /// The buffer on the host as its layout struct.

@@ -35,7 +35,7 @@ pub use features::FeatureSet;
 pub use frame::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 pub use indirect::{IndirectSampling, IndirectStats};
 pub use progressive::{Budget, progress_bar, render_progressively};
-pub use shadows::{ShadowSampling, ShadowStats};
+pub use shadows::{LightPlanes, ShadowSampling, ShadowStats};
 pub use split::{SplitFrame, SplitRenderer};
 pub use tile::Tile;
 
@@ -181,8 +181,9 @@ pub struct Renderer {
     debug_counters: Buffer<u32>,
     /// Always Some after construction (built once the buffers exist).
     kernel: Option<Kernel>,
-    /// The sphere light of the shadow output (with [`Output::Shadows`]), and how it is sampled.
-    shadow_light: Option<u32>,
+    /// The sphere lights of the shadow output, one plane each (with [`Output::Shadows`]), and
+    /// how they are sampled.
+    shadow_lights: Option<shadows::LightPlanes>,
     shadow_sampling: ShadowSampling,
     /// The AAF shadow passes, with the shadow output; run before the first path samples.
     /// Built with the render kernel, from its program.
@@ -235,7 +236,7 @@ impl Renderer {
                 tile == Tile::whole(options.frame.width, options.frame.height),
             )?;
         }
-        let shadow_light = if outputs.contains(Output::Shadows) {
+        let shadow_lights = if outputs.contains(Output::Shadows) {
             Some(shadows::shadow_light(
                 &arrays,
                 &options.shadows,
@@ -259,12 +260,13 @@ impl Renderer {
         let device_scene = DeviceScene::upload(&gpu, &arrays)?;
         let scene_info = SceneInfo::new(scene, &arrays);
         let (w, h) = (tile.width, tile.height);
+        let planes = shadow_lights.map_or(0, |l| l.count());
         // Only what is asked for is allocated: the others are one-element stand-ins.
         let buffers = BUFFERS
             .iter()
             .map(|b| {
                 let bytes = if outputs.contains(b.id.owner()) {
-                    b.bytes(w, h, capacity) as usize
+                    b.bytes(w, h, capacity, planes) as usize
                 } else {
                     b.element_bytes
                 };
@@ -290,7 +292,7 @@ impl Renderer {
             ray_counts,
             debug_counters,
             kernel: None,
-            shadow_light,
+            shadow_lights,
             shadow_sampling: options.shadows,
             shadow_passes: None,
             shadow_stats: None,
@@ -323,6 +325,10 @@ impl Renderer {
     )> {
         let mut defines = self.features.defines();
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
+        defines.push((
+            "SHADOW_PLANES".into(),
+            self.shadow_lights.map_or(1, |l| l.count()).to_string(),
+        ));
         let program = self.gpu.program("render/pathtrace.cl", &defines, "")?;
         let mut builder = Kernel::builder();
         builder
@@ -357,9 +363,9 @@ impl Renderer {
             .arg_named("range_first", self.first_sample)
             .arg_named("sample_base", self.first_sample)
             .arg_named("sample_count", 0u32)
-            .arg_named("shadow_light", self.shadow_light.unwrap_or(u32::MAX));
+            .arg_named("shadow_lights", self.shadow_lights.map_or(0, |l| l.0));
         let kernel = builder.build().context("creating the render kernel")?;
-        let shadow_passes = match self.shadow_light {
+        let shadow_passes = match self.shadow_lights {
             Some(_) => Some(shadows::ShadowPasses::new(
                 &self.gpu,
                 &program,
@@ -373,7 +379,7 @@ impl Renderer {
             )?),
             None => None,
         };
-        let lens_pass = if self.outputs.contains(Output::LightField) && self.shadow_light.is_none()
+        let lens_pass = if self.outputs.contains(Output::LightField) && self.shadow_lights.is_none()
         {
             Some(lens_field::LensPass::new(
                 &self.gpu,
@@ -427,9 +433,14 @@ impl Renderer {
             "range_first",
             "sample_base",
             "sample_count",
-            "shadow_light",
+            "shadow_lights",
         ]);
         v
+    }
+
+    /// Light planes of the shadow output (0 without it).
+    pub fn shadow_planes(&self) -> u32 {
+        self.shadow_lights.map_or(0, |l| l.count())
     }
 
     /// Width of what this renderer's buffers hold: the tile's (the image's for a whole render).
@@ -621,6 +632,7 @@ impl Renderer {
                 height: self.height(),
                 spp: self.samples_done,
                 sample_capacity: self.sample_capacity,
+                shadow_lights: self.shadow_lights.map_or_else(Vec::new, |l| l.lights()),
                 scene: self.scene_info.clone(),
             },
             self.outputs,
@@ -647,7 +659,7 @@ impl Renderer {
     /// With the light-field output: e1, e2 of the shadow light's frame
     /// ([`shadows::light_field::light_frame`]).
     fn light_field_frame(&self) -> Option<[Float4; 2]> {
-        let light = self.shadow_light?;
+        let light = self.shadow_lights?.first();
         if !self.outputs.contains(Output::LightField) {
             return None;
         }
@@ -687,11 +699,12 @@ fn check_size(gpu: &Gpu, options: &RenderOptions) -> Result<()> {
     let (w, h) = (tile.width, tile.height);
     let outputs = options.outputs.closed();
     let capacity = options.sample_capacity.max(1);
+    let planes = options.shadows.lights.count();
     for b in outputs.buffers() {
-        gpu.check_alloc(b.bytes(w, h, capacity), b.doc)?;
+        gpu.check_alloc(b.bytes(w, h, capacity, planes), b.doc)?;
     }
     gpu.check_total(
-        outputs.bytes(w, h, capacity) + 4 * w as u64 * h as u64,
+        outputs.bytes(w, h, capacity, planes) + 4 * w as u64 * h as u64,
         &format!("the per-pixel outputs ({})", outputs.names().join(", ")),
     )
 }

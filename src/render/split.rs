@@ -409,7 +409,9 @@ fn copy_rows(
         if !from.outputs.contains(id.owner()) || only.is_some_and(|o| !o.contains(id.owner())) {
             continue;
         }
-        let row = id.decl().bytes(w, 1, from.sample_capacity) as usize;
+        let row = id
+            .decl()
+            .bytes(w, 1, from.sample_capacity, from.shadow_planes()) as usize;
         let (offset, len) = (rows.start as usize * row, rows.len() * row);
         let mut bytes = vec![0u8; len];
         src.read(&mut bytes)

@@ -16,7 +16,9 @@ use anyhow::{Result, anyhow, bail};
 
 use super::{RenderRecord, feature_variance_sums};
 use crate::imaging::{RgbImage, colormap, to_srgb8, write_atomically, write_rgb8_png};
-use crate::layout::outputs::{BufferId, ChannelScale, OUTPUTS, Output, OutputSet};
+use crate::layout::outputs::{
+    BufferId, ChannelDecl, ChannelScale, OUTPUTS, Output, OutputSet, Per, channel_name,
+};
 use crate::layout::{FilterVector, SKY_DEPTH, ShadowPixel, WelfordSums};
 use crate::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 
@@ -56,13 +58,20 @@ pub fn write_aov_exr(path: &Path, frame: &Frame, record: &RenderRecord) -> Resul
                 ChannelScale::AsIs => None,
                 ChannelScale::Variance => Some(variance),
             };
-            let values: Vec<f32> = (0..n)
-                .map(|i| {
-                    let v = floats[i * stride + c.lane];
-                    scale.map_or(v, |s| v * s)
-                })
-                .collect();
-            list.push(AnyChannel::new(c.name, FlatSamples::F32(values)));
+            // One channel per light plane (`shadow.l1.direct.R`), or one per pixel.
+            for (plane, light) in planes_of(c, &info.shadow_lights) {
+                let planes = c.buffer.decl().per_pixel(0, info.shadow_planes());
+                let values: Vec<f32> = (0..n)
+                    .map(|i| {
+                        let v = floats[(i * planes + plane) * stride + c.lane];
+                        scale.map_or(v, |s| v * s)
+                    })
+                    .collect();
+                list.push(AnyChannel::new(
+                    channel_name(c, light).as_str(),
+                    FlatSamples::F32(values),
+                ));
+            }
         }
     }
     list.push(AnyChannel::new(
@@ -98,7 +107,8 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
     // The header first: a damaged one can claim an image too large to allocate.
     let per_pixel: usize = crate::layout::outputs::BUFFERS
         .iter()
-        .filter(|b| b.per == crate::layout::outputs::Per::Pixel)
+        // One plane of the per-light buffers: the check bounds the image, not every plane.
+        .filter(|b| b.per != Per::Sample)
         .map(|b| b.element_bytes)
         .sum();
     crate::imaging::check_exr_memory(path, per_pixel as u64).map_err(|e| fail(&e))?;
@@ -120,52 +130,79 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
             .find(|c| c.name.to_string() == name)
     };
     let n = w * h;
+    // The light planes of the shadow output: the lights whose first channel is there.
+    let first = &Output::Shadows.decl().channels[0];
+    let shadow_lights: Vec<u32> = (0..32)
+        .filter(|&l| channel(&channel_name(first, Some(l))).is_some())
+        .collect();
     // An output is in the file when all its channels are; a partial one is damage.
     let mut outputs = OutputSet::default();
     for o in OUTPUTS.iter().filter(|o| !o.channels.is_empty()) {
-        let present = o.channels.iter().filter(|c| channel(c.name).is_some());
-        let count = present.count();
-        if count == o.channels.len() {
+        let names: Vec<String> = o
+            .channels
+            .iter()
+            .flat_map(|c| {
+                planes_of(c, &shadow_lights)
+                    .into_iter()
+                    .map(|(_, l)| channel_name(c, l))
+            })
+            .collect();
+        let count = names.iter().filter(|c| channel(c).is_some()).count();
+        if count == names.len() && count > 0 {
             outputs = outputs.with(o.output);
         } else if count > 0 || o.output == Output::Colour {
-            let missing = o
-                .channels
+            let missing = names
                 .iter()
-                .find(|c| channel(c.name).is_none())
-                .expect("one is missing");
+                .find(|c| channel(c).is_none())
+                .cloned()
+                .unwrap_or_else(|| channel_name(first, Some(0)));
             bail!(
                 "{}: not a complete noisefree AOV file: channel {:?} of the {} output is missing",
                 path.display(),
-                missing.name,
+                missing,
                 o.name
             );
         }
     }
+    let shadow_lights = if outputs.contains(Output::Shadows) {
+        shadow_lights
+    } else {
+        Vec::new()
+    };
+    let planes = shadow_lights.len() as u32;
     let mut buffers: Vec<(BufferId, HostBuffer)> = outputs
         .buffers()
-        .map(|b| (b.id, HostBuffer::zeroed(b.element_bytes * n)))
+        .map(|b| {
+            (
+                b.id,
+                HostBuffer::zeroed(b.bytes(w as u32, h as u32, 0, planes) as usize),
+            )
+        })
         .collect();
     // Features live in the colour output's buffer.
     for o in OUTPUTS.iter().filter(|o| outputs.contains(o.output)) {
         for c in o.channels {
-            let data = channel(c.name).expect("checked above");
-            let stride = c.buffer.decl().element_bytes / 4;
-            let (_, buf) = buffers
-                .iter_mut()
-                .find(|(id, _)| *id == c.buffer)
-                .expect("the owner's buffer");
-            let floats = buf.floats_mut();
-            for (i, v) in data.sample_data.values_as_f32().enumerate().take(n) {
-                if !v.is_finite() {
-                    bail!(
-                        "{}: channel {} has a non-finite value at pixel ({}, {})",
-                        path.display(),
-                        c.name,
-                        i % w,
-                        i / w
-                    );
+            for (plane, light) in planes_of(c, &shadow_lights) {
+                let name = channel_name(c, light);
+                let data = channel(&name).expect("checked above");
+                let stride = c.buffer.decl().element_bytes / 4;
+                let per = c.buffer.decl().per_pixel(0, planes);
+                let (_, buf) = buffers
+                    .iter_mut()
+                    .find(|(id, _)| *id == c.buffer)
+                    .expect("the owner's buffer");
+                let floats = buf.floats_mut();
+                for (i, v) in data.sample_data.values_as_f32().enumerate().take(n) {
+                    if !v.is_finite() {
+                        bail!(
+                            "{}: channel {name} has a non-finite value at pixel ({}, {})",
+                            path.display(),
+                            i % w,
+                            i / w
+                        );
+                    }
+                    floats[(i * per + plane) * stride + c.lane] = v;
                 }
-                floats[i * stride + c.lane] = v;
             }
         }
     }
@@ -205,10 +242,25 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
         height: h as u32,
         spp: spp as u32,
         sample_capacity: 0,
+        shadow_lights,
         scene: record.scene.clone().unwrap_or_else(SceneInfo::unknown),
     };
     let frame = Frame::on_host(info, outputs, VarianceForm::Variances, buffers)?;
     Ok((frame, record))
+}
+
+/// The (plane, light) of each AOV channel of `c`: one per light plane of the shadow output
+/// for its per-light buffers (`shadow.l<light>.*`), else one, (0, None).
+fn planes_of(c: &ChannelDecl, shadow_lights: &[u32]) -> Vec<(usize, Option<u32>)> {
+    if c.buffer.decl().per == Per::Light {
+        shadow_lights
+            .iter()
+            .enumerate()
+            .map(|(p, &l)| (p, Some(l)))
+            .collect()
+    } else {
+        vec![(0, None)]
+    }
 }
 
 /// One false-colour PNG per buffer in `dir` (which is created), from [`aov_pictures`].
@@ -288,8 +340,12 @@ pub fn aov_pictures(frame: &Frame, exposure: f32) -> Result<Vec<(&'static str, V
 
 /// AAF's shadow output as pictures: `shadow_spp`, the light samples per pixel (the spp map,
 /// colour-mapped from 0 to the most any pixel took), and `shadow_visibility`, the noisy
-/// visibility h_n (grey; black where no receiver). The frame must hold the shadow output.
+/// visibility h_n (grey; black where no receiver), of the first light plane's light. The frame
+/// must hold the shadow output.
 pub fn shadow_pictures(frame: &Frame) -> Result<[(&'static str, Vec<u8>); 2]> {
+    let first = frame.info().shadow_lights.first().copied().unwrap_or(0);
+    let own = frame.light_plane(first, "the shadow pictures")?;
+    let frame = own.as_ref().unwrap_or(frame);
     let px: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
     let most = px.iter().map(|p| p.samples).fold(0.0f32, f32::max).max(1.0);
     let spp: Vec<u8> = px

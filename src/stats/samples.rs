@@ -433,6 +433,7 @@ impl SampleSet {
             height: self.height,
             spp: self.spp,
             sample_capacity: self.spp,
+            shadow_lights: Vec::new(),
             scene: self.record.scene.clone().unwrap_or_else(SceneInfo::unknown),
         };
         Frame::on_host(

@@ -89,6 +89,7 @@ pub fn shadow_frame(w: u32, h: u32, pixels: Vec<ShadowPixel>, light: [f32; 4]) -
             height: h,
             spp: 1,
             sample_capacity: 0,
+            shadow_lights: vec![0],
             scene,
         },
         OutputSet::of(&[Output::Colour, Output::Shadows]),

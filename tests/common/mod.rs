@@ -378,7 +378,7 @@ pub fn device_welford(
     let buffers: Vec<(BufferId, ocl::Buffer<u8>)> = BUFFERS
         .iter()
         .map(|b| {
-            let bytes = b.bytes(pixels as u32, 1, 1) as usize;
+            let bytes = b.bytes(pixels as u32, 1, 1, 1) as usize;
             (b.id, gpu.zeroed::<u8>(bytes, b.name).unwrap())
         })
         .collect();
@@ -501,6 +501,7 @@ impl Buffers {
                 height: self.height,
                 spp: self.spp,
                 sample_capacity: 0,
+                shadow_lights: Vec::new(),
                 scene: self.scene.clone(),
             },
             outputs,

@@ -11,7 +11,14 @@ use crate::common::aaf::shadow_renderer;
 use crate::common::{bundled_scene, gpu};
 
 pub fn device(frame: &Frame, s: &StylizedSettings) -> (noisefree::imaging::RgbImage, DeviceStages) {
-    let mut k = StylizedKernel::new(gpu(), s, true, frame.width(), frame.height()).unwrap();
+    let mut k = StylizedKernel::new(
+        gpu(),
+        s,
+        &s.stylized_lights(),
+        frame.width(),
+        frame.height(),
+    )
+    .unwrap();
     let run = k.filter(frame).unwrap();
     (run.image, k.stages().unwrap())
 }

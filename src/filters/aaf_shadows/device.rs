@@ -29,6 +29,9 @@ struct Passes {
 /// through untouched).
 pub struct AafShadowKernel {
     gpu: Arc<Gpu>,
+    /// The sphere light filtered: the frame's shadow plane read (src/layout/outputs.rs
+    /// `Per::Light`; a frame with other planes too gives its copy of this one).
+    light_index: Option<u32>,
     passes: Option<Passes>,
     width: u32,
     height: u32,
@@ -55,6 +58,7 @@ impl AafShadowKernel {
         };
         Ok(AafShadowKernel {
             gpu,
+            light_index: settings.light_index(),
             passes,
             width,
             height,
@@ -74,6 +78,11 @@ impl AafShadowKernel {
     /// whole frame gives them. The image's other rows are black.
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
+        let own = match self.light_index {
+            Some(l) if self.passes.is_some() => frame.light_plane(l, "the aaf-shadows filter")?,
+            _ => None,
+        };
+        let frame = own.as_ref().unwrap_or(frame);
         let h = self.height;
         let rows = rows.start.min(h)..rows.end.min(h);
         frame.check_size(self.width, self.height, "the aaf-shadows filter")?;

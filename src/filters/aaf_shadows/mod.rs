@@ -51,7 +51,7 @@ use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::layout::{AafShadowParams, Float4};
 use crate::render::shadows::bandlimit::light_sigma;
-use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
+use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling, LightPlanes};
 pub use device::AafShadowKernel;
 pub use reference::{compose, prepare, reference};
 
@@ -115,7 +115,7 @@ impl AafShadowSettings {
     /// How the renderer samples the shadow output for these settings.
     pub fn sampling(&self) -> ShadowSampling {
         ShadowSampling {
-            light: self.light_index().unwrap_or(0),
+            lights: LightPlanes::one(self.light_index().unwrap_or(0)),
             sparse_spp: self.sparse_spp,
             max_spp: self.max_spp,
             fill_radius: self.fill_radius,

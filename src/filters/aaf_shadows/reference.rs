@@ -87,6 +87,11 @@ pub fn reference(
     let Some(light) = light else {
         return frame.beauty();
     };
+    let own = match s.light_index() {
+        Some(l) => frame.light_plane(l, "the aaf-shadows filter")?,
+        None => None,
+    };
+    let frame = own.as_ref().unwrap_or(frame);
     let (w, h) = (frame.width(), frame.height());
     let pixels: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
     let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms)?;

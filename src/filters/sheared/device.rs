@@ -45,6 +45,9 @@ struct Passes {
 /// The sheared filter, built for an image size and a light (none: the image passes through).
 pub struct ShearedKernel {
     gpu: Arc<Gpu>,
+    /// The sphere light filtered: the frame's shadow plane read (src/layout/outputs.rs
+    /// `Per::Light`; a frame with other planes too gives its copy of this one).
+    light_index: Option<u32>,
     passes: Option<Passes>,
     width: u32,
     height: u32,
@@ -75,6 +78,7 @@ impl ShearedKernel {
         };
         Ok(ShearedKernel {
             gpu,
+            light_index: settings.light_index(),
             passes,
             width,
             height,
@@ -101,6 +105,24 @@ impl ShearedKernel {
     /// The image's other rows are black.
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
+        let own = match self.light_index {
+            Some(l) if self.passes.is_some() => {
+                // The light field is sampled for the first plane's light only
+                // (kernels/render/light_field.cl).
+                if let Some(&first) = frame.info().shadow_lights.first()
+                    && first != l
+                {
+                    bail!(
+                        "the sheared filter reads the light field of sphere light {l}, but \
+                         the frame's is of sphere light {first} (its first shadow plane): \
+                         render it for the sheared filter"
+                    );
+                }
+                frame.light_plane(l, "the sheared filter")?
+            }
+            _ => None,
+        };
+        let frame = own.as_ref().unwrap_or(frame);
         let h = self.height;
         let rows = rows.start.min(h)..rows.end.min(h);
         let widen = |r: u32| rows.start.saturating_sub(r)..(rows.end + r).min(h);

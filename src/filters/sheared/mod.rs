@@ -77,7 +77,7 @@ use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::layout::{Float4, LightFieldPixel, ShearedParams};
 use crate::render::shadows::light_field::{MAX_SIDE, light_frame};
-use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
+use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling, LightPlanes};
 pub use device::{Intermediates, STEPS, ShearedKernel};
 pub use dof_device::{DOF_STEPS, DofIntermediates, DofKernel};
 
@@ -156,7 +156,7 @@ impl ShearedSettings {
     /// How the renderer samples: AAF's sparse pass and fill, no adaptive pass, the grid.
     pub fn sampling(&self) -> ShadowSampling {
         ShadowSampling {
-            light: self.light_index().unwrap_or(0),
+            lights: LightPlanes::one(self.light_index().unwrap_or(0)),
             sparse_spp: self.sparse_spp,
             max_spp: self.sparse_spp,
             fill_radius: self.fill_radius,

@@ -1,7 +1,9 @@
 //! The stylized-shadows filter on the device (kernels/filters/stylized.cl), in three stages
 //! that can run alone: [`StylizedKernel::distance`] (contour, compaction on the host, eq. 3.2;
 //! once per render), [`StylizedKernel::blur`] (when α changes) and
-//! [`StylizedKernel::compose`] (when i, s or b change).
+//! [`StylizedKernel::compose`] (when i, s or b change). One pipeline (contour, distance, blur,
+//! controls, matte) per stylized light, each on its light's plane of the shadow output, and
+//! one compose over all of them (eq. 3.1).
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -17,9 +19,10 @@ use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{Float2, Float4};
 use crate::render::Frame;
 
-/// The kernels and their buffers for one image size.
+/// The kernels' buffers of one stylized light for one image size.
 struct Passes {
-    program: Program,
+    /// The scene's sphere light.
+    light: u32,
     slots: Buffer<Float4>,
     /// The compacted contour list of the last `distance` (None: not run yet).
     contour: Option<Buffer<Float4>>,
@@ -29,8 +32,11 @@ struct Passes {
     blurred: [Buffer<f32>; 2],
     stencils: [Buffer<Float2>; 2],
     controls: Buffer<f32>,
+    /// What `controls` holds.
+    controls_now: Controls,
     matte: Buffer<f32>,
-    image: Buffer<Float4>,
+    /// The light's α changed (or nothing was blurred since the distance step).
+    blur_stale: bool,
 }
 
 /// The stylized-shadows filter, built for an image size (without a light the image passes
@@ -38,7 +44,11 @@ struct Passes {
 pub struct StylizedKernel {
     gpu: Arc<Gpu>,
     settings: StylizedSettings,
-    passes: Option<Passes>,
+    program: Option<Program>,
+    /// One per stylized light, in the order of [`StylizedSettings::stylized_lights`] (empty:
+    /// the image passes through).
+    lights: Vec<Passes>,
+    image: Option<Buffer<Float4>>,
     width: u32,
     height: u32,
     /// The shadow pixels the last distance step read (bytes), and whether the blur is of
@@ -47,14 +57,14 @@ pub struct StylizedKernel {
     /// progressive render's frames re-run the compose alone; §3.3.3: the distance "only when
     /// the camera or light changes").
     last_pixels: Option<Vec<u8>>,
-    blur_current: bool,
 }
 
 impl StylizedKernel {
+    /// The filter for the sphere lights `lights` (stylized with `settings`' controls).
     pub fn new(
         gpu: Arc<Gpu>,
         settings: &StylizedSettings,
-        light: bool,
+        lights: &[u32],
         width: u32,
         height: u32,
     ) -> Result<StylizedKernel> {
@@ -62,48 +72,88 @@ impl StylizedKernel {
         if width == 0 || height == 0 {
             bail!("the image must be at least 1x1 pixels, got {width}x{height}");
         }
-        let passes = if light {
-            Some(Passes::new(&gpu, settings, width, height)?)
+        let (program, image) = if lights.is_empty() {
+            (None, None)
         } else {
-            None
+            let n = width as usize * height as usize;
+            (
+                Some(gpu.program("filters/stylized.cl", &[], "")?),
+                Some(gpu.zeroed::<Float4>(n, "stylized image")?),
+            )
         };
+        let lights = lights
+            .iter()
+            .map(|&l| Passes::new(&gpu, settings, l, width, height))
+            .collect::<Result<Vec<_>>>()?;
         Ok(StylizedKernel {
             gpu,
             settings: settings.clone(),
-            passes,
+            program,
+            lights,
+            image,
             width,
             height,
             last_pixels: None,
-            blur_current: false,
         })
     }
 
-    fn kernel<'a>(&self, p: &'a Passes, name: &str) -> ocl::builders::KernelBuilder<'a> {
+    /// The sphere lights stylized, in pipeline order.
+    pub fn lights(&self) -> Vec<u32> {
+        self.lights.iter().map(|p| p.light).collect()
+    }
+
+    /// The plane of light `light` in `frame`'s shadow output, and how many planes it has.
+    fn plane(frame: &Frame, light: u32) -> Result<(u32, u32)> {
+        let info = frame.info();
+        match info.shadow_plane(light) {
+            Some(p) => Ok((p as u32, info.shadow_planes())),
+            None => bail!(
+                "the stylized-shadows filter stylizes sphere light {light}, but the frame's \
+                 shadow output holds sphere light(s) {:?}: render it with this filter's \
+                 settings",
+                info.shadow_lights
+            ),
+        }
+    }
+
+    fn kernel<'a>(&'a self, name: &str) -> ocl::builders::KernelBuilder<'a> {
         let mut b = Kernel::builder();
-        b.program(&p.program)
+        b.program(self.program.as_ref().expect("built with a light"))
             .name(name.to_string())
             .queue(self.gpu.queue.clone())
             .global_work_size([self.width as usize, self.height as usize]);
         b
     }
 
-    /// Steps 1-2 on `frame`: the contour (compacted in pixel order on the host, as the thesis
-    /// does on its CPU) and D with d(x). Returns the kernel time.
+    /// Steps 1-2 on `frame`, for every stylized light: the contour (compacted in pixel order
+    /// on the host, as the thesis does on its CPU) and D with d(x). Returns the kernel time.
     pub fn distance(&mut self, frame: &Frame) -> Result<Duration> {
         frame.check_size(self.width, self.height, "the stylized-shadows filter")?;
-        let Some(p) = &self.passes else {
+        if self.lights.is_empty() {
             return Ok(Duration::ZERO);
-        };
+        }
         frame.require(
             OutputSet::of(&[Output::Colour, Output::Shadows]),
             "the stylized-shadows filter",
         )?;
+        let mut time = Duration::ZERO;
+        for k in 0..self.lights.len() {
+            time += self.distance_of(frame, k)?;
+        }
+        Ok(time)
+    }
+
+    fn distance_of(&mut self, frame: &Frame, k: usize) -> Result<Duration> {
         let s = &self.settings;
+        let p = &self.lights[k];
+        let (plane, planes) = Self::plane(frame, p.light)?;
         let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
         let normal_cos = s.normal_cos();
-        let k = self
-            .kernel(p, "st_contour")
+        let kernel = self
+            .kernel("st_contour")
             .arg(pixels)
+            .arg(plane)
+            .arg(planes)
             .arg(&p.slots)
             .arg(self.width)
             .arg(self.height)
@@ -113,7 +163,7 @@ impl StylizedKernel {
             .context("creating the contour kernel")?;
         // SAFETY: the buffers are the frame's and ours, sized for the image, alive until the
         // event completes (we wait on it).
-        let mut time = event_duration(&unsafe { enqueue(&k, "the contour kernel")? })?;
+        let mut time = event_duration(&unsafe { enqueue(&kernel, "the contour kernel")? })?;
         let mut slots = vec![Float4::default(); p.slots.len()];
         p.slots.read(&mut slots).enq().context("reading the contour slots")?;
         let list = contour::compact(&slots);
@@ -121,9 +171,11 @@ impl StylizedKernel {
         let buffer = self.gpu.upload(&list)?;
         let sampling =
             super::distance::Sampling::new(count, s.contour_samples, DISTANCE_SEED, normal_cos);
-        let k = self
-            .kernel(p, "st_distance")
+        let kernel = self
+            .kernel("st_distance")
             .arg(pixels)
+            .arg(plane)
+            .arg(planes)
             .arg(&buffer)
             .arg(count)
             .arg(sampling.n)
@@ -137,48 +189,76 @@ impl StylizedKernel {
             .build()
             .context("creating the distance kernel")?;
         // SAFETY: as above; `buffer` lives until it is stored below, after the wait.
-        time += event_duration(&unsafe { enqueue(&k, "the distance kernel")? })?;
-        let p = self.passes.as_mut().expect("checked above");
+        time += event_duration(&unsafe { enqueue(&kernel, "the distance kernel")? })?;
+        let p = &mut self.lights[k];
         p.contour = Some(buffer);
         p.contour_points = count;
-        self.blur_current = false;
+        p.blur_stale = true;
         Ok(time)
     }
 
-    /// Writes the controls (no kernel runs).
+    /// Writes the controls of every stylized light (no kernel runs).
     pub fn set_controls(&mut self, c: &Controls) -> Result<()> {
-        if c.abstraction != self.settings.abstraction {
-            self.blur_current = false;
+        for k in 0..self.lights.len() {
+            self.set_light_controls(k, c)?;
         }
         self.settings.inflation = c.inflation;
         self.settings.softness = c.softness;
         self.settings.brightness = c.brightness;
         self.settings.abstraction = c.abstraction;
-        self.settings.validate()?;
-        if let Some(p) = &self.passes {
-            p.controls
-                .write(&c.lanes()[..])
-                .enq()
-                .context("writing the stylized-shadow controls")?;
+        self.settings.validate()
+    }
+
+    /// Writes the controls of the `k`-th stylized light alone (no kernel runs): the next
+    /// [`Self::filter`] re-runs its blur if its α changed, and the compose.
+    pub fn set_light_controls(&mut self, k: usize, c: &Controls) -> Result<()> {
+        let Some(p) = self.lights.get_mut(k) else {
+            bail!("the stylized-shadows filter has {} light(s), not {}", self.lights.len(), k + 1);
+        };
+        let mut check = self.settings.clone();
+        (check.inflation, check.softness, check.brightness, check.abstraction) =
+            (c.inflation, c.softness, c.brightness, c.abstraction);
+        check.validate()?;
+        if c.abstraction != p.controls_now.abstraction {
+            p.blur_stale = true;
         }
+        p.controls_now = *c;
+        p.controls
+            .write(&c.lanes()[..])
+            .enq()
+            .context("writing the stylized-shadow controls")?;
         Ok(())
     }
 
-    /// Step 3: the two blur passes of D (after [`Self::distance`]).
+    /// Step 3: the two blur passes of D of every light whose blur is stale (after
+    /// [`Self::distance`]).
     pub fn blur(&mut self, frame: &Frame) -> Result<Duration> {
-        let Some(p) = &self.passes else {
+        let mut time = Duration::ZERO;
+        for k in 0..self.lights.len() {
+            self.lights[k].blur_stale = true;
+            time += self.blur_of(frame, k)?;
+        }
+        Ok(time)
+    }
+
+    fn blur_of(&mut self, frame: &Frame, k: usize) -> Result<Duration> {
+        let p = &self.lights[k];
+        if !p.blur_stale {
             return Ok(Duration::ZERO);
-        };
+        }
         if p.contour.is_none() {
             bail!("the stylized-shadows blur runs after the distance step");
         }
+        let (plane, planes) = Self::plane(frame, p.light)?;
         let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
         let mut time = Duration::ZERO;
         for pass in 0..2 {
             let input = if pass == 0 { &p.dist } else { &p.blurred[0] };
-            let k = self
-                .kernel(p, "st_blur")
+            let kernel = self
+                .kernel("st_blur")
                 .arg(pixels)
+                .arg(plane)
+                .arg(planes)
                 .arg(&p.controls)
                 .arg(&p.occluder)
                 .arg(&p.stencils[pass])
@@ -192,59 +272,70 @@ impl StylizedKernel {
                 .build()
                 .context("creating the blur kernel")?;
             // SAFETY: as in `distance`.
-            time += event_duration(&unsafe { enqueue(&k, "a blur pass")? })?;
+            time += event_duration(&unsafe { enqueue(&kernel, "a blur pass")? })?;
         }
-        self.blur_current = true;
+        self.lights[k].blur_stale = false;
         Ok(time)
     }
 
-    /// Step 4 and the shading: S and F − direct + r·S (after [`Self::blur`]).
+    /// Step 4 and the shading of every light: S_l and F − Σ_l direct_l + Σ_l r_l·S_l, one
+    /// launch per light (after [`Self::blur`]).
     pub fn compose(&mut self, frame: &Frame) -> Result<(crate::imaging::RgbImage, Duration)> {
-        let Some(p) = &self.passes else {
+        let Some(image) = &self.image else {
             return Ok((frame.beauty()?, Duration::ZERO));
         };
-        let k = self
-            .kernel(p, "st_compose")
-            .arg(frame.device(&self.gpu, BufferId::FilterVectors)?)
-            .arg(frame.device(&self.gpu, BufferId::ShadowTerms)?)
-            .arg(frame.device(&self.gpu, BufferId::ShadowPixels)?)
-            .arg(&p.controls)
-            .arg(&p.occluder)
-            .arg(&p.blurred[1])
-            .arg(self.width)
-            .arg(self.height)
-            .arg(&p.matte)
-            .arg(&p.image)
-            .build()
-            .context("creating the compose kernel")?;
-        // SAFETY: as in `distance`.
-        let time = event_duration(&unsafe { enqueue(&k, "the compose kernel")? })?;
-        Ok((read_rgb(&p.image, self.width, self.height)?, time))
+        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
+        let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
+        let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
+        let mut time = Duration::ZERO;
+        for (k, p) in self.lights.iter().enumerate() {
+            let (plane, planes) = Self::plane(frame, p.light)?;
+            let kernel = self
+                .kernel("st_compose")
+                .arg(fv)
+                .arg((k == 0) as u32)
+                .arg(terms)
+                .arg(pixels)
+                .arg(plane)
+                .arg(planes)
+                .arg(&p.controls)
+                .arg(&p.occluder)
+                .arg(&p.blurred[1])
+                .arg(self.width)
+                .arg(self.height)
+                .arg(&p.matte)
+                .arg(image)
+                .build()
+                .context("creating the compose kernel")?;
+            // SAFETY: as in `distance`.
+            time += event_duration(&unsafe { enqueue(&kernel, "the compose kernel")? })?;
+        }
+        Ok((read_rgb(image, self.width, self.height)?, time))
     }
 
-    /// Every stage on `frame`.
+    /// Every stage on `frame` that its inputs call for: the distance steps when the shadow
+    /// pixels changed, the blurs whose α changed, and the compose.
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
         let start = Instant::now();
         let mut kernel_time = Duration::ZERO;
-        let pixels = match &self.passes {
-            Some(_) => {
-                frame.require(
-                    OutputSet::of(&[Output::Colour, Output::Shadows]),
-                    "the stylized-shadows filter",
-                )?;
-                let b = frame.device(&self.gpu, BufferId::ShadowPixels)?;
-                let mut bytes = vec![0u8; b.len()];
-                b.read(&mut bytes).enq().context("reading the shadow pixels")?;
-                Some(bytes)
-            }
-            None => None,
+        let pixels = if self.lights.is_empty() {
+            None
+        } else {
+            frame.require(
+                OutputSet::of(&[Output::Colour, Output::Shadows]),
+                "the stylized-shadows filter",
+            )?;
+            let b = frame.device(&self.gpu, BufferId::ShadowPixels)?;
+            let mut bytes = vec![0u8; b.len()];
+            b.read(&mut bytes).enq().context("reading the shadow pixels")?;
+            Some(bytes)
         };
         if pixels.is_none() || pixels != self.last_pixels {
             kernel_time += self.distance(frame)?;
             self.last_pixels = pixels;
         }
-        if !self.blur_current {
-            kernel_time += self.blur(frame)?;
+        for k in 0..self.lights.len() {
+            kernel_time += self.blur_of(frame, k)?;
         }
         let (image, t) = self.compose(frame)?;
         Ok(FilterRun {
@@ -254,10 +345,15 @@ impl StylizedKernel {
         })
     }
 
-    /// The device's intermediates of the last run, for tests: contour points, D, d(x), G * D
-    /// and S (empty without a light).
+    /// The device's intermediates of the last run of the first stylized light, for tests:
+    /// contour points, D, d(x), G * D and S (empty without a light).
     pub fn stages(&self) -> Result<DeviceStages> {
-        let Some(p) = &self.passes else {
+        self.light_stages(0)
+    }
+
+    /// The same for the `k`-th stylized light.
+    pub fn light_stages(&self, k: usize) -> Result<DeviceStages> {
+        let Some(p) = self.lights.get(k) else {
             return Ok(DeviceStages::default());
         };
         let read = |b: &Buffer<f32>| -> Result<Vec<f32>> {
@@ -286,17 +382,17 @@ pub struct DeviceStages {
 }
 
 impl Passes {
-    fn new(gpu: &Gpu, s: &StylizedSettings, width: u32, height: u32) -> Result<Passes> {
-        let program = gpu.program("filters/stylized.cl", &[], "")?;
+    fn new(gpu: &Gpu, s: &StylizedSettings, light: u32, width: u32, height: u32) -> Result<Passes> {
         let n = width as usize * height as usize;
         let b = s.blur_samples;
+        let own = s.controls_of(light);
         let controls = gpu.zeroed::<f32>(LANES, "stylized-shadow controls")?;
         controls
-            .write(&s.controls().lanes()[..])
+            .write(&own.lanes()[..])
             .enq()
             .context("writing the stylized-shadow controls")?;
         Ok(Passes {
-            program,
+            light,
             slots: gpu.zeroed::<Float4>(n * 4, "contour slots")?,
             contour: None,
             contour_points: 0,
@@ -311,8 +407,9 @@ impl Passes {
                 gpu.upload(&blur::stencil(b, b))?,
             ],
             controls,
+            controls_now: own,
             matte: gpu.zeroed::<f32>(n, "stylized matte")?,
-            image: gpu.zeroed::<Float4>(n, "stylized image")?,
+            blur_stale: true,
         })
     }
 }
@@ -325,7 +422,7 @@ impl PreparedFilter for StylizedKernel {
     /// With a light, D at a pixel depends on every contour point of the image: no bounded
     /// reach, whole frames only. Without one the image passes through, row by row.
     fn reach(&self) -> Option<u32> {
-        self.passes.is_none().then_some(0)
+        self.lights.is_empty().then_some(0)
     }
 
     fn run_rows(&mut self, frame: &Frame, rows: std::ops::Range<u32>) -> Result<FilterRun> {

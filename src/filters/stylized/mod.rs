@@ -19,16 +19,17 @@
 //! its plain Rust reference and says what the seed leaves open and what is done. Steps 1-2
 //! depend on the render alone, step 3 on α, step 4 on i, s, b: [`StylizedKernel`] runs them
 //! separately, so a change of i, s or b re-runs only the compose, a change of α the blur and
-//! the compose (the thesis's "> 100 fps" and "> 50 fps" edits, §3.3.3 "Sampling").
+//! the compose (the thesis's "> 100 fps" and "> 50 fps" edits, §3.3.3 "Sampling"). Several
+//! lights: see "Several lights" below.
 //!
 //! Adaptations to a path tracer (digest §1.4):
 //! - **Binary V** from one ray to the sphere light's centre: the port's lights are spheres
 //!   (soft shadows), the thesis's input is a hard matte; stylizing soft visibility is its
 //!   future work (§3.4).
-//! - **One light per render**, `light` (auto: the first sphere light), like aaf-shadows: the
-//!   shadow output holds one light's terms. The other lights' shadows stay as rendered. The
-//!   seed stylizes every light (eq. 3.1: Σ_l, S_l in place of V_l); "Several lights" below is
-//!   the design for that, not built yet.
+//! - **Sphere lights only**: the lights with a centre and a shadow ray to it. `light = auto`
+//!   stylizes every sphere light (at most 8, the shadow output's planes; `light_count` takes
+//!   the first n), `light = n` light n alone; other lights' shadows (triangle lights, the
+//!   environment, lights left out) stay as rendered.
 //! - **b applies to the direct light of the light only**: the path tracer's indirect light is
 //!   kept, so b = 0 (the default) is the physical shadow and b adds "ambient" on top (digest
 //!   §1.4: b would otherwise double-count indirect light).
@@ -44,39 +45,46 @@
 //!   filter has no bounded reach ([`PreparedFilter::reach`] is None) and runs on the merged
 //!   film when a frame is split across devices (without a light it passes bands through).
 //!
-//! # Several lights (design, not built)
+//! # Several lights (eq. 3.1)
 //!
-//! Eq. 3.1 sums over the lights, each with its own S_l. What one light per render lacks, and
-//! how each piece would grow (issue 17, §2):
-//! - **The shadow output per light.** `ShadowTerms` (the light's direct term that the path
+//! Eq. 3.1 sums over the lights, each with its own S_l (issue 17, §2). What is built:
+//! - **The shadow output per light.** `ShadowTerms` (a light's direct term that the path
 //!   tracer put into F) and `ShadowPixel` (V from the centre ray, r, d(x), position, normal)
-//!   hold one light, chosen by `ShadowSampling::light`. They would become planes of
-//!   `pixels × L` elements for the scene's L sphere lights (src/layout/outputs.rs sizes them as
-//!   it sizes the sample vectors by `sample_capacity`; the AOV channels get the light's number,
-//!   `shadow.l1.direct.R`; merging partial renders merges each plane as it merges the one).
-//! - **The megakernel** (kernels/render/pathtrace.cl) folds `ps.shadow_direct` only when the
-//!   next-event estimate chose `shadow_light` (or the first bounce hit it): with planes it adds
-//!   to `shadow_direct[chosen]`, a private array of L float3 (L a build define, capped; the
-//!   film's `PixelStats.shadow` grows with it). Next-event estimation already picks one light
-//!   per vertex, so the per-light terms are disjoint parts of F and can all be subtracted.
-//! - **The shadow passes** (src/render/shadows) run once per light before the first samples,
-//!   writing plane l; their cost is L times today's, paid once per render. aaf-shadows and
-//!   sheared filtering, which read the same output, read the plane of their `light`.
-//! - **The filter** keeps one `device.rs` pipeline per light (contour, D, blur, each light's
-//!   V_l has its own contour) and one compose over all of them:
-//!   F − Σ_l direct_l + Σ_l r_l·S_l. A change of light l's i, s or b re-runs only the
-//!   compose; of its α, its blur and the compose.
-//! - **Settings**: today's four quadratics are the default of every light, with a table per
-//!   light overriding them (`[filter.stylized-shadows.lights.1] inflation = ...`); `light`
-//!   becomes the set of lights stylized (auto: all sphere lights).
-//! - **Tests**: with two lights, changing light 1's controls changes the image by exactly
-//!   r_1·(S_1′ − S_1) and leaves light 0's part alone; identity controls give
-//!   F − Σ direct_l + Σ r_l·V_l, and with one light stylized the bytes of today's filter.
+//!   are per-light planes, `pixels × L` elements, pixel-major (src/layout/outputs.rs
+//!   `Per::Light`: pixel p's plane l at p·L + l, so a row of pixels stays contiguous and the
+//!   device split and the merge work on them as on per-pixel buffers). The planes are a set
+//!   of the scene's sphere lights (`render::LightPlanes`, `ShadowSampling::lights`), only
+//!   those a filter asks for: aaf-shadows and sheared ask for their `light` (one plane, the
+//!   bytes of before), this filter for the lights it stylizes. The frame records the light of
+//!   each plane (`FrameInfo::shadow_lights`), the AOV channels carry it
+//!   (`shadow.l1.direct.R`), partial files list it; merging merges every plane.
+//! - **The megakernel** (kernels/render/pathtrace.cl) keeps a private float3 per plane
+//!   (`SHADOW_PLANES`, a build define, at most 8: beyond that `ShadowSampling::check` refuses
+//!   with the cap) and folds a next-event estimate (or a first-bounce hit of the light) into
+//!   the plane of the light that was chosen. Next-event estimation picks one light per vertex,
+//!   so the planes' terms are disjoint parts of F and can all be subtracted.
+//! - **The shadow passes** (src/render/shadows) run once per plane before the first samples,
+//!   each writing its plane with the same random numbers as a render of that light alone:
+//!   plane l is byte for byte the one-light output (tests/stylized_lights.rs). Their cost is
+//!   L times one light's, paid once per render.
+//! - **The filter** keeps one pipeline per light (contour, D, blur, controls, matte:
+//!   `device.rs`), each reading its light's plane, and composes them a light at a time into
+//!   F − Σ_l direct_l + Σ_l r_l·S_l (`st_compose` starts from F, then from the image so far).
+//!   [`StylizedKernel::set_light_controls`] changes one light's controls: i, s or b re-run
+//!   only the compose, α that light's blur and the compose. In place of the design's single
+//!   compose over all lights, the per-light launches keep one kernel and one reference for
+//!   any number of lights, and with one light are the one-light filter's kernel (the same
+//!   bytes: results/stylized/contact-sheet.png is reproduced exactly).
+//! - **Settings**: the four quadratics are every light's default, `[...lights.N]` tables
+//!   ([`lights`]) override them for light N or leave its shadow as rendered
+//!   (`stylize = false`); `light` chooses one light or, auto, every sphere light (the first
+//!   `light_count`).
 
 pub mod blur;
 pub mod contour;
 mod device;
 pub mod distance;
+pub mod lights;
 pub mod transfer;
 
 use std::sync::Arc;
@@ -84,6 +92,8 @@ use std::sync::Arc;
 use anyhow::{Result, bail};
 
 use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
+use crate::layout::outputs::MAX_SHADOW_PLANES;
+use crate::render::LightPlanes;
 use super::{Auto, FilterKind, PreparedFilter, Purpose};
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
@@ -91,6 +101,7 @@ use crate::layout::outputs::{BufferId, OutputSet};
 use crate::layout::{ShadowPixel, ShadowTerms};
 use crate::render::{Frame, FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::{DeviceStages, StylizedKernel};
+pub use lights::{LightControls, LightTable};
 pub use transfer::Controls;
 
 crate::filter_settings! {
@@ -99,9 +110,17 @@ crate::filter_settings! {
     /// and how the distance and the blur are sampled.
     pub struct StylizedSettings, flags "stylized-" {
         /// The sphere light whose shadows are stylized, counting from 0 in the scene's order;
-        /// auto: the first, or none when the scene has no sphere light (the image passes
-        /// through); -1: none.
+        /// auto: every sphere light (the first `light_count`), or none when the scene has no
+        /// sphere light (the image passes through); -1: none.
         pub light: Auto<i32> = Auto::Auto,
+        /// With light = auto: how many sphere lights are stylized, the scene's first ones
+        /// (0: all of them; at most 8, the shadow output's planes).
+        pub light_count: u32 = 0,
+        /// Per-light tables overriding the four controls for one light, or leaving its shadow
+        /// as rendered (`[filter.stylized-shadows.lights.1]` with `inflation = [...]`,
+        /// `softness`, `brightness`, `abstraction` or `stylize = false`); the controls above
+        /// are every light's default.
+        pub lights: LightTable = LightTable::new(),
         /// Inflation i: the shadow's new boundary is the isocontour D = i of the signed
         /// L8-averaged distance (world units; negative deflates).
         pub inflation: [f32; 3] = [0.0, 0.0, 0.0],
@@ -138,6 +157,14 @@ pub const DISTANCE_SEED: u32 = 0x5717_12ed;
 impl StylizedSettings {
     pub fn validate(&self) -> Result<()> {
         check_light(self.light)?;
+        if self.light_count > MAX_SHADOW_PLANES {
+            bail!(
+                "light_count: at most {MAX_SHADOW_PLANES} sphere lights are stylized at once \
+                 (one plane of the shadow output each), got {}",
+                self.light_count
+            );
+        }
+        lights::check(&self.lights)?;
         let k = (self.unshadowed_spp as f64).sqrt().round() as u32;
         if self.unshadowed_spp == 0 || k * k != self.unshadowed_spp || k > 64 {
             bail!(
@@ -154,15 +181,21 @@ impl StylizedSettings {
                 bail!("{name} must be in 1..={MAX_SAMPLES}, got {v}");
             }
         }
-        let c = self.controls();
-        for (q, name) in [
-            (c.inflation, "inflation"),
-            (c.softness, "softness"),
-            (c.brightness, "brightness"),
-            (c.abstraction, "abstraction"),
-        ] {
-            if q.iter().any(|v| !v.is_finite()) {
-                bail!("{name} takes three finite coefficients [c0, c1, c2], got {q:?}");
+        let every = std::iter::once((String::new(), self.controls())).chain(
+            self.lights
+                .iter()
+                .map(|(k, e)| (format!("lights.{k}."), e.over(&self.controls()))),
+        );
+        for (at, c) in every {
+            for (q, name) in [
+                (c.inflation, "inflation"),
+                (c.softness, "softness"),
+                (c.brightness, "brightness"),
+                (c.abstraction, "abstraction"),
+            ] {
+                if q.iter().any(|v| !v.is_finite()) {
+                    bail!("{at}{name} takes three finite coefficients [c0, c1, c2], got {q:?}");
+                }
             }
         }
         if !(self.normal_angle >= 0.0) || !(self.surface_gap > 0.0) {
@@ -193,16 +226,34 @@ impl StylizedSettings {
         }
     }
 
-    /// The sphere light stylized, if any (after specialisation; `auto` counts as the first).
-    pub fn light_index(&self) -> Option<u32> {
-        light_index(self.light)
+    /// The controls of sphere light `l`: the filter's, with its table's overrides.
+    pub fn controls_of(&self, l: u32) -> Controls {
+        lights::controls_of(&self.lights, &self.controls(), l)
     }
 
-    /// The shadow output this filter needs: `unshadowed_spp` light samples for r and no
-    /// adaptive pass (the centre ray gives V).
+    /// The sphere lights stylized: `light` alone when set, else the first `light_count`
+    /// (after specialisation the scene's count; before it, 0 counts as the first light);
+    /// less those whose table says `stylize = false`.
+    pub fn stylized_lights(&self) -> Vec<u32> {
+        let set: Vec<u32> = match self.light {
+            Auto::Auto => (0..self.light_count.max(1)).collect(),
+            Auto::Set(_) => light_index(self.light).into_iter().collect(),
+        };
+        set.into_iter()
+            .filter(|&l| lights::stylized(&self.lights, l))
+            .collect()
+    }
+
+    /// The shadow output this filter needs: a plane per stylized light, `unshadowed_spp`
+    /// light samples for r and no adaptive pass (the centre ray gives V).
     pub fn sampling(&self) -> ShadowSampling {
+        let lights = self.stylized_lights();
         ShadowSampling {
-            light: self.light_index().unwrap_or(0),
+            lights: if lights.is_empty() {
+                LightPlanes::one(0)
+            } else {
+                LightPlanes::of(&lights)
+            },
             sparse_spp: self.unshadowed_spp,
             max_spp: self.unshadowed_spp,
             fill_radius: 0,
@@ -226,13 +277,34 @@ impl FilterKind for StylizedShadows {
         s.validate()
     }
 
-    /// `light = auto` becomes the first sphere light, or none when the scene has none.
+    /// `light = auto` becomes the scene's first `lights` sphere lights (all by default), or
+    /// none when the scene has none; a set `light` is checked against the scene.
     fn specialise(s: &mut StylizedSettings, scene: &SceneInfo) -> Vec<String> {
-        specialise_light(&mut s.light, scene)
+        let count = scene.sphere_lights.len() as u32;
+        if !s.light.is_auto() {
+            return specialise_light(&mut s.light, scene);
+        }
+        if count == 0 {
+            return specialise_light(&mut s.light, scene);
+        }
+        let n = if s.light_count == 0 {
+            count
+        } else {
+            s.light_count.min(count)
+        };
+        s.light_count = n;
+        vec![format!(
+            "light_count = {n}: sphere light(s) 0..{n} of {count} stylized (less any with \
+             stylize = false), each with its own contour, distance and blur"
+        )]
     }
 
     fn needs(s: &StylizedSettings) -> OutputSet {
-        light_needs(s.light)
+        if s.stylized_lights().is_empty() {
+            OutputSet::colour()
+        } else {
+            light_needs(Auto::Set(0))
+        }
     }
 
     fn render_options(s: &StylizedSettings, options: &mut RenderOptions) {
@@ -244,8 +316,10 @@ impl FilterKind for StylizedShadows {
         frame: &FrameInfo,
         gpu: &Arc<Gpu>,
     ) -> Result<Box<dyn PreparedFilter>> {
-        if let Some(l) = s.light_index()
-            && l as usize >= frame.scene.sphere_lights.len()
+        let lights = s.stylized_lights();
+        if let Some(l) = lights
+            .iter()
+            .find(|&&l| l as usize >= frame.scene.sphere_lights.len())
         {
             bail!(
                 "the stylized-shadows filter is set to sphere light {l}, but the scene has {} \
@@ -256,14 +330,15 @@ impl FilterKind for StylizedShadows {
         Ok(Box::new(StylizedKernel::new(
             gpu.clone(),
             s,
-            s.light_index().is_some(),
+            &lights,
             frame.width,
             frame.height,
         )?))
     }
 }
 
-/// What the reference computes, step by step (tests compare each with the kernels').
+/// What the reference computes, step by step, for one stylized light (tests compare each
+/// with the kernels').
 pub struct Stages {
     /// The contour list (two float4s per point).
     pub contour: Vec<crate::layout::Float4>,
@@ -275,57 +350,104 @@ pub struct Stages {
     pub blurred: Vec<f32>,
     /// S per pixel.
     pub matte: Vec<f32>,
+    /// The image after this light's compose (the last light's: the filter's output).
     pub image: RgbImage,
 }
 
-/// The whole filter in plain Rust on `frame` (which holds the shadow output).
+/// The whole filter in plain Rust on `frame` (which holds the shadow output): the stages of
+/// the first stylized light, with the image of them all (see [`reference_lights`]).
 pub fn reference(frame: &Frame, s: &StylizedSettings) -> Result<Stages> {
-    s.validate()?;
-    let (w, h) = (frame.width(), frame.height());
-    let pixels: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
-    let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms)?;
-    let normal_cos = s.normal_cos();
-    let contour = contour::compact(&contour::slots(pixels, w, h, normal_cos, s.surface_gap));
-    let sampling = distance::Sampling::new(
-        (contour.len() / 2) as u32,
-        s.contour_samples,
-        DISTANCE_SEED,
-        normal_cos,
-    );
-    let (dist, occluder) = distance::distances(pixels, &contour, &sampling);
-    let controls = s.controls();
-    let n = s.blur_samples;
-    let mut blurred = dist.clone();
-    for pass in 0..2 {
-        let stencil = blur::stencil(pass * n, n);
-        blurred = blur::pass(
-            pixels,
-            &controls,
-            &occluder,
-            &stencil,
-            &blurred,
-            w,
-            h,
-            normal_cos,
-            s.surface_gap,
+    let controls: Vec<Controls> = s
+        .stylized_lights()
+        .iter()
+        .map(|&l| s.controls_of(l))
+        .collect();
+    let mut all = reference_lights(frame, s, &controls)?;
+    let image = all.last().map(|l| l.image.clone());
+    let mut first = all.swap_remove(0);
+    first.image = image.expect("one light at least");
+    Ok(first)
+}
+
+/// The plane `light` of a per-light buffer of `frame` (src/layout/outputs.rs `Per::Light`).
+pub fn light_plane<T: ocl::OclPrm>(frame: &Frame, id: BufferId, light: u32) -> Result<Vec<T>> {
+    let info = frame.info();
+    let Some(plane) = info.shadow_plane(light) else {
+        bail!(
+            "the frame's shadow output holds sphere light(s) {:?}, not {light}",
+            info.shadow_lights
         );
+    };
+    let planes = info.shadow_lights.len();
+    let all: &[T] = frame.host_slice(id)?;
+    Ok(all.iter().skip(plane).step_by(planes).copied().collect())
+}
+
+/// Every stylized light of `s` in plain Rust, light k with `controls[k]`: each light's stages,
+/// the image after each light's compose (eq. 3.1: F − Σ_l direct_l + Σ_l r_l·S_l, a light at a
+/// time, as the kernels compose). Without a light: one stage set whose image is F.
+pub fn reference_lights(
+    frame: &Frame,
+    s: &StylizedSettings,
+    controls: &[Controls],
+) -> Result<Vec<Stages>> {
+    s.validate()?;
+    let lights = s.stylized_lights();
+    if controls.len() != lights.len() {
+        bail!("{} controls for {} stylized lights", controls.len(), lights.len());
     }
-    let (matte, image) = transfer::compose(
-        frame.filter_vectors()?,
-        terms,
-        pixels,
-        &controls,
-        &occluder,
-        &blurred,
-        w,
-        h,
-    );
-    Ok(Stages {
-        contour,
-        distance: dist,
-        occluder,
-        blurred,
-        matte,
-        image,
-    })
+    let (w, h) = (frame.width(), frame.height());
+    let mut image = frame.beauty()?;
+    if lights.is_empty() {
+        return Ok(vec![Stages {
+            contour: Vec::new(),
+            distance: Vec::new(),
+            occluder: Vec::new(),
+            blurred: Vec::new(),
+            matte: Vec::new(),
+            image,
+        }]);
+    }
+    let mut out = Vec::new();
+    for (&light, controls) in lights.iter().zip(controls) {
+        let pixels: Vec<ShadowPixel> = light_plane(frame, BufferId::ShadowPixels, light)?;
+        let terms: Vec<ShadowTerms> = light_plane(frame, BufferId::ShadowTerms, light)?;
+        let normal_cos = s.normal_cos();
+        let contour = contour::compact(&contour::slots(&pixels, w, h, normal_cos, s.surface_gap));
+        let sampling = distance::Sampling::new(
+            (contour.len() / 2) as u32,
+            s.contour_samples,
+            DISTANCE_SEED,
+            normal_cos,
+        );
+        let (dist, occluder) = distance::distances(&pixels, &contour, &sampling);
+        let n = s.blur_samples;
+        let mut blurred = dist.clone();
+        for pass in 0..2 {
+            let stencil = blur::stencil(pass * n, n);
+            blurred = blur::pass(
+                &pixels,
+                controls,
+                &occluder,
+                &stencil,
+                &blurred,
+                w,
+                h,
+                normal_cos,
+                s.surface_gap,
+            );
+        }
+        let (matte, next) =
+            transfer::compose(&image, &terms, &pixels, controls, &occluder, &blurred);
+        image = next;
+        out.push(Stages {
+            contour,
+            distance: dist,
+            occluder,
+            blurred,
+            matte,
+            image: image.clone(),
+        });
+    }
+    Ok(out)
 }

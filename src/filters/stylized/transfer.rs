@@ -10,7 +10,7 @@
 use rayon::prelude::*;
 
 use crate::imaging::RgbImage;
-use crate::layout::{FilterVector, ShadowPixel, ShadowTerms};
+use crate::layout::{ShadowPixel, ShadowTerms};
 
 /// The four controls, each a quadratic c0 + c1 d + c2 d² of the occluder distance d(x)
 /// (§3.3.2 "Non-constant Stylization Parameters": "quadratic functions of d(x) allow suitable
@@ -83,24 +83,21 @@ pub fn transfer(d: f32, i: f32, s: f32, b: f32) -> f32 {
     (1.0 - b) * t + b
 }
 
-/// `st_compose`: the matte S per pixel and the image F − direct + r·S (F as is where the
-/// pixel has no light sample on its receiver, as the AAF filter does).
-#[allow(clippy::too_many_arguments)]
+/// `st_compose` of one light: the matte S per pixel and the image `base` − direct + r·S
+/// (`base` as is where the pixel has no light sample on its receiver, as the AAF filter
+/// does). The first light's `base` is F; each next light's is the image so far (eq. 3.1).
 pub fn compose(
-    fv: &[FilterVector],
+    base: &RgbImage,
     terms: &[ShadowTerms],
     pixels: &[ShadowPixel],
     controls: &Controls,
     occluder: &[f32],
     dist: &[f32],
-    width: u32,
-    height: u32,
 ) -> (Vec<f32>, RgbImage) {
-    let out: Vec<(f32, [f32; 3])> = (0..fv.len())
+    let out: Vec<(f32, [f32; 3])> = (0..base.pixels.len())
         .into_par_iter()
         .map(|k| {
-            let f = &fv[k];
-            let beauty: [f32; 3] = std::array::from_fn(|c| f.direct[c] + f.indirect[c]);
+            let beauty = base.pixels[k];
             let (i, s, b) = controls.at(occluder[k]);
             let matte = transfer(dist[k], i, s, b);
             let p = &pixels[k];
@@ -108,15 +105,16 @@ pub fn compose(
                 return (matte, beauty);
             }
             let t = &terms[k];
-            let rgb =
-                std::array::from_fn(|c| (beauty[c] - t.direct[c]) + p.unshadowed[c] / p.samples * matte);
+            let rgb = std::array::from_fn(|c| {
+                (beauty[c] - t.direct[c]) + p.unshadowed[c] / p.samples * matte
+            });
             (matte, rgb)
         })
         .collect();
     let matte = out.iter().map(|o| o.0).collect();
     let image = RgbImage {
-        width,
-        height,
+        width: base.width,
+        height: base.height,
         pixels: out.into_iter().map(|o| o.1).collect(),
     };
     (matte, image)

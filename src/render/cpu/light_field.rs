@@ -154,8 +154,15 @@ pub fn passes(
     sampling: &ShadowSampling,
     frame: [Vec3; 2],
 ) -> (Vec<ShadowPixel>, Vec<LightFieldPixel>, u64) {
-    let (mut pixels, mut rays) = sparse(s, sampling.light, isqrt_floor(sampling.sparse_spp));
-    let (fields, more) = light_field(s, &mut pixels, sampling.light, sampling.light_field, frame);
+    let (mut pixels, mut rays) =
+        sparse(s, sampling.lights.first(), isqrt_floor(sampling.sparse_spp));
+    let (fields, more) = light_field(
+        s,
+        &mut pixels,
+        sampling.lights.first(),
+        sampling.light_field,
+        frame,
+    );
     rays += more;
     fill(
         &mut pixels,
@@ -166,7 +173,7 @@ pub fn passes(
     rays += adaptive(
         s,
         &mut pixels,
-        sampling.light,
+        sampling.lights.first(),
         sampling.sparse_spp,
         sampling.max_spp,
     );

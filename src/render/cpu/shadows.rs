@@ -356,9 +356,11 @@ pub fn adaptive(
         .sum()
 }
 
-/// All three passes, as the renderer runs them: the shadow pixels and the rays traced.
+/// All three passes, as the renderer runs them for the first plane's light (the renderer
+/// runs them once per plane, each exactly so): the shadow pixels and the rays traced.
 pub fn passes(s: &SceneArrays, sampling: &ShadowSampling) -> (Vec<ShadowPixel>, u64) {
-    let (mut pixels, mut rays) = sparse(s, sampling.light, isqrt_floor(sampling.sparse_spp));
+    let (mut pixels, mut rays) =
+        sparse(s, sampling.lights.first(), isqrt_floor(sampling.sparse_spp));
     fill(
         &mut pixels,
         s.params.image_width,
@@ -368,7 +370,7 @@ pub fn passes(s: &SceneArrays, sampling: &ShadowSampling) -> (Vec<ShadowPixel>, 
     rays += adaptive(
         s,
         &mut pixels,
-        sampling.light,
+        sampling.lights.first(),
         sampling.sparse_spp,
         sampling.max_spp,
     );

@@ -42,14 +42,54 @@ use ocl::{Buffer, Kernel, Program};
 
 use super::DeviceScene;
 use crate::gpu::{Gpu, enqueue, event_duration};
+use crate::layout::outputs::MAX_SHADOW_PLANES;
 use crate::layout::{Float4, ShadowPixel};
 
-/// How the shadow output is sampled (the `aaf-shadows` filter's settings choose it).
+/// The sphere lights of the shadow output, one plane each, by their place among the scene's
+/// sphere lights (which lead the light list, so it is also their light index): a set, held as
+/// a bit mask, whose planes are in increasing light order (plane p holds the p-th light of the
+/// set). Simulate only what the scene calls for: aaf-shadows and sheared filtering ask for
+/// one light, stylized shadows for the lights it stylizes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LightPlanes(pub u32);
+
+impl LightPlanes {
+    /// The one light `l` (l < 32).
+    pub fn one(l: u32) -> LightPlanes {
+        LightPlanes(1u32.checked_shl(l).unwrap_or(0))
+    }
+
+    /// These lights (each < 32).
+    pub fn of(lights: &[u32]) -> LightPlanes {
+        LightPlanes(lights.iter().fold(0, |m, &l| m | LightPlanes::one(l).0))
+    }
+
+    /// The lights, in plane order.
+    pub fn lights(self) -> Vec<u32> {
+        (0..32).filter(|l| self.0 >> l & 1 == 1).collect()
+    }
+
+    pub fn count(self) -> u32 {
+        self.0.count_ones()
+    }
+
+    /// The first plane's light (aaf-shadows and sheared filtering read their one plane).
+    pub fn first(self) -> u32 {
+        self.0.trailing_zeros().min(31)
+    }
+
+    /// The plane holding light `l`, if the set has it.
+    pub fn plane_of(self, l: u32) -> Option<u32> {
+        (l < 32 && self.0 >> l & 1 == 1).then(|| (self.0 & ((1u32 << l) - 1)).count_ones())
+    }
+}
+
+/// How the shadow output is sampled (the shadow filters' settings choose it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShadowSampling {
-    /// The sphere light, by its place among the scene's sphere lights (which lead the light
-    /// list, so it is also its light index).
-    pub light: u32,
+    /// The sphere lights, one plane each (kernels/render/shadows.cl runs the passes once per
+    /// plane; the megakernel folds each light's direct term into its plane).
+    pub lights: LightPlanes,
     /// Samples per pixel of the sparse pass: a square, k × k strata.
     pub sparse_spp: u32,
     /// Largest samples per pixel after the adaptive pass (eq. 3.5 is clamped to it).
@@ -66,7 +106,7 @@ pub struct ShadowSampling {
 impl Default for ShadowSampling {
     fn default() -> Self {
         ShadowSampling {
-            light: 0,
+            lights: LightPlanes::one(0),
             sparse_spp: 9,
             max_spp: 100,
             fill_radius: 10,
@@ -76,8 +116,16 @@ impl Default for ShadowSampling {
 }
 
 impl ShadowSampling {
-    /// Checks the counts: the sparse count is a positive square, the maximum at least it.
+    /// Checks the counts: the sparse count is a positive square, the maximum at least it;
+    /// one to [`MAX_SHADOW_PLANES`] light planes.
     pub fn check(&self) -> Result<()> {
+        let planes = self.lights.count();
+        if planes == 0 || planes > MAX_SHADOW_PLANES {
+            bail!(
+                "the shadow output holds 1 to {MAX_SHADOW_PLANES} sphere lights (one plane each, \
+                 a private term of every path sample), got {planes}: stylize fewer lights"
+            );
+        }
         let k = bandlimit::isqrt_floor(self.sparse_spp);
         if self.sparse_spp == 0 || k * k != self.sparse_spp {
             bail!(
@@ -108,7 +156,7 @@ impl ShadowSampling {
     }
 }
 
-/// The light the shadow output samples, checked against the scene (sphere lights lead the
+/// The lights the shadow output samples, checked against the scene (sphere lights lead the
 /// light list) and the render: the passes work on the whole image (the slope fill reaches
 /// `fill_radius` pixels across), so a tile is refused rather than filtered differently from
 /// the whole render. Sample ranges are fine: the passes depend on the pixel alone, so every
@@ -118,7 +166,7 @@ pub(super) fn shadow_light(
     sampling: &ShadowSampling,
     tile: super::Tile,
     frame: &crate::arrays::FrameSettings,
-) -> Result<u32> {
+) -> Result<LightPlanes> {
     sampling.check()?;
     if tile != super::Tile::whole(frame.width, frame.height) {
         bail!(
@@ -132,14 +180,13 @@ pub(super) fn shadow_light(
         .iter()
         .take_while(|l| l.kind == crate::layout::LIGHT_SPHERE)
         .count() as u32;
-    if sampling.light >= spheres {
+    if let Some(&l) = sampling.lights.lights().iter().find(|&&l| l >= spheres) {
         bail!(
-            "the shadow output samples sphere light {} (counting from 0), but the scene has \
-             {spheres} sphere light(s)",
-            sampling.light
+            "the shadow output samples sphere light {l} (counting from 0), but the scene has \
+             {spheres} sphere light(s)"
         );
     }
-    Ok(sampling.light)
+    Ok(sampling.lights)
 }
 
 /// What the shadow passes (or AAF's indirect passes, [`super::IndirectStats`]) spent.
@@ -157,13 +204,13 @@ pub struct ShadowStats {
     pub kernel_time: Duration,
 }
 
-/// The shadow passes of one renderer, built from its program (kernels/render/shadows.cl).
+/// The shadow passes of one renderer, built from its program (kernels/render/shadows.cl):
+/// one set per light plane, each writing its plane of the shadow pixels.
 pub(super) struct ShadowPasses {
     sampling: ShadowSampling,
-    sparse: Kernel,
-    fill: [Kernel; 2],
-    adaptive: Kernel,
-    /// The light-field pass (sheared filtering), when its output is gathered.
+    /// Per plane: the sparse pass, the two slope fills, the adaptive pass.
+    planes: Vec<[Kernel; 4]>,
+    /// The light-field pass (sheared filtering, on plane 0), when its output is gathered.
     light_field: Option<Kernel>,
     rays: Buffer<u32>,
     _fill_buffer: Buffer<Float4>,
@@ -185,6 +232,7 @@ impl ShadowPasses {
     ) -> Result<ShadowPasses> {
         sampling.check()?;
         let n = size[0] * size[1];
+        let count = sampling.lights.count();
         let rays = gpu.zeroed::<u32>(n, "shadow ray count")?;
         let fill_buffer = gpu.zeroed::<Float4>(n, "shadow slope fill")?;
         let build = |name: &str, with_scene: bool| -> Result<ocl::builders::KernelBuilder> {
@@ -197,40 +245,54 @@ impl ShadowPasses {
                 scene.bind(&mut b);
                 b.arg_named("debug_counters", debug_counters);
             }
+            b.arg_named("shadow_pixels", pixels);
             Ok(b)
         };
         let k = bandlimit::isqrt_floor(sampling.sparse_spp);
-        let mut b = build("shadow_sparse", true)?;
-        b.arg_named("shadow_pixels", pixels)
-            .arg_named("shadow_rays", &rays)
-            .arg_named("light", sampling.light)
-            .arg_named("sqrt_spp", k);
-        let sparse = b.build().context("creating the sparse shadow kernel")?;
-        let fill = [0u32, 1].map(|pass| {
-            let mut b = build("shadow_fill", false)?;
-            b.arg_named("shadow_pixels", pixels)
-                .arg_named("fill", &fill_buffer)
-                .arg_named("width", size[0] as u32)
-                .arg_named("height", size[1] as u32)
-                .arg_named("radius", sampling.fill_radius as i32)
-                .arg_named("pass", pass);
-            b.build().context("creating the slope fill kernel")
-        });
-        let [f0, f1] = fill;
-        let mut b = build("shadow_adaptive", true)?;
-        b.arg_named("shadow_pixels", pixels)
-            .arg_named("shadow_rays", &rays)
-            .arg_named("light", sampling.light)
-            .arg_named("sparse_spp", sampling.sparse_spp)
-            .arg_named("max_spp", sampling.max_spp);
-        let adaptive = b.build().context("creating the adaptive shadow kernel")?;
+        let planes = sampling
+            .lights
+            .lights()
+            .into_iter()
+            .enumerate()
+            .map(|(plane, light)| -> Result<[Kernel; 4]> {
+                let plane = plane as u32;
+                let mut b = build("shadow_sparse", true)?;
+                b.arg_named("plane", plane)
+                    .arg_named("planes", count)
+                    .arg_named("shadow_rays", &rays)
+                    .arg_named("light", light)
+                    .arg_named("sqrt_spp", k);
+                let sparse = b.build().context("creating the sparse shadow kernel")?;
+                let fill = [0u32, 1].map(|pass| {
+                    let mut b = build("shadow_fill", false)?;
+                    b.arg_named("plane", plane)
+                        .arg_named("planes", count)
+                        .arg_named("fill", &fill_buffer)
+                        .arg_named("width", size[0] as u32)
+                        .arg_named("height", size[1] as u32)
+                        .arg_named("radius", sampling.fill_radius as i32)
+                        .arg_named("pass", pass);
+                    b.build().context("creating the slope fill kernel")
+                });
+                let [f0, f1] = fill;
+                let mut b = build("shadow_adaptive", true)?;
+                b.arg_named("plane", plane)
+                    .arg_named("planes", count)
+                    .arg_named("shadow_rays", &rays)
+                    .arg_named("light", light)
+                    .arg_named("sparse_spp", sampling.sparse_spp)
+                    .arg_named("max_spp", sampling.max_spp);
+                let adaptive = b.build().context("creating the adaptive shadow kernel")?;
+                Ok([sparse, f0?, f1?, adaptive])
+            })
+            .collect::<Result<Vec<_>>>()?;
         let light_field = match light_field {
             Some((buffer, [e1, e2])) if sampling.light_field > 0 => {
                 let mut b = build("light_field_sample", true)?;
-                b.arg_named("shadow_pixels", pixels)
+                b.arg_named("planes", count)
                     .arg_named("light_field", buffer)
                     .arg_named("shadow_rays", &rays)
-                    .arg_named("light", sampling.light)
+                    .arg_named("light", sampling.lights.first())
                     .arg_named("side", sampling.light_field)
                     .arg_named("frame_u", e1)
                     .arg_named("frame_v", e2);
@@ -244,9 +306,7 @@ impl ShadowPasses {
         };
         Ok(ShadowPasses {
             sampling,
-            sparse,
-            fill: [f0?, f1?],
-            adaptive,
+            planes,
             light_field,
             rays,
             _fill_buffer: fill_buffer,
@@ -257,32 +317,35 @@ impl ShadowPasses {
         self.sampling
     }
 
-    /// Runs the sparse pass, the light-field pass (if any), the slope fill and the adaptive
-    /// pass; returns their rays and kernel time.
+    /// Runs, per plane, the sparse pass, the light-field pass (if any, plane 0), the slope
+    /// fill and the adaptive pass; returns their rays and kernel time.
     pub(super) fn run(&self) -> Result<(u64, Duration)> {
         let mut rays = 0u64;
         let mut time = Duration::ZERO;
         let mut counts = vec![0u32; self.rays.len()];
-        let light_field = self
-            .light_field
-            .as_ref()
-            .map(|k| (k, "the light-field pass", true));
-        for (k, what, traces) in [(&self.sparse, "the sparse shadow pass", true)]
-            .into_iter()
-            .chain(light_field)
-            .chain([
-                (&self.fill[0], "the slope fill", false),
-                (&self.fill[1], "the slope fill", false),
-                (&self.adaptive, "the adaptive shadow pass", true),
-            ])
-        {
-            // SAFETY: every buffer argument is owned by the renderer or by self and sized for
-            // the image; we wait for the event before the next launch.
-            let event = unsafe { enqueue(k, what)? };
-            time += event_duration(&event)?;
-            if traces {
-                self.rays.read(&mut counts).enq()?;
-                rays += counts.iter().map(|&c| c as u64).sum::<u64>();
+        for (plane, [sparse, f0, f1, adaptive]) in self.planes.iter().enumerate() {
+            let light_field = self
+                .light_field
+                .as_ref()
+                .filter(|_| plane == 0)
+                .map(|k| (k, "the light-field pass", true));
+            for (k, what, traces) in [(sparse, "the sparse shadow pass", true)]
+                .into_iter()
+                .chain(light_field)
+                .chain([
+                    (f0, "the slope fill", false),
+                    (f1, "the slope fill", false),
+                    (adaptive, "the adaptive shadow pass", true),
+                ])
+            {
+                // SAFETY: every buffer argument is owned by the renderer or by self and sized
+                // for the image; we wait for the event before the next launch.
+                let event = unsafe { enqueue(k, what)? };
+                time += event_duration(&event)?;
+                if traces {
+                    self.rays.read(&mut counts).enq()?;
+                    rays += counts.iter().map(|&c| c as u64).sum::<u64>();
+                }
             }
         }
         Ok((rays, time))

@@ -65,8 +65,10 @@ impl PiecePixel<'_> {
 
     /// This pixel's element of a per-pixel buffer.
     fn element(&self, id: BufferId) -> &[f32] {
-        let floats = id.decl().element_bytes / 4;
-        &self.buffer(id).floats()[self.t * floats..(self.t + 1) * floats]
+        // Every lane of the pixel: one element, or one per light plane (Per::Light).
+        let all = self.buffer(id).floats();
+        let floats = all.len() / self.piece.info.tile.pixels();
+        &all[self.t * floats..(self.t + 1) * floats]
     }
 }
 
@@ -77,10 +79,11 @@ impl Accumulator {
             .outputs
             .buffers()
             .map(|b| {
-                let floats = b.element_bytes / 4;
+                // Per::Light buffers: every plane's element of the pixel, merged lane by lane.
+                let floats = b.element_bytes / 4 * b.per_pixel(0, id.shadow_planes());
                 let s = match b.merge {
                     Merge::PerSample => State::Samples(HostBuffer::zeroed(
-                        b.bytes(id.width, id.height, id.spp) as usize,
+                        b.bytes(id.width, id.height, id.spp, 0) as usize,
                     )),
                     Merge::Means
                     | Merge::DepthShift

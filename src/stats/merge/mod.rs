@@ -259,6 +259,7 @@ impl Plan {
             } else {
                 0
             },
+            shadow_lights: id.shadow_lights.clone(),
             scene: id.record.scene.clone().unwrap_or_else(SceneInfo::unknown),
         };
         let frame = Frame::on_host(info, id.outputs, VarianceForm::Sums, acc.finish())?;

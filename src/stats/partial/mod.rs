@@ -90,7 +90,15 @@ pub struct RenderIdentity {
     pub spp: u32,
     /// The outputs gathered (closed under their requirements, as the renderer gathers them).
     pub outputs: OutputSet,
+    /// The sphere light of each plane of the shadow output (empty without it).
+    pub shadow_lights: Vec<u32>,
     pub record: RenderRecord,
+}
+
+impl RenderIdentity {
+    pub fn shadow_planes(&self) -> u32 {
+        self.shadow_lights.len() as u32
+    }
 }
 
 /// Samples `samples` of the pixels of `tile`, and what rendering them cost.
@@ -172,10 +180,16 @@ impl Piece {
 }
 
 /// Bytes of each gathered buffer of a piece covering `tile` and `count` samples.
-fn buffer_bytes(outputs: OutputSet, tile: Tile, count: u32) -> Vec<(&'static BufferDecl, u64)> {
-    outputs
+fn buffer_bytes(
+    identity: &RenderIdentity,
+    tile: Tile,
+    count: u32,
+) -> Vec<(&'static BufferDecl, u64)> {
+    let planes = identity.shadow_planes();
+    identity
+        .outputs
         .buffers()
-        .map(|b| (b, b.bytes(tile.width, tile.height, count)))
+        .map(|b| (b, b.bytes(tile.width, tile.height, count, planes)))
         .collect()
 }
 
@@ -196,6 +210,7 @@ impl BufferLayout {
             per: match b.per {
                 Per::Pixel => "pixel",
                 Per::Sample => "sample",
+                Per::Light => "light",
             }
             .into(),
         }
@@ -226,6 +241,9 @@ struct Header {
     seed: u32,
     spp: u32,
     outputs: Vec<String>,
+    /// The sphere light of each plane of the shadow output.
+    #[serde(default)]
+    shadow_lights: Vec<u32>,
     buffers: Vec<BufferLayout>,
     record: BTreeMap<String, String>,
     pieces: Vec<PieceHeader>,
@@ -328,7 +346,7 @@ impl PartialFile {
                     h.spp
                 );
             }
-            let want: u64 = buffer_bytes(identity.outputs, info.tile, info.count())
+            let want: u64 = buffer_bytes(&identity, info.tile, info.count())
                 .iter()
                 .map(|(_, n)| n)
                 .sum();
@@ -382,7 +400,7 @@ impl PartialFile {
         file.take(e.bytes).read_to_end(&mut bytes)?;
         let mut h = Fnv1a::new();
         let mut at = 0usize;
-        for (_, n) in buffer_bytes(self.identity.outputs, e.info.tile, e.info.count()) {
+        for (_, n) in buffer_bytes(&self.identity, e.info.tile, e.info.count()) {
             h.update(&bytes[at..at + n as usize]);
             h.end_part();
             at += n as usize;
@@ -402,7 +420,7 @@ impl PartialFile {
         let e = &self.pieces[i];
         let bytes = self.read_payload(i)?;
         let mut at = 0usize;
-        let buffers = buffer_bytes(self.identity.outputs, e.info.tile, e.info.count())
+        let buffers = buffer_bytes(&self.identity, e.info.tile, e.info.count())
             .into_iter()
             .map(|(b, n)| {
                 let mut h = HostBuffer::zeroed(n as usize);
@@ -451,6 +469,15 @@ fn check_header(h: &Header) -> Result<RenderIdentity> {
             outputs.closed().names().join(", ")
         );
     }
+    if outputs.contains(Output::Shadows) == h.shadow_lights.is_empty() {
+        bail!(
+            "the header's shadow output has {} light plane(s) (shadow_lights = {:?}): a file \
+             with the shadow output names the light of each plane (files written before the \
+             output had planes do not; render them again)",
+            h.shadow_lights.len(),
+            h.shadow_lights
+        );
+    }
     let layout: Vec<BufferLayout> = outputs.buffers().map(BufferLayout::of).collect();
     if h.buffers != layout {
         bail!(
@@ -469,6 +496,7 @@ fn check_header(h: &Header) -> Result<RenderIdentity> {
         seed: h.seed,
         spp: h.spp,
         outputs,
+        shadow_lights: h.shadow_lights.clone(),
         record: RenderRecord::from_attributes(&h.record)?,
     })
 }

@@ -17,7 +17,7 @@ use super::{
 /// leaves a half-written file under `path`.
 pub fn write(path: &Path, identity: &RenderIdentity, pieces: &[Piece]) -> Result<()> {
     for p in pieces {
-        let want: Vec<_> = buffer_bytes(identity.outputs, p.info.tile, p.info.count())
+        let want: Vec<_> = buffer_bytes(identity, p.info.tile, p.info.count())
             .into_iter()
             .map(|(b, n)| (b.id, n))
             .collect();
@@ -106,6 +106,7 @@ fn write_with(
             .into_iter()
             .map(String::from)
             .collect(),
+        shadow_lights: identity.shadow_lights.clone(),
         buffers: identity.outputs.buffers().map(BufferLayout::of).collect(),
         record: identity.record.to_attributes(),
         pieces,
