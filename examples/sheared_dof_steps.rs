@@ -25,7 +25,7 @@ fn main() -> Result<()> {
     let gpu = Gpu::open(None)?;
     let settings = ShearedSettings {
         side: l,
-        dof: Auto::Set(true),
+        effect: Auto::Set(noisefree::filters::sheared::Effect::Dof),
         light: Auto::Set(-1),
         ..Default::default()
     };

@@ -59,6 +59,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/render/lens_field.cl"),
     ),
     (
+        "render/gi_field.cl",
+        include_str!("../kernels/render/gi_field.cl"),
+    ),
+    (
         "render/subtractive.cl",
         include_str!("../kernels/render/subtractive.cl"),
     ),
@@ -98,6 +102,10 @@ pub const SOURCES: &[(&str, &str)] = &[
     (
         "filters/sheared_dof.cl",
         include_str!("../kernels/filters/sheared_dof.cl"),
+    ),
+    (
+        "filters/sheared_gi.cl",
+        include_str!("../kernels/filters/sheared_gi.cl"),
     ),
     (
         "filters/path_density.cl",

@@ -228,7 +228,7 @@ fn device_filter(
 fn dof_settings(side: u32) -> ShearedSettings {
     ShearedSettings {
         side,
-        dof: noisefree::filters::Auto::Set(true),
+        effect: noisefree::filters::Auto::Set(noisefree::filters::sheared::Effect::Dof),
         light: noisefree::filters::Auto::Set(-1),
         ..Default::default()
     }
@@ -447,7 +447,7 @@ fn render_filters_depth_of_field_end_to_end_and_offline_gives_the_same_bytes() {
             "--height",
             "8",
         ];
-        let more = ["--spp", "1", "--filter", "sheared", "--sheared-dof=true"];
+        let more = ["--spp", "1", "--filter", "sheared", "--sheared-effect=dof"];
         let args: Vec<&str> = args
             .into_iter()
             .chain(more)

@@ -48,6 +48,7 @@ impl LensPass {
         program: &Program,
         size: [usize; 2],
         side: u32,
+        gi: bool,
         scene: &super::DeviceScene,
         debug_counters: &Buffer<u32>,
         field: &Buffer<u8>,
@@ -56,7 +57,11 @@ impl LensPass {
         let rays = gpu.zeroed::<u32>(size[0] * size[1], "lens-field ray count")?;
         let mut b = Kernel::builder();
         b.program(program)
-            .name("lens_field_sample")
+            .name(if gi {
+                "gi_field_sample"
+            } else {
+                "lens_field_sample"
+            })
             .queue(gpu.queue.clone())
             .global_work_size(size);
         scene.bind(&mut b);

@@ -9,6 +9,7 @@ pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
+pub mod gi_field;
 pub mod indirect;
 pub mod lens_field;
 pub mod progressive;
@@ -380,6 +381,7 @@ impl Renderer {
                 &program,
                 [self.width() as usize, self.height() as usize],
                 self.shadow_sampling.light_field,
+                self.shadow_sampling.light_field_gi,
                 &self._scene,
                 &self.debug_counters,
                 self.buffer(BufferId::LightFieldPixels),
