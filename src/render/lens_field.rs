@@ -4,7 +4,9 @@
 //! straddle the focal plane, kept per pixel in [`crate::layout::LightFieldPixel`] (the output
 //! [`crate::layout::outputs::Output::LightField`] without the shadow output). The kernel is
 //! kernels/render/lens_field.cl, built from the megakernel's program (it traces whole paths);
-//! src/render/cpu/lens_field.rs is its Rust reference.
+//! src/render/cpu/lens_field.rs is its Rust reference. With
+//! [`super::ShadowSampling::light_field_gi`] the same pass runs kernels/render/gi_field.cl
+//! instead: the sheared filter's GI field over the v-plane (src/render/gi_field.rs).
 
 use std::time::Duration;
 
