@@ -96,6 +96,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/aaf_shadows.cl"),
     ),
     (
+        "filters/sheared_common.cl",
+        include_str!("../kernels/filters/sheared_common.cl"),
+    ),
+    (
         "filters/sheared.cl",
         include_str!("../kernels/filters/sheared.cl"),
     ),

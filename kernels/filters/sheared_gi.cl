@@ -16,6 +16,7 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
+#include "filters/sheared_common.cl"
 #include "render/sampling.cl"
 
 #define GI_NONE 0.0f
@@ -32,19 +33,6 @@ inline float gi_grid_v(uint a, float jitter, uint side) {
 }
 
 inline float gi_box(float t, float range) { return fabs(t) <= range ? 1.0f : 0.0f; }
-
-inline float gi_gauss(float t, float inv_two_sigma2) { return exp(-(t * t) * inv_two_sigma2); }
-
-inline int gi_bin_of(float y, uint bins, float range) {
-    float c = round((y + range) * ((float)(bins - 1u) / (2.0f * range)));
-    return (c >= 0.0f && c < (float)bins) ? (int)c : -1;
-}
-
-inline float gi_lane(__global const float* lf, int k, int ch) {
-    int base = ch == 0 ? LIGHT_FIELD_PIXEL_SAMPLES
-                       : (ch == 1 ? LIGHT_FIELD_PIXEL_GREEN : LIGHT_FIELD_PIXEL_BLUE);
-    return lf[base + k];
-}
 
 __kernel void gi_prepare(__constant const ShearedParams* p, __global const float* light_field,
                          __global float4* guide) {
@@ -89,9 +77,9 @@ __kernel void gi_1a(__constant const ShearedParams* p, __global const float* lig
             float4 v = (float4)(0.0f);
             for (uint a = 0u; a < l; ++a) {
                 int k = (int)(b * l + a);
-                v.x += gi_lane(lf, k, 0) * wy[a];
-                v.y += gi_lane(lf, k, 1) * wy[a];
-                v.z += gi_lane(lf, k, 2) * wy[a];
+                v.x += sheared_rgb_lane(lf, k, 0) * wy[a];
+                v.y += sheared_rgb_lane(lf, k, 1) * wy[a];
+                v.z += sheared_rgb_lane(lf, k, 2) * wy[a];
                 v.w += wy[a];
             }
             vstore4(v, c * 4u + b, o);
@@ -123,8 +111,8 @@ inline int gi_step(float4 g, float inv_x, float3 pi, float3 n, float3 e, uint bi
                    float range, __global const float* lj, float* wx) {
     float3 delta = vload3(0, lj + LIGHT_FIELD_PIXEL_POSITION) - pi;
     float3 tangential = delta - n * dot(delta, n);
-    *wx = gi_gauss(length(tangential), inv_x);
-    return gi_bin_of(g.y * -dot(delta, e), bins, range);
+    *wx = sheared_gauss(length(tangential), inv_x);
+    return sheared_bin_of(g.y * -dot(delta, e), bins, range);
 }
 
 __kernel void gi_1b(__constant const ShearedParams* p, __global const float* light_field,
@@ -156,7 +144,7 @@ __kernel void gi_1b(__constant const ShearedParams* p, __global const float* lig
         __global const float* src = in + (size_t)j * (bins * 16u);
         float j2 = lj[LIGHT_FIELD_PIXEL_JITTER + 1];
         for (uint row = 0u; row < l; ++row) {
-            int c2 = gi_bin_of(gi_grid_v(row, j2, l), bins, p->range);
+            int c2 = sheared_bin_of(gi_grid_v(row, j2, l), bins, p->range);
             if (c2 < 0) continue;
             float4 v = vload4((uint)c1 * 4u + row, src);
             float4 acc = vload4((uint)c2, o);
@@ -189,7 +177,7 @@ __kernel void gi_2a(__constant const ShearedParams* p, __global const float4* gu
 inline float3 gi_own(__constant const ShearedParams* p, __global const float* lf) {
     int n = (int)(p->side * p->side);
     float3 v = (float3)(0.0f);
-    for (int k = 0; k < n; ++k) v += (float3)(gi_lane(lf, k, 0), gi_lane(lf, k, 1), gi_lane(lf, k, 2));
+    for (int k = 0; k < n; ++k) v += (float3)(sheared_rgb_lane(lf, k, 0), sheared_rgb_lane(lf, k, 1), sheared_rgb_lane(lf, k, 2));
     return v / (float)n;
 }
 

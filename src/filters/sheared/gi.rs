@@ -58,6 +58,7 @@ pub const OMEGA_V_MAX: f32 = 2.8;
 pub type Guide = [f32; 4];
 
 pub use super::dof::{g_floats, p_floats};
+use super::dof::{bin_rows, gather_rows, sum_bins};
 
 /// `gi_prepare`.
 pub fn prepare(p: &ShearedParams, field: &[LightFieldPixel]) -> Vec<Guide> {
@@ -89,35 +90,8 @@ pub fn boxed(t: f32, range: f32) -> f32 {
 
 /// `gi_1a` (eq. 12 with the box).
 pub fn step_1a(p: &ShearedParams, field: &[LightFieldPixel], guide: &[Guide]) -> Vec<f32> {
-    let (bins, l) = (p.bins as usize, p.side);
-    let mut out = vec![0f32; field.len() * p_floats(p.bins)];
-    out.par_chunks_mut(p_floats(p.bins))
-        .zip(field.par_iter().zip(guide))
-        .for_each(|(o, (lf, g))| {
-            if g[2] == NONE {
-                return;
-            }
-            for c in 0..bins {
-                let vc = bin_centre(c as u32, p.bins, p.range);
-                let mut wy = [0f32; 4];
-                for a in 0..l {
-                    wy[a as usize] = boxed(grid_v(a, lf.jitter[0], l) - vc, p.range);
-                }
-                for b in 0..l {
-                    let mut v = [0f32; 4];
-                    for a in 0..l {
-                        let f = rgb(lf, (b * l + a) as usize);
-                        for ch in 0..3 {
-                            v[ch] += f[ch] * wy[a as usize];
-                        }
-                        v[3] += wy[a as usize];
-                    }
-                    let at = (c * 4 + b as usize) * 4;
-                    o[at..at + 4].copy_from_slice(&v);
-                }
-            }
-        });
-    out
+    let (l, range) = (p.side, p.range);
+    bin_rows(p, field, guide, |a, j| grid_v(a, j, l), |t| boxed(t, range))
 }
 
 /// `gi_accepts`: j has a field, normals within the angle, the offset along i's normal within
@@ -183,54 +157,24 @@ fn gather(
 /// `gi_1b` (eq. 13): for FILTERED and OWN pixels (OWN: their own samples, lent in 2b).
 pub fn step_1b(p: &ShearedParams, field: &[LightFieldPixel], guide: &[Guide], p1a: &[f32]) -> Vec<f32> {
     let l = p.side;
-    let stride = p_floats(p.bins);
-    let mut out = vec![0f32; field.len() * g_floats(p.bins)];
-    out.par_chunks_mut(g_floats(p.bins))
-        .enumerate()
-        .for_each(|(i, o)| {
-            if guide[i][2] == NONE {
-                return;
+    gather_rows(
+        p,
+        field,
+        guide,
+        p1a,
+        |b, j| grid_v(b, j, l),
+        |i, visit| {
+            if guide[i][2] != NONE {
+                gather(p, field, guide, i, 0, visit)
             }
-            gather(p, field, guide, i, 0, |j, wx, c1| {
-                let src = &p1a[j * stride..(j + 1) * stride];
-                for b in 0..l {
-                    let v2 = grid_v(b, field[j].jitter[1], l);
-                    let Some(c2) = bin_of(v2, p.bins, p.range) else {
-                        continue;
-                    };
-                    let at = (c1 as usize * 4 + b as usize) * 4;
-                    for ch in 0..4 {
-                        o[c2 as usize * 4 + ch] += wx * src[at + ch];
-                    }
-                }
-            });
-        });
-    out
+        },
+    )
 }
 
 /// `gi_2a` (eq. 14 with the box on bin centres: |c − c′| ≤ (bins − 1)/2).
 pub fn step_2a(p: &ShearedParams, guide: &[Guide], g1b: &[f32]) -> Vec<f32> {
-    let bins = p.bins as usize;
-    let half = (bins - 1) / 2;
-    let mut out = vec![0f32; guide.len() * g_floats(p.bins)];
-    out.par_chunks_mut(g_floats(p.bins))
-        .enumerate()
-        .for_each(|(i, o)| {
-            if guide[i][2] == NONE {
-                return;
-            }
-            let src = &g1b[i * bins * 4..(i + 1) * bins * 4];
-            for c in 0..bins {
-                let mut v = [0f32; 4];
-                for c2 in c.saturating_sub(half)..(c + half + 1).min(bins) {
-                    for ch in 0..4 {
-                        v[ch] += src[c2 * 4 + ch];
-                    }
-                }
-                o[c * 4..c * 4 + 4].copy_from_slice(&v);
-            }
-        });
-    out
+    let reach = (p.bins as usize - 1) / 2;
+    sum_bins(p, guide, g1b, |c, c2| if c.abs_diff(c2) <= reach { 1.0 } else { 0.0 })
 }
 
 /// `gi_own`: the mean of the pixel's own l² samples (the unfiltered estimate of L).
