@@ -184,13 +184,6 @@ fn in_focus_sky_and_empty_fields_are_finite() {
     assert!(worst < 1e-6, "{worst}");
 }
 
-fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
-    a.iter()
-        .zip(b)
-        .flat_map(|(x, y)| (0..3).map(move |c| (x[c] - y[c]).abs()))
-        .fold(0.0, f32::max)
-}
-
 /// The device filter over a host frame holding `field` and F = `beauty`.
 fn device_filter(
     p: &ShearedParams,
@@ -304,20 +297,8 @@ fn rendered_field_fallback_and_device_steps_match_the_reference() {
     let b = dof::step_1b(&p, &field, &guide, &a);
     let c = dof::step_2a(&p, &guide, &b);
     let out = dof::step_2b(&p, &field, &beauty, &guide, &c);
-    let rel = |x: &[f32], y: &[f32]| {
-        x.iter()
-            .zip(y)
-            .map(|(a, b)| (a - b).abs() / b.abs().max(1.0))
-            .fold(0.0f32, f32::max)
-    };
-    let flat = |g: &[Guide]| g.iter().flatten().copied().collect::<Vec<f32>>();
-    let errs = [
-        rel(&flat(&d.guide), &flat(&guide)),
-        rel(&d.p1a, &a),
-        rel(&d.g1b, &b),
-        rel(&d.q2a, &c),
-        max_diff(&image.pixels, &out),
-    ];
+    let [e0, e1, e2, e3] = sheared_step_errors(&d, &guide, [&a, &b, &c]);
+    let errs = [e0, e1, e2, e3, max_diff(&image.pixels, &out)];
     eprintln!("device vs reference, prepare/1a/1b/2a/2b: {errs:?}");
     // Float rounding: measured 0, 2.3e-7, 2.1e-7, 3.3e-7 (relative) and 1.9e-6 (the image,
     // absolute; radiance up to ~10 under the light).

@@ -10,7 +10,7 @@ mod common;
 use common::*;
 use noisefree::filters::Auto;
 use noisefree::filters::Configured;
-use noisefree::filters::sheared::gi::{self, FILTERED, Guide, NONE, OWN};
+use noisefree::filters::sheared::gi::{self, FILTERED, NONE, OWN};
 use noisefree::filters::sheared::{DofKernel, Effect, Sheared, ShearedSettings};
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
 use noisefree::layout::{FilterVector, LightFieldPixel};
@@ -184,20 +184,8 @@ fn rendered_field_and_device_steps_match_the_reference() {
     let c = gi::step_2a(&p, &guide, &b);
     let beauty = frame.beauty().unwrap().pixels;
     let out = gi::step_2b(&p, &field, &direct_of(&frame), &beauty, &guide, &c);
-    let rel = |x: &[f32], y: &[f32]| {
-        x.iter()
-            .zip(y)
-            .map(|(a, b)| (a - b).abs() / b.abs().max(1.0))
-            .fold(0.0f32, f32::max)
-    };
-    let flat = |g: &[Guide]| g.iter().flatten().copied().collect::<Vec<f32>>();
-    let errs = [
-        rel(&flat(&d.guide), &flat(&guide)),
-        rel(&d.p1a, &a),
-        rel(&d.g1b, &b),
-        rel(&d.q2a, &c),
-        max_diff(&image.pixels, &out),
-    ];
+    let [e0, e1, e2, e3] = sheared_step_errors(&d, &guide, [&a, &b, &c]);
+    let errs = [e0, e1, e2, e3, max_diff(&image.pixels, &out)];
     eprintln!("device vs reference, prepare/1a/1b/2a/2b: {errs:?}");
     // Float rounding (OpenCL length() and exp() against glam's and std's): measured 0, 0,
     // 2.3e-7, 2.3e-7 (relative) and 6e-8 (the image, absolute).
@@ -206,14 +194,6 @@ fn rendered_field_and_device_steps_match_the_reference() {
     }
     assert!(errs[4] < 1e-6, "{errs:?}");
     assert!(image.pixels.iter().flatten().all(|c| c.is_finite()));
-}
-
-fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
-    a.iter()
-        .flatten()
-        .zip(b.iter().flatten())
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f32::max)
 }
 
 #[test]

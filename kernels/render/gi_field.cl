@@ -51,25 +51,16 @@ inline float gi_weight(float v1, float v2) {
     return gi_c() / atan(gi_c()) * (ab * sqrt(ab)) / (r * r);
 }
 
-__kernel void gi_field_sample(__constant const SceneParams* params,
-                              __global const BvhNode* nodes,
-                              __global const TriangleGeom* tri_geom,
-                              __global const TriangleShading* tri_shading,
-                              __global const Sphere* spheres,
-                              __global const Material* materials,
-                              __global const TextureInfo* textures,
-                              __global const float4* texels, __global const Light* lights,
-                              __global const float* light_cdf, __global uint* debug_counters,
-                              __global float* light_field, __global uint* lens_rays,
-                              uint side) {
+// The lens pass's arguments (src/render/lens_field.rs binds them by name).
+__kernel void gi_field_sample(SHADOW_SCENE_PARAMS, __global float* light_field,
+                              __global uint* lens_rays, uint side) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
     __global float* lf = light_field + (size_t)pixel * LIGHT_FIELD_PIXEL_FLOATS;
     for (uint i = 0u; i < LIGHT_FIELD_PIXEL_FLOATS; ++i) lf[i] = 0.0f;
     lens_rays[pixel] = 0u;
-    SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
-                   textures, texels, lights, light_cdf, debug_counters};
+    SceneRefs s = SHADOW_SCENE_REFS;
     uint rays = 0u;
     uint jkey = rng_sample_key(params->seed, pixel, GI_JITTER_SAMPLE);
     float j1 = rng_uniform(jkey, 0u, DIM_LENS_U), j2 = rng_uniform(jkey, 0u, DIM_LENS_V);

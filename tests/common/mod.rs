@@ -659,3 +659,34 @@ impl Lcg {
         ((self.0 >> 40) as f32) / (1u64 << 24) as f32
     }
 }
+
+/// Largest |a − b| over every channel of two images.
+pub fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    a.iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// The sheared DOF / GI device steps against their reference: the largest
+/// |device − reference| / max(1, |reference|) of prepare, 1a, 1b and 2a.
+pub fn sheared_step_errors(
+    d: &noisefree::filters::sheared::DofIntermediates,
+    guide: &[[f32; 4]],
+    steps: [&[f32]; 3],
+) -> [f32; 4] {
+    let rel = |x: &[f32], y: &[f32]| {
+        x.iter()
+            .zip(y)
+            .map(|(a, b)| (a - b).abs() / b.abs().max(1.0))
+            .fold(0.0f32, f32::max)
+    };
+    let flat = |g: &[[f32; 4]]| g.iter().flatten().copied().collect::<Vec<f32>>();
+    [
+        rel(&flat(&d.guide), &flat(guide)),
+        rel(&d.p1a, steps[0]),
+        rel(&d.g1b, steps[1]),
+        rel(&d.q2a, steps[2]),
+    ]
+}
