@@ -363,29 +363,27 @@ fn render_filters_gi_end_to_end_offline_gives_the_same_bytes_and_refusals() {
     assert_eq!(a.pixels, b.pixels, "online == offline");
     assert!(a.pixels.iter().flatten().all(|c| c.is_finite()));
     // GI with a chosen sphere light, GI through a thin lens, and an unknown effect are refused.
-    for (scene, extra, needles) in [
+    for (scene, effect, extra, needles) in [
         (
             "scenes/grids.toml",
+            "--sheared-effect=gi",
             ["--sheared-light", "0"],
             vec!["indirect light only", "light = -1"],
         ),
         (
             "scenes/cornell_diffuse_dof.toml",
+            "--sheared-effect=gi",
             ["--sheared-light", "-1"],
             vec!["pinhole", "lens_radius"],
         ),
         (
             "scenes/cornell_diffuse.toml",
+            "--sheared-effect=glow",
             ["--sheared-side", "3"],
-            vec!["effect"],
+            vec!["--sheared-effect", "`shadows`, `dof`, `gi`"],
         ),
     ] {
         let path = repo_path(scene);
-        let effect = if needles == ["effect"] {
-            "--sheared-effect=glow"
-        } else {
-            "--sheared-effect=gi"
-        };
         let args = [
             "render",
             path.to_str().unwrap(),

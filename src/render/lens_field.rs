@@ -49,12 +49,12 @@ impl LensPass {
         gpu: &Gpu,
         program: &Program,
         size: [usize; 2],
-        side: u32,
-        gi: bool,
+        sampling: super::ShadowSampling,
         scene: &super::DeviceScene,
         debug_counters: &Buffer<u32>,
         field: &Buffer<u8>,
     ) -> Result<LensPass> {
+        let (side, gi) = (sampling.light_field, sampling.light_field_gi);
         check(side, true)?;
         let rays = gpu.zeroed::<u32>(size[0] * size[1], "lens-field ray count")?;
         let mut b = Kernel::builder();
