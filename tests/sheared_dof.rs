@@ -11,8 +11,8 @@ use noisefree::filters::Configured;
 use noisefree::filters::sheared::dof::{self, FALLBACK, FILTERED, Guide, NONE};
 use noisefree::filters::sheared::{DofKernel, Sheared, ShearedSettings};
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
-use noisefree::layout::{FilterVector, LightFieldPixel, ShearedParams};
-use noisefree::render::{Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, VarianceForm};
+use noisefree::layout::{LightFieldPixel, ShearedParams};
+use noisefree::render::Renderer;
 
 const A: f32 = 0.1;
 
@@ -190,29 +190,8 @@ fn device_filter(
     field: &[LightFieldPixel],
     beauty: &[[f32; 3]],
 ) -> Vec<[f32; 3]> {
-    let fv: Vec<FilterVector> = beauty
-        .iter()
-        .map(|c| FilterVector {
-            direct: *c,
-            ..Default::default()
-        })
-        .collect();
-    let frame = Frame::on_host(
-        FrameInfo {
-            width: p.width,
-            height: p.height,
-            spp: 1,
-            sample_capacity: 0,
-            scene: SceneInfo::unknown(),
-        },
-        OutputSet::of(&[Output::Colour, Output::LightField]),
-        VarianceForm::Variances,
-        vec![
-            (BufferId::FilterVectors, HostBuffer::from_slice(&fv)),
-            (BufferId::LightFieldPixels, HostBuffer::from_slice(field)),
-        ],
-    )
-    .unwrap_or_else(|e| panic!("{e:#}"));
+    let zero = vec![[0.0f32; 3]; beauty.len()];
+    let frame = sheared_host_frame(p, field, beauty, &zero);
     let mut k = DofKernel::new(gpu(), *p).unwrap();
     k.filter_rows(&frame, 0..p.height).unwrap().image.pixels
 }

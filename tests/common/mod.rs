@@ -690,3 +690,40 @@ pub fn sheared_step_errors(
         rel(&d.q2a, steps[2]),
     ]
 }
+
+/// A host frame of the sheared DOF / GI filters: F's direct and indirect terms and the light
+/// field, w × h from `p`.
+pub fn sheared_host_frame(
+    p: &noisefree::layout::ShearedParams,
+    field: &[noisefree::layout::LightFieldPixel],
+    direct: &[[f32; 3]],
+    indirect: &[[f32; 3]],
+) -> noisefree::render::Frame {
+    use noisefree::layout::outputs::{BufferId, Output, OutputSet};
+    use noisefree::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
+    let fv: Vec<FilterVector> = direct
+        .iter()
+        .zip(indirect)
+        .map(|(d, i)| FilterVector {
+            direct: *d,
+            indirect: *i,
+            ..Default::default()
+        })
+        .collect();
+    Frame::on_host(
+        FrameInfo {
+            width: p.width,
+            height: p.height,
+            spp: 1,
+            sample_capacity: 0,
+            scene: SceneInfo::unknown(),
+        },
+        OutputSet::of(&[Output::Colour, Output::LightField]),
+        VarianceForm::Variances,
+        vec![
+            (BufferId::FilterVectors, HostBuffer::from_slice(&fv)),
+            (BufferId::LightFieldPixels, HostBuffer::from_slice(field)),
+        ],
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"))
+}
