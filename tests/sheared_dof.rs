@@ -6,6 +6,7 @@
 
 mod common;
 
+use common::sheared::*;
 use common::*;
 use noisefree::filters::Configured;
 use noisefree::filters::sheared::dof::{self, FALLBACK, FILTERED, Guide, NONE};

@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::sheared::*;
 use common::*;
 use noisefree::filters::Auto;
 use noisefree::filters::Configured;

@@ -4,7 +4,6 @@
 pub mod aaf;
 pub mod merge;
 pub mod sheared;
-pub use sheared::*;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
