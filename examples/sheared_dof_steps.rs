@@ -1,12 +1,13 @@
 //! Kernel time of each step of the sheared depth-of-field filter (kernels/filters/
-//! sheared_dof.cl) and its memory per pixel, on a scene's lens field:
-//! `cargo run --release --example sheared_dof_steps -- SCENE.toml WIDTH HEIGHT L RUNS`.
+//! sheared_dof.cl), or of the GI filter (kernels/filters/sheared_gi.cl) with EFFECT = gi, and
+//! its memory per pixel, on a scene's lens (or GI) field:
+//! `cargo run --release --example sheared_dof_steps -- SCENE.toml WIDTH HEIGHT L RUNS [gi]`.
 //! Times come from OpenCL profiling events; the median of RUNS runs is printed per step
-//! (results/README.md, the sheared depth-of-field section).
+//! (results/README.md, the sheared depth-of-field and GI sections).
 
 use anyhow::{Context as _, Result, bail};
 use noisefree::filters::Auto;
-use noisefree::filters::sheared::{DOF_STEPS, DofKernel, ShearedSettings};
+use noisefree::filters::sheared::{DOF_STEPS, DofKernel, Effect, ShearedSettings};
 use noisefree::gpu::Gpu;
 use noisefree::layout::LightFieldPixel;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
@@ -15,8 +16,12 @@ use noisefree::scene::load_scene;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [scene, w, h, l, runs] = args.as_slice() else {
-        bail!("usage: sheared_dof_steps SCENE.toml WIDTH HEIGHT L RUNS");
+    let (gi, args) = match args.as_slice() {
+        [rest @ .., last] if last == "gi" => (true, rest),
+        all => (false, all),
+    };
+    let [scene, w, h, l, runs] = args else {
+        bail!("usage: sheared_dof_steps SCENE.toml WIDTH HEIGHT L RUNS [gi]");
     };
     let (w, h, l, runs): (u32, u32, u32, usize) =
         (w.parse()?, h.parse()?, l.parse()?, runs.parse()?);
@@ -25,7 +30,7 @@ fn main() -> Result<()> {
     let gpu = Gpu::open(None)?;
     let settings = ShearedSettings {
         side: l,
-        dof: Auto::Set(true),
+        effect: Auto::Set(if gi { Effect::Gi } else { Effect::Dof }),
         light: Auto::Set(-1),
         ..Default::default()
     };
@@ -39,13 +44,21 @@ fn main() -> Result<()> {
     let frame = r.frame();
     let field = frame.host_slice::<LightFieldPixel>(BufferId::LightFieldPixels)?;
     let fallback = field.iter().filter(|lf| lf.extra_samples > 0.0).count();
-    println!(
-        "fallback pixels (s_min s_max < 0): {fallback} of {} ({:.2} extra spp on average)",
-        field.len(),
-        field.iter().map(|lf| lf.extra_samples as f64).sum::<f64>() / field.len() as f64
-    );
-    let p = settings.dof_params(scene.camera.lens_radius, w, h);
-    let mut k = DofKernel::new(gpu, p)?;
+    if gi {
+        let receivers = field.iter().filter(|lf| lf.count > 0.0).count();
+        println!("GI receivers {receivers}, {fallback} of them with a reflector hit (s = z)");
+    } else {
+        println!(
+            "fallback pixels (s_min s_max < 0): {fallback} of {} ({:.2} extra spp on average)",
+            field.len(),
+            field.iter().map(|lf| lf.extra_samples as f64).sum::<f64>() / field.len() as f64
+        );
+    }
+    let mut k = if gi {
+        DofKernel::gi(gpu, settings.gi_params(w, h))?
+    } else {
+        DofKernel::new(gpu, settings.dof_params(scene.camera.lens_radius, w, h))?
+    };
     let mut times: Vec<Vec<f64>> = vec![Vec::new(); DOF_STEPS.len()];
     for _ in 0..runs.max(1) {
         k.filter_rows(&frame, 0..h)?;

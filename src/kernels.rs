@@ -59,6 +59,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/render/lens_field.cl"),
     ),
     (
+        "render/gi_field.cl",
+        include_str!("../kernels/render/gi_field.cl"),
+    ),
+    (
         "render/subtractive.cl",
         include_str!("../kernels/render/subtractive.cl"),
     ),
@@ -92,12 +96,20 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/aaf_shadows.cl"),
     ),
     (
+        "filters/sheared_common.cl",
+        include_str!("../kernels/filters/sheared_common.cl"),
+    ),
+    (
         "filters/sheared.cl",
         include_str!("../kernels/filters/sheared.cl"),
     ),
     (
         "filters/sheared_dof.cl",
         include_str!("../kernels/filters/sheared_dof.cl"),
+    ),
+    (
+        "filters/sheared_gi.cl",
+        include_str!("../kernels/filters/sheared_gi.cl"),
     ),
     (
         "filters/path_density.cl",

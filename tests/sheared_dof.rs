@@ -6,13 +6,14 @@
 
 mod common;
 
+use common::sheared::*;
 use common::*;
 use noisefree::filters::Configured;
 use noisefree::filters::sheared::dof::{self, FALLBACK, FILTERED, Guide, NONE};
 use noisefree::filters::sheared::{DofKernel, Sheared, ShearedSettings};
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
-use noisefree::layout::{FilterVector, LightFieldPixel, ShearedParams};
-use noisefree::render::{Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, VarianceForm};
+use noisefree::layout::{LightFieldPixel, ShearedParams};
+use noisefree::render::Renderer;
 
 const A: f32 = 0.1;
 
@@ -184,43 +185,14 @@ fn in_focus_sky_and_empty_fields_are_finite() {
     assert!(worst < 1e-6, "{worst}");
 }
 
-fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
-    a.iter()
-        .zip(b)
-        .flat_map(|(x, y)| (0..3).map(move |c| (x[c] - y[c]).abs()))
-        .fold(0.0, f32::max)
-}
-
 /// The device filter over a host frame holding `field` and F = `beauty`.
 fn device_filter(
     p: &ShearedParams,
     field: &[LightFieldPixel],
     beauty: &[[f32; 3]],
 ) -> Vec<[f32; 3]> {
-    let fv: Vec<FilterVector> = beauty
-        .iter()
-        .map(|c| FilterVector {
-            direct: *c,
-            ..Default::default()
-        })
-        .collect();
-    let frame = Frame::on_host(
-        FrameInfo {
-            width: p.width,
-            height: p.height,
-            spp: 1,
-            sample_capacity: 0,
-            shadow_lights: Vec::new(),
-            scene: SceneInfo::unknown(),
-        },
-        OutputSet::of(&[Output::Colour, Output::LightField]),
-        VarianceForm::Variances,
-        vec![
-            (BufferId::FilterVectors, HostBuffer::from_slice(&fv)),
-            (BufferId::LightFieldPixels, HostBuffer::from_slice(field)),
-        ],
-    )
-    .unwrap_or_else(|e| panic!("{e:#}"));
+    let zero = vec![[0.0f32; 3]; beauty.len()];
+    let frame = sheared_host_frame(p, field, beauty, &zero);
     let mut k = DofKernel::new(gpu(), *p).unwrap();
     k.filter_rows(&frame, 0..p.height).unwrap().image.pixels
 }
@@ -229,7 +201,7 @@ fn device_filter(
 fn dof_settings(side: u32) -> ShearedSettings {
     ShearedSettings {
         side,
-        dof: noisefree::filters::Auto::Set(true),
+        effect: noisefree::filters::Auto::Set(noisefree::filters::sheared::Effect::Dof),
         light: noisefree::filters::Auto::Set(-1),
         ..Default::default()
     }
@@ -305,20 +277,8 @@ fn rendered_field_fallback_and_device_steps_match_the_reference() {
     let b = dof::step_1b(&p, &field, &guide, &a);
     let c = dof::step_2a(&p, &guide, &b);
     let out = dof::step_2b(&p, &field, &beauty, &guide, &c);
-    let rel = |x: &[f32], y: &[f32]| {
-        x.iter()
-            .zip(y)
-            .map(|(a, b)| (a - b).abs() / b.abs().max(1.0))
-            .fold(0.0f32, f32::max)
-    };
-    let flat = |g: &[Guide]| g.iter().flatten().copied().collect::<Vec<f32>>();
-    let errs = [
-        rel(&flat(&d.guide), &flat(&guide)),
-        rel(&d.p1a, &a),
-        rel(&d.g1b, &b),
-        rel(&d.q2a, &c),
-        max_diff(&image.pixels, &out),
-    ];
+    let [e0, e1, e2, e3] = sheared_step_errors(&d, &guide, [&a, &b, &c]);
+    let errs = [e0, e1, e2, e3, max_diff(&image.pixels, &out)];
     eprintln!("device vs reference, prepare/1a/1b/2a/2b: {errs:?}");
     // Float rounding: measured 0, 2.3e-7, 2.1e-7, 3.3e-7 (relative) and 1.9e-6 (the image,
     // absolute; radiance up to ~10 under the light).
@@ -448,7 +408,7 @@ fn render_filters_depth_of_field_end_to_end_and_offline_gives_the_same_bytes() {
             "--height",
             "8",
         ];
-        let more = ["--spp", "1", "--filter", "sheared", "--sheared-dof=true"];
+        let more = ["--spp", "1", "--filter", "sheared", "--sheared-effect=dof"];
         let args: Vec<&str> = args
             .into_iter()
             .chain(more)

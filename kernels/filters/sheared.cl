@@ -18,34 +18,13 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
+#include "filters/sheared_common.cl"
 
 #define SHEARED_NONE 0.0f
 #define SHEARED_LIT 1.0f
 #define SHEARED_FILTERED 2.0f
 #define SHEARED_MIN_SLOPE 1.0e-30f
 #define SHEARED_MAX_ETA 1.0e30f
-
-inline float3 sheared_lane3(__global const float* px, int lane) {
-    return (float3)(px[lane], px[lane + 1], px[lane + 2]);
-}
-
-inline float sheared_gauss(float t, float inv_two_sigma2) {
-    return exp(-(t * t) * inv_two_sigma2);
-}
-
-inline float sheared_grid(uint a, float jitter, uint side, float radius) {
-    return radius * (2.0f * ((float)a + jitter) * (1.0f / (float)side) - 1.0f);
-}
-
-inline float sheared_bin_centre(uint c, uint bins, float range) {
-    return -range + (float)c * (2.0f * range / (float)(bins - 1u));
-}
-
-// The nearest bin of y, or -1 beyond the bins (and for NaN).
-inline int sheared_bin_of(float y, uint bins, float range) {
-    float c = round((y + range) * ((float)(bins - 1u) / (2.0f * range)));
-    return (c >= 0.0f && c < (float)bins) ? (int)c : -1;
-}
 
 // One gather step (the major axis moves one pixel) and the world x per step.
 inline float2 sheared_step(__global const float* lf, int dir_lane, int axis, float* world) {

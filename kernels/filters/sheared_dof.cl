@@ -17,6 +17,7 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
+#include "filters/sheared_common.cl"
 
 #define DOF_NONE 0.0f
 #define DOF_FILTERED 2.0f
@@ -24,25 +25,8 @@
 #define DOF_MIN_SLOPE 1.0e-30f
 #define DOF_MAX_ETA 1.0e30f
 
-inline float dof_gauss(float t, float inv_two_sigma2) { return exp(-(t * t) * inv_two_sigma2); }
-
-inline float dof_grid(uint a, float jitter, uint side, float radius) {
-    return radius * (2.0f * ((float)a + jitter) * (1.0f / (float)side) - 1.0f);
-}
-
-inline int dof_bin_of(float y, uint bins, float range) {
-    float c = round((y + range) * ((float)(bins - 1u) / (2.0f * range)));
-    return (c >= 0.0f && c < (float)bins) ? (int)c : -1;
-}
-
 // |s| at least DOF_MIN_SLOPE, sign kept (0 counts as +).
 inline float dof_signed(float s) { return s >= 0.0f ? fmax(s, DOF_MIN_SLOPE) : fmin(s, -DOF_MIN_SLOPE); }
-
-inline float dof_lane(__global const float* lf, int k, int ch) {
-    int base = ch == 0 ? LIGHT_FIELD_PIXEL_SAMPLES
-                       : (ch == 1 ? LIGHT_FIELD_PIXEL_GREEN : LIGHT_FIELD_PIXEL_BLUE);
-    return lf[base + k];
-}
 
 __kernel void dof_prepare(__constant const ShearedParams* p, __global const float* light_field,
                           __global float4* guide) {
@@ -87,14 +71,14 @@ __kernel void dof_1a(__constant const ShearedParams* p, __global const float* li
     for (uint c = 0u; c < bins; ++c) {
         float yc = -p->range + (float)c * (2.0f * p->range / (float)(bins - 1u));
         float wy[4];
-        for (uint a = 0u; a < l; ++a) wy[a] = dof_gauss(dof_grid(a, j1, l, p->light.w) - yc, inv);
+        for (uint a = 0u; a < l; ++a) wy[a] = sheared_gauss(sheared_grid(a, j1, l, p->light.w) - yc, inv);
         for (uint b = 0u; b < l; ++b) {
             float4 v = (float4)(0.0f);
             for (uint a = 0u; a < l; ++a) {
                 int k = (int)(b * l + a);
-                v.x += dof_lane(lf, k, 0) * wy[a];
-                v.y += dof_lane(lf, k, 1) * wy[a];
-                v.z += dof_lane(lf, k, 2) * wy[a];
+                v.x += sheared_rgb_lane(lf, k, 0) * wy[a];
+                v.y += sheared_rgb_lane(lf, k, 1) * wy[a];
+                v.z += sheared_rgb_lane(lf, k, 2) * wy[a];
                 v.w += wy[a];
             }
             vstore4(v, c * 4u + b, o);
@@ -141,13 +125,13 @@ __kernel void dof_1b(__constant const ShearedParams* p, __global const float* li
         __global const float* lj = light_field + (size_t)j * LIGHT_FIELD_PIXEL_FLOATS;
         if (k != 0 && !dof_accepts(p, li, lj, guide[j].z)) continue;
         float dx = (float)k;
-        float wx = dof_gauss(dx, inv_x);
-        int c1 = dof_bin_of(g.y * -dx, bins, p->range);
+        float wx = sheared_gauss(dx, inv_x);
+        int c1 = sheared_bin_of(g.y * -dx, bins, p->range);
         if (c1 < 0) continue;
         __global const float* src = in + (size_t)j * (bins * 16u);
         float j2 = lj[LIGHT_FIELD_PIXEL_JITTER + 1];
         for (uint b = 0u; b < l; ++b) {
-            int c2 = dof_bin_of(dof_grid(b, j2, l, p->light.w), bins, p->range);
+            int c2 = sheared_bin_of(sheared_grid(b, j2, l, p->light.w), bins, p->range);
             if (c2 < 0) continue;
             float4 v = vload4((uint)c1 * 4u + b, src);
             float4 acc = vload4((uint)c2, o);
@@ -172,7 +156,7 @@ __kernel void dof_2a(__constant const ShearedParams* p, __global const float4* g
     float table[65];
     float spacing = 2.0f * p->range / (float)(bins - 1u);
     for (int d = 0; d < 2 * (int)bins - 1; ++d)
-        table[d] = dof_gauss((float)(d - ((int)bins - 1)) * spacing, inv);
+        table[d] = sheared_gauss((float)(d - ((int)bins - 1)) * spacing, inv);
     for (uint c = 0u; c < bins; ++c) {
         float4 v = (float4)(0.0f);
         for (uint c2 = 0u; c2 < bins; ++c2)
@@ -188,11 +172,11 @@ inline float3 dof_own(__constant const ShearedParams* p, __global const float* l
     float3 v = vload3(0, lf + LIGHT_FIELD_PIXEL_EXTRA);
     float w = lf[LIGHT_FIELD_PIXEL_EXTRA + 3];
     for (uint b = 0u; b < l; ++b) {
-        float wb = dof_gauss(dof_grid(b, lf[LIGHT_FIELD_PIXEL_JITTER + 1], l, p->light.w), inv);
+        float wb = sheared_gauss(sheared_grid(b, lf[LIGHT_FIELD_PIXEL_JITTER + 1], l, p->light.w), inv);
         for (uint a = 0u; a < l; ++a) {
-            float wt = dof_gauss(dof_grid(a, lf[LIGHT_FIELD_PIXEL_JITTER], l, p->light.w), inv) * wb;
+            float wt = sheared_gauss(sheared_grid(a, lf[LIGHT_FIELD_PIXEL_JITTER], l, p->light.w), inv) * wb;
             int k = (int)(b * l + a);
-            v += wt * (float3)(dof_lane(lf, k, 0), dof_lane(lf, k, 1), dof_lane(lf, k, 2));
+            v += wt * (float3)(sheared_rgb_lane(lf, k, 0), sheared_rgb_lane(lf, k, 1), sheared_rgb_lane(lf, k, 2));
             w += wt;
         }
     }
@@ -228,8 +212,8 @@ __kernel void dof_2b(__constant const ShearedParams* p, __global const float* li
         __global const float* lj = light_field + (size_t)j * LIGHT_FIELD_PIXEL_FLOATS;
         if (k != 0 && !dof_accepts(p, li, lj, guide[j].z)) continue;
         float dx = (float)k;
-        float wx = dof_gauss(dx, inv_x);
-        int c = dof_bin_of(g.y * -dx, bins, p->range);
+        float wx = sheared_gauss(dx, inv_x);
+        int c = sheared_bin_of(g.y * -dx, bins, p->range);
         if (c < 0) continue;
         v += wx * vload4((uint)c, in + (size_t)j * (bins * 4u));
     }

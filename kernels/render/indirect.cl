@@ -23,7 +23,8 @@
 #include "render/bandlimit.cl"
 
 
-#if OUTPUT_INDIRECT
+// indirect_radiance also serves the sheared filter's GI field (kernels/render/gi_field.cl).
+#if OUTPUT_INDIRECT || OUTPUT_LIGHT_FIELD
 
 // The random numbers of the indirect passes use sample numbers no path sample reaches (and
 // below the shadow passes' 0xFFFFFF00): one key per indirect sample.
@@ -88,6 +89,10 @@ inline float3 indirect_radiance(const SceneRefs* s, float3 o, float3 d, uint key
     }
     return l;
 }
+
+#endif
+
+#if OUTPUT_INDIRECT
 
 // Running sums of one pixel's indirect samples.
 typedef struct {

@@ -177,6 +177,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 }
 
 #include "render/lens_field.cl"
+#include "render/gi_field.cl"
 
 // One work-item per pixel of a tile of the image adds `sample_count` samples, numbered from
 // `sample_base`, to the pixel's outputs. The samples of one render are those from

@@ -56,7 +56,7 @@ inline float hit_object(const SceneRefs* s, const Hit* hit) {
 
 // What the AAF passes of both filters share (the shadow passes here, the indirect passes of
 // kernels/render/indirect.cl): the receiver, the kernels' scene parameters, square roots.
-#if (OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS) || OUTPUT_INDIRECT
+#if (OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS) || OUTPUT_INDIRECT || OUTPUT_LIGHT_FIELD
 
 // The first hit of the ray through the point (x + jx, y + jy) of the image from the lens
 // centre, when it is a receiver: a diffuse surface (the path tracer connects to lights there

@@ -141,13 +141,22 @@ impl<'de, T: Deserialize<'de>> Deserialize<'de> for Auto<T> {
             Value(T),
             Word(String),
         }
+        let expected = format!(
+            "expected \"auto\" or a {}",
+            short_type(std::any::type_name::<T>())
+        );
         match Repr::<T>::deserialize(d) {
             Ok(Repr::Value(v)) => Ok(Auto::Set(v)),
             Ok(Repr::Word(w)) if w == "auto" => Ok(Auto::Auto),
-            _ => Err(serde::de::Error::custom(format!(
-                "expected \"auto\" or a {}",
-                short_type(std::any::type_name::<T>())
-            ))),
+            // A word T refuses: T's own reason (for an enum, the words it takes).
+            Ok(Repr::Word(w)) => {
+                let word = serde::de::value::StrDeserializer::<serde::de::value::Error>::new(&w);
+                let why = T::deserialize(word).err().map(|e| format!(" ({e})"));
+                Err(serde::de::Error::custom(
+                    expected + &why.unwrap_or_default(),
+                ))
+            }
+            _ => Err(serde::de::Error::custom(expected)),
         }
     }
 }

@@ -528,8 +528,8 @@ impl Frame {
     /// The samples per pixel of the sampling passes that run before the path samples,
     /// averaged over the image (Σ / N², pixels that take none count 0), read from the
     /// outputs that hold them: the shadow output's light samples (AAF's sparse + adaptive
-    /// passes), the light field's l² (and the depth-of-field fallback's 36 where it applies),
-    /// the indirect output's samples. 0 without these outputs. The path samples are
+    /// passes), the light field's l² (shadows, depth of field with its fallback's 36 where
+    /// it applies, or GI's v-plane samples), the indirect output's samples. 0 without these outputs. The path samples are
     /// [`FrameInfo::spp`]; the studies report both, as the seeds count the passes' samples.
     pub fn pass_spp(&self) -> Result<f64> {
         let pixels = (self.info.width as f64 * self.info.height as f64).max(1.0);
@@ -540,9 +540,13 @@ impl Frame {
         }
         if self.outputs.contains(Output::LightField) {
             let p: &[LightFieldPixel] = self.host_slice(BufferId::LightFieldPixels)?;
+            // `extra_samples` holds the depth-of-field fallback's 36; the GI field keeps its
+            // count of reflector hits there (kernels/render/gi_field.cl), and a camera with a
+            // lens means depth of field (sheared GI refuses a thin lens).
+            let dof = self.info.scene.camera.lens_radius > 0.0;
             total += p
                 .iter()
-                .map(|p| (p.count + p.extra_samples) as f64)
+                .map(|p| (p.count + if dof { p.extra_samples } else { 0.0 }) as f64)
                 .sum::<f64>();
         }
         if self.outputs.contains(Output::Indirect) {

@@ -4,7 +4,9 @@
 //! straddle the focal plane, kept per pixel in [`crate::layout::LightFieldPixel`] (the output
 //! [`crate::layout::outputs::Output::LightField`] without the shadow output). The kernel is
 //! kernels/render/lens_field.cl, built from the megakernel's program (it traces whole paths);
-//! src/render/cpu/lens_field.rs is its Rust reference.
+//! src/render/cpu/lens_field.rs is its Rust reference. With
+//! [`super::ShadowSampling::light_field_gi`] the same pass runs kernels/render/gi_field.cl
+//! instead: the sheared filter's GI field over the v-plane (src/render/gi_field.rs).
 
 use std::time::Duration;
 
@@ -47,16 +49,21 @@ impl LensPass {
         gpu: &Gpu,
         program: &Program,
         size: [usize; 2],
-        side: u32,
+        sampling: super::ShadowSampling,
         scene: &super::DeviceScene,
         debug_counters: &Buffer<u32>,
         field: &Buffer<u8>,
     ) -> Result<LensPass> {
+        let (side, gi) = (sampling.light_field, sampling.light_field_gi);
         check(side, true)?;
         let rays = gpu.zeroed::<u32>(size[0] * size[1], "lens-field ray count")?;
         let mut b = Kernel::builder();
         b.program(program)
-            .name("lens_field_sample")
+            .name(if gi {
+                "gi_field_sample"
+            } else {
+                "lens_field_sample"
+            })
             .queue(gpu.queue.clone())
             .global_work_size(size);
         scene.bind(&mut b);

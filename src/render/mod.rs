@@ -9,6 +9,7 @@ pub mod balance;
 pub mod cpu;
 pub mod features;
 pub mod frame;
+pub mod gi_field;
 pub mod indirect;
 pub mod lens_field;
 pub mod progressive;
@@ -385,7 +386,7 @@ impl Renderer {
                 &self.gpu,
                 &program,
                 [self.width() as usize, self.height() as usize],
-                self.shadow_sampling.light_field,
+                self.shadow_sampling,
                 &self._scene,
                 &self.debug_counters,
                 self.buffer(BufferId::LightFieldPixels),

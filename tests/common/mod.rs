@@ -3,6 +3,7 @@
 
 pub mod aaf;
 pub mod merge;
+pub mod sheared;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

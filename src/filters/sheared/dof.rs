@@ -110,8 +110,28 @@ fn rgb(lf: &LightFieldPixel, k: usize) -> [f32; 3] {
 
 /// `dof_1a` (eq. 12).
 pub fn step_1a(p: &ShearedParams, field: &[LightFieldPixel], guide: &[Guide]) -> Vec<f32> {
-    let (bins, l) = (p.bins as usize, p.side);
+    let (l, radius) = (p.side, p.light.0[3]);
     let inv = (1.0 / (2.0 * p.sigma_y * p.sigma_y)).min(f32::MAX);
+    bin_rows(
+        p,
+        field,
+        guide,
+        |a, j| grid_coordinate(a, j, l, radius),
+        |t| gauss(t, inv),
+    )
+}
+
+/// Step 1a for the lens (depth of field) and the v-plane (GI, src/filters/sheared/gi.rs):
+/// p[bin][row] = Σ_a f(a, row) w(y(a) − y_bin), rgb + weight, for every pixel with a field
+/// (kind ≠ 0); `coord` is the grid coordinate y of point a under jitter j, `w` the weight.
+pub(super) fn bin_rows(
+    p: &ShearedParams,
+    field: &[LightFieldPixel],
+    guide: &[Guide],
+    coord: impl Fn(u32, f32) -> f32 + Sync,
+    w: impl Fn(f32) -> f32 + Sync,
+) -> Vec<f32> {
+    let (bins, l) = (p.bins as usize, p.side);
     let mut out = vec![0f32; field.len() * p_floats(p.bins)];
     out.par_chunks_mut(p_floats(p.bins))
         .zip(field.par_iter().zip(guide))
@@ -123,8 +143,7 @@ pub fn step_1a(p: &ShearedParams, field: &[LightFieldPixel], guide: &[Guide]) ->
                 let yc = bin_centre(c as u32, p.bins, p.range);
                 let mut wy = [0f32; 4];
                 for a in 0..l {
-                    wy[a as usize] =
-                        gauss(grid_coordinate(a, lf.jitter[0], l, p.light.0[3]) - yc, inv);
+                    wy[a as usize] = w(coord(a, lf.jitter[0]) - yc);
                 }
                 for b in 0..l {
                     let mut v = [0f32; 4];
@@ -191,20 +210,42 @@ fn gather(
 
 /// `dof_1b` (eq. 13).
 pub fn step_1b(p: &ShearedParams, field: &[LightFieldPixel], guide: &[Guide], p1a: &[f32]) -> Vec<f32> {
+    let (l, radius) = (p.side, p.light.0[3]);
+    gather_rows(
+        p,
+        field,
+        guide,
+        p1a,
+        |b, j| grid_coordinate(b, j, l, radius),
+        |i, visit| {
+            if guide[i][2] == FILTERED {
+                gather(p, field, guide, i, 0, visit)
+            }
+        },
+    )
+}
+
+/// Step 1b for the lens and the v-plane: around each pixel, `walk` visits (neighbour j, w_x,
+/// bin of the shifted y1); j's rows land in the bins of their own y2′ = `coord`(row, j's
+/// jitter).
+pub(super) fn gather_rows(
+    p: &ShearedParams,
+    field: &[LightFieldPixel],
+    guide: &[Guide],
+    p1a: &[f32],
+    coord: impl Fn(u32, f32) -> f32 + Sync,
+    walk: impl Fn(usize, &mut dyn FnMut(usize, f32, u32)) + Sync,
+) -> Vec<f32> {
     let l = p.side;
     let stride = p_floats(p.bins);
-    let mut out = vec![0f32; field.len() * g_floats(p.bins)];
+    let mut out = vec![0f32; guide.len() * g_floats(p.bins)];
     out.par_chunks_mut(g_floats(p.bins))
         .enumerate()
         .for_each(|(i, o)| {
-            if guide[i][2] != FILTERED {
-                return;
-            }
-            gather(p, field, guide, i, 0, |j, wx, c1| {
+            walk(i, &mut |j, wx, c1| {
                 let src = &p1a[j * stride..(j + 1) * stride];
                 for b in 0..l {
-                    let u2 = grid_coordinate(b, field[j].jitter[1], l, p.light.0[3]);
-                    let Some(c2) = bin_of(u2, p.bins, p.range) else {
+                    let Some(c2) = bin_of(coord(b, field[j].jitter[1]), p.bins, p.range) else {
                         continue;
                     };
                     let at = (c1 as usize * 4 + b as usize) * 4;
@@ -225,6 +266,18 @@ pub fn step_2a(p: &ShearedParams, guide: &[Guide], g1b: &[f32]) -> Vec<f32> {
     let table: Vec<f32> = (0..2 * bins as i32 - 1)
         .map(|d| gauss((d - (bins as i32 - 1)) as f32 * spacing, inv))
         .collect();
+    sum_bins(p, guide, g1b, |c, c2| table[c2 + bins - 1 - c])
+}
+
+/// Step 2a for the lens and the v-plane: q[c] = Σ_c′ g[c′] w(c, c′) over every bin c′, for
+/// every pixel with a field.
+pub(super) fn sum_bins(
+    p: &ShearedParams,
+    guide: &[Guide],
+    g1b: &[f32],
+    w: impl Fn(usize, usize) -> f32 + Sync,
+) -> Vec<f32> {
+    let bins = p.bins as usize;
     let mut out = vec![0f32; guide.len() * g_floats(p.bins)];
     out.par_chunks_mut(g_floats(p.bins))
         .enumerate()
@@ -236,7 +289,7 @@ pub fn step_2a(p: &ShearedParams, guide: &[Guide], g1b: &[f32]) -> Vec<f32> {
             for c in 0..bins {
                 let mut v = [0f32; 4];
                 for c2 in 0..bins {
-                    let wy = table[c2 + bins - 1 - c];
+                    let wy = w(c, c2);
                     for ch in 0..4 {
                         v[ch] += src[c2 * 4 + ch] * wy;
                     }

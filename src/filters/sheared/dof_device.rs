@@ -1,5 +1,7 @@
 //! The sheared depth-of-field filter on the device (kernels/filters/sheared_dof.cl): prepare,
-//! steps 1a, 1b, 2a, 2b; src/filters/sheared/dof.rs is its reference and says why.
+//! steps 1a, 1b, 2a, 2b; src/filters/sheared/dof.rs is its reference and says why. The GI
+//! filter (kernels/filters/sheared_gi.cl, reference src/filters/sheared/gi.rs) has the same
+//! launches, arguments and buffers over the GI field: [`DofKernel::gi`].
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -26,7 +28,8 @@ pub struct DofIntermediates {
     pub q2a: Vec<f32>,
 }
 
-/// The sheared depth-of-field filter, built for an image size and a lens.
+/// The sheared depth-of-field (or GI) filter, built for an image size and a lens (or the
+/// v-plane).
 pub struct DofKernel {
     gpu: Arc<Gpu>,
     kernels: [Kernel; 5],
@@ -40,6 +43,7 @@ pub struct DofKernel {
     height: u32,
     max_radius: u32,
     step_times: [Duration; 5],
+    effect: &'static str,
 }
 
 /// Device bytes per pixel: the light field, steps 1a-2a, the guide and the image.
@@ -50,6 +54,21 @@ pub fn bytes_per_pixel(bins: u32) -> u64 {
 
 impl DofKernel {
     pub fn new(gpu: Arc<Gpu>, params: ShearedParams) -> Result<DofKernel> {
+        DofKernel::build(gpu, params, "filters/sheared_dof.cl", "dof", "depth-of-field")
+    }
+
+    /// The GI filter (kernels/filters/sheared_gi.cl) over the GI field.
+    pub fn gi(gpu: Arc<Gpu>, params: ShearedParams) -> Result<DofKernel> {
+        DofKernel::build(gpu, params, "filters/sheared_gi.cl", "gi", "GI")
+    }
+
+    fn build(
+        gpu: Arc<Gpu>,
+        params: ShearedParams,
+        file: &str,
+        prefix: &str,
+        effect: &'static str,
+    ) -> Result<DofKernel> {
         let (w, h) = (params.width, params.height);
         if w == 0 || h == 0 {
             bail!("the image must be at least 1x1 pixels, got {w}x{h}");
@@ -58,13 +77,13 @@ impl DofKernel {
         let bins = params.bins;
         gpu.check_alloc(
             (n * p_floats(bins) * 4) as u64,
-            "sheared depth-of-field step 1a (rgbw per bin and row)",
+            &format!("sheared {effect} step 1a (rgbw per bin and row)"),
         )?;
         gpu.check_total(
             n as u64 * bytes_per_pixel(bins),
-            "the sheared depth-of-field filter's buffers",
+            &format!("the sheared {effect} filter's buffers"),
         )?;
-        let program = gpu.program("filters/sheared_dof.cl", &[], "")?;
+        let program = gpu.program(file, &[], "")?;
         let params_buffer = gpu.upload(std::slice::from_ref(&params))?;
         let guide = gpu.zeroed::<Float4>(n, "sheared DOF guide")?;
         let p1a = gpu.zeroed::<f32>(n * p_floats(bins), "sheared DOF step 1a")?;
@@ -75,45 +94,45 @@ impl DofKernel {
         let build = |name: &str| {
             let mut b = Kernel::builder();
             b.program(&program)
-                .name(name)
+                .name(format!("{prefix}_{name}"))
                 .queue(gpu.queue.clone())
                 .global_work_size([w as usize, h as usize])
                 .arg_named("p", &params_buffer);
             b
         };
-        let what = "creating a sheared depth-of-field kernel";
-        let prepare = build("dof_prepare")
+        let what = format!("creating a sheared {effect} kernel");
+        let prepare = build("prepare")
             .arg_named("light_field", none)
             .arg(&guide)
             .build()
-            .context(what)?;
-        let k1a = build("dof_1a")
+            .context(what.clone())?;
+        let k1a = build("1a")
             .arg_named("light_field", none)
             .arg(&guide)
             .arg(&p1a)
             .build()
-            .context(what)?;
-        let k1b = build("dof_1b")
+            .context(what.clone())?;
+        let k1b = build("1b")
             .arg_named("light_field", none)
             .arg(&guide)
             .arg(&p1a)
             .arg(&g1b)
             .build()
-            .context(what)?;
-        let k2a = build("dof_2a")
+            .context(what.clone())?;
+        let k2a = build("2a")
             .arg(&guide)
             .arg(&g1b)
             .arg(&q2a)
             .build()
-            .context(what)?;
-        let k2b = build("dof_2b")
+            .context(what.clone())?;
+        let k2b = build("2b")
             .arg_named("light_field", none)
             .arg_named("fv", none)
             .arg(&guide)
             .arg(&q2a)
             .arg(&image)
             .build()
-            .context(what)?;
+            .context(what.clone())?;
         Ok(DofKernel {
             gpu,
             kernels: [prepare, k1a, k1b, k2a, k2b],
@@ -127,6 +146,7 @@ impl DofKernel {
             height: h,
             max_radius: params.max_radius.max(0) as u32,
             step_times: [Duration::ZERO; 5],
+            effect,
         })
     }
 
@@ -148,7 +168,7 @@ impl DofKernel {
         frame.check_size(self.width, h, "the sheared filter")?;
         frame.require(
             OutputSet::of(&[Output::Colour, Output::LightField]),
-            "the sheared filter (depth of field)",
+            &format!("the sheared filter ({})", self.effect),
         )?;
         let rows = rows.start.min(h)..rows.end.min(h);
         let wide = rows.start.saturating_sub(self.max_radius)..(rows.end + self.max_radius).min(h);

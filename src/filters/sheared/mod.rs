@@ -1,4 +1,4 @@
-//! Sheared filtering of soft shadows or depth of field (L.-Q. Yan, S. U. Mehta, R. Ramamoorthi, F. Durand,
+//! Sheared filtering of soft shadows, depth of field or diffuse indirect light (L.-Q. Yan, S. U. Mehta, R. Ramamoorthi, F. Durand,
 //! "Fast 4D Sheared Filtering for Interactive Rendering of Distribution Effects", ACM TOG 2015;
 //! seed 002, digest /work/shared/notes/seeds-aaf-sheared.md §3; issue 16), for one sphere
 //! light: the eq. 4-5 analysis in `shear.rs`, the OpenCL steps of kernels/filters/sheared.cl
@@ -6,12 +6,17 @@
 //! sampling side is the renderer's light-field output (src/render/shadows/light_field.rs),
 //! gathered with AAF's shadow output (receiver, d1, r(x), slopes, slope fill).
 //!
-//! **The effect is the scene's** (`dof = auto`): a thin lens (lens_radius > 0) gets depth of
+//! **The effect is the scene's** (`effect = auto`): a thin lens (lens_radius > 0) gets depth of
 //! field (`dof.rs`, `dof_device.rs`, kernels/filters/sheared_dof.cl over the lens field of
-//! kernels/render/lens_field.cl); a pinhole camera gets one sphere light's soft shadows. In a
-//! lens scene the sphere lights' shadows stay as path traced in the radiance samples
-//! (unfiltered): both at once (the seed's appendix, eqs. 16-17) is a later step, and asking
-//! for it (`dof = true` with `light` >= 0) is refused with a message naming the combination.
+//! kernels/render/lens_field.cl); a pinhole camera with a sphere light gets that light's soft
+//! shadows; a pinhole camera without one gets diffuse indirect light (`gi.rs`,
+//! kernels/filters/sheared_gi.cl over the GI field of kernels/render/gi_field.cl; the same
+//! launches as depth of field, `DofKernel::gi`). In a lens scene the sphere lights' shadows
+//! stay as path traced in the radiance samples (unfiltered): both at once (the seed's
+//! appendix, eqs. 16-17) is a later step, and asking for it (`effect = "dof"` with `light` >=
+//! 0) is refused with a message naming the combination, as are GI with a chosen light (GI
+//! filters indirect light only; the shadows stay as path traced) and GI through a thin lens
+//! (its receivers are the lens-centre hits).
 //!
 //! What the seed leaves open, and what is done:
 //! - **The light** (§3.2: a Gaussian of σ_y over a square of side 4σ_y): our sphere is sampled
@@ -41,7 +46,8 @@
 //!   samples put there + r · filtered visibility (AAF's compose pass, reused).
 //! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 288 B per pixel (its depth-of-field lanes included)
 //!   plus the filter's 2 · bins · 4 floats of step 1a and 2 · 2 · bins of steps 1b/2a;
-//!   refused before allocation when it does not fit the device.
+//!   refused before allocation when it does not fit the device. Depth of field and GI: the
+//!   light field plus steps 1a-2a of `dof_device.rs`, 1952 B per pixel at 17 bins.
 
 //!
 //! **Measured, and what is wrong with it** (issue 16; `bench --study aaf-shadows`): on Grids
@@ -64,6 +70,7 @@
 mod device;
 pub mod dof;
 mod dof_device;
+pub mod gi;
 pub mod reference;
 pub mod shear;
 
@@ -80,6 +87,18 @@ use crate::render::shadows::light_field::{MAX_SIDE, light_frame};
 use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling, LightPlanes};
 pub use device::{Intermediates, STEPS, ShearedKernel};
 pub use dof_device::{DOF_STEPS, DofIntermediates, DofKernel};
+
+/// The effect the sheared filter works on (setting `effect`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Effect {
+    /// One sphere light's soft shadows (the light field over the light).
+    Shadows,
+    /// Depth of field through a thin lens (the lens field).
+    Dof,
+    /// Diffuse indirect light (the GI field over the v-plane).
+    Gi,
+}
 
 crate::filter_settings! {
     /// The sheared soft-shadow filter's settings: the light-field grid and the filter.
@@ -105,9 +124,10 @@ crate::filter_settings! {
         pub depth_tolerance: f32 = 2.0,
         /// Factor on eq. 5's shear eta (1: as settled; 0: axis-aligned; -1: the other sign).
         pub shear: f32 = 1.0,
-        /// Depth of field instead of soft shadows; auto: when the scene has a thin lens
-        /// (lens_radius > 0).
-        pub dof: Auto<bool> = Auto::Auto,
+        /// What is filtered: "shadows" (one sphere light's), "dof" (depth of field, needs a
+        /// thin lens) or "gi" (diffuse indirect light, a pinhole camera); auto: "dof" with a
+        /// thin lens (lens_radius > 0), else "shadows" with a sphere light, else "gi".
+        pub effect: Auto<Effect> = Auto::Auto,
     }
 }
 
@@ -138,11 +158,19 @@ impl ShearedSettings {
         if !self.shear.is_finite() {
             bail!("shear must be finite, got {}", self.shear);
         }
-        if self.dof == Auto::Set(true) && self.light_index().is_some() && !self.light.is_auto() {
+        let chosen_light = self.light_index().is_some() && !self.light.is_auto();
+        if self.effect == Auto::Set(Effect::Dof) && chosen_light {
             bail!(
                 "the sheared filter does depth of field or one sphere light's soft shadows, not \
-                 both at once (Yan et al.'s appendix, eqs. 16-17, is not built): with dof = \
-                 true set light = -1 (the shadows stay as path traced), or dof = false"
+                 both at once (Yan et al.'s appendix, eqs. 16-17, is not built): with effect = \
+                 \"dof\" set light = -1 (the shadows stay as path traced), or effect = \"shadows\""
+            );
+        }
+        if self.effect == Auto::Set(Effect::Gi) && chosen_light {
+            bail!(
+                "the sheared filter's GI (effect = \"gi\") filters diffuse indirect light only, \
+                 not a sphere light's soft shadows as well: set light = -1 (the shadows stay as \
+                 path traced), or effect = \"shadows\""
             );
         }
         self.sampling().check()
@@ -161,12 +189,28 @@ impl ShearedSettings {
             max_spp: self.sparse_spp,
             fill_radius: self.fill_radius,
             light_field: self.side,
+            light_field_gi: self.is_gi(),
         }
     }
 
     /// Whether the filter does depth of field (after `specialise`; `auto` counts as no).
     pub fn is_dof(&self) -> bool {
-        self.dof.or(false)
+        self.effect == Auto::Set(Effect::Dof)
+    }
+
+    /// Whether the filter does diffuse indirect light (after `specialise`; `auto`: no).
+    pub fn is_gi(&self) -> bool {
+        self.effect == Auto::Set(Effect::Gi)
+    }
+
+    /// The GI filter's parameters on a w × h image: σ_v = 2/Ω_v^max (eq. 4, Ω_v^max = 2.8),
+    /// the box and the bins over the v-square [−V, V] (src/filters/sheared/gi.rs).
+    pub fn gi_params(&self, width: u32, height: u32) -> ShearedParams {
+        let v = crate::render::gi_field::V_MAX;
+        let mut p = self.params([0.0, 0.0, 0.0, v], [0.0, 1.0, 0.0], width, height);
+        p.sigma_y = 2.0 / gi::OMEGA_V_MAX;
+        p.range = v;
+        p
     }
 
     /// The depth-of-field filter's parameters for a lens of radius `lens_radius` (A): the
@@ -219,7 +263,7 @@ impl ShearedSettings {
     /// (the light field's lanes are fixed at 16 samples; steps 1a-2a grow with the bins).
     pub fn memory_bytes(&self, width: u32, height: u32) -> u64 {
         let n = width as u64 * height as u64;
-        if self.is_dof() {
+        if self.is_dof() || self.is_gi() {
             return n * dof_device::bytes_per_pixel(self.bins);
         }
         let per_pixel = std::mem::size_of::<LightFieldPixel>() as u64
@@ -237,8 +281,9 @@ pub struct Sheared;
 impl FilterKind for Sheared {
     type Settings = ShearedSettings;
     const NAME: &'static str = "sheared";
-    const SUMMARY: &'static str = "4-D sheared filtering of one sphere light's soft shadows, or of depth of field with a thin lens, \
-         from l x l light samples per pixel (Yan et al. 2015; on the device)";
+    const SUMMARY: &'static str = "4-D sheared filtering of one sphere light's soft shadows, of depth of field with a thin lens, \
+         or of diffuse indirect light, from l x l light, lens or v-plane samples per pixel \
+         (Yan et al. 2015; on the device)";
 
     fn check(s: &ShearedSettings) -> Result<()> {
         s.validate()
@@ -246,8 +291,31 @@ impl FilterKind for Sheared {
 
     fn specialise(s: &mut ShearedSettings, scene: &SceneInfo) -> Vec<String> {
         let lens = scene.camera.lens_radius;
-        if s.dof.is_auto() {
-            s.dof = Auto::Set(lens > 0.0);
+        if s.effect.is_auto() {
+            s.effect = Auto::Set(if lens > 0.0 {
+                Effect::Dof
+            } else if !scene.sphere_lights.is_empty() || s.light_index().is_some() && !s.light.is_auto() {
+                Effect::Shadows
+            } else {
+                Effect::Gi
+            });
+        }
+        if s.is_gi() {
+            let mut notes = vec![format!(
+                "diffuse indirect light: {} v-plane samples per pixel, s = z",
+                s.side * s.side
+            )];
+            if s.light.is_auto() {
+                s.light = Auto::Set(-1);
+            }
+            if !scene.sphere_lights.is_empty() {
+                notes.push(format!(
+                    "the {} sphere light(s)' shadows stay as path traced (direct light is not \
+                     filtered by the GI effect)",
+                    scene.sphere_lights.len()
+                ));
+            }
+            return notes;
         }
         if !s.is_dof() {
             return specialise_light(&mut s.light, scene);
@@ -270,13 +338,14 @@ impl FilterKind for Sheared {
         notes
     }
 
-    /// Depth of field wherever the camera has a lens, else the shadows of a sphere light.
+    /// Depth of field wherever the camera has a lens, diffuse indirect light, or the shadows
+    /// of a sphere light.
     fn applies(s: &ShearedSettings) -> bool {
-        s.is_dof() || s.light_index().is_some()
+        s.is_dof() || s.is_gi() || s.light_index().is_some()
     }
 
     fn needs(s: &ShearedSettings) -> OutputSet {
-        if s.is_dof() {
+        if s.is_dof() || s.is_gi() {
             return OutputSet::of(&[Output::Colour, Output::LightField]);
         }
         let outputs = light_needs(s.light);
@@ -295,13 +364,25 @@ impl FilterKind for Sheared {
         frame: &FrameInfo,
         gpu: &Arc<Gpu>,
     ) -> Result<Box<dyn PreparedFilter>> {
+        if s.is_gi() {
+            let lens = frame.scene.camera.lens_radius;
+            if lens > 0.0 {
+                bail!(
+                    "the sheared filter's GI (effect = \"gi\") needs a pinhole camera, but the \
+                     scene's has a thin lens (lens_radius {lens}): GI and depth of field together \
+                     are not built; set lens_radius = 0 in its [camera], or effect = \"dof\""
+                );
+            }
+            let p = s.gi_params(frame.width, frame.height);
+            return Ok(Box::new(DofKernel::gi(gpu.clone(), p)?));
+        }
         if s.is_dof() {
             let lens = frame.scene.camera.lens_radius;
             if !(lens > 0.0) {
                 bail!(
                     "the sheared filter's depth of field needs a thin lens, but the scene's \
                      camera is a pinhole (lens_radius {lens}): set lens_radius > 0 in its \
-                     [camera], or dof = false"
+                     [camera], or effect = \"shadows\" or \"gi\""
                 );
             }
             let p = s.dof_params(lens, frame.width, frame.height);

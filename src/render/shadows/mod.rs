@@ -101,6 +101,10 @@ pub struct ShadowSampling {
     /// 9 spp, so that a render gathering every filter's outputs without their sampling
     /// choices still has one).
     pub light_field: u32,
+    /// With the light-field output and no shadow output: sample diffuse indirect light over
+    /// the v-plane (kernels/render/gi_field.cl, the sheared filter's GI) instead of the lens
+    /// (kernels/render/lens_field.cl, its depth of field).
+    pub light_field_gi: bool,
 }
 
 impl Default for ShadowSampling {
@@ -111,6 +115,7 @@ impl Default for ShadowSampling {
             max_spp: 100,
             fill_radius: 10,
             light_field: 3,
+            light_field_gi: false,
         }
     }
 }

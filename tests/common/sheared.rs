@@ -1,0 +1,73 @@
+//! What the sheared filters' tests share (tests/sheared_dof.rs, tests/sheared_gi.rs): the
+//! device-vs-reference step errors and a host frame holding a light field.
+
+use noisefree::layout::FilterVector;
+
+/// Largest |a − b| over every channel of two images.
+pub fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    a.iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// The sheared DOF / GI device steps against their reference: the largest
+/// |device − reference| / max(1, |reference|) of prepare, 1a, 1b and 2a.
+pub fn sheared_step_errors(
+    d: &noisefree::filters::sheared::DofIntermediates,
+    guide: &[[f32; 4]],
+    steps: [&[f32]; 3],
+) -> [f32; 4] {
+    let rel = |x: &[f32], y: &[f32]| {
+        x.iter()
+            .zip(y)
+            .map(|(a, b)| (a - b).abs() / b.abs().max(1.0))
+            .fold(0.0f32, f32::max)
+    };
+    let flat = |g: &[[f32; 4]]| g.iter().flatten().copied().collect::<Vec<f32>>();
+    [
+        rel(&flat(&d.guide), &flat(guide)),
+        rel(&d.p1a, steps[0]),
+        rel(&d.g1b, steps[1]),
+        rel(&d.q2a, steps[2]),
+    ]
+}
+
+/// A host frame of the sheared DOF / GI filters: F's direct and indirect terms and the light
+/// field, w × h from `p`.
+pub fn sheared_host_frame(
+    p: &noisefree::layout::ShearedParams,
+    field: &[noisefree::layout::LightFieldPixel],
+    direct: &[[f32; 3]],
+    indirect: &[[f32; 3]],
+) -> noisefree::render::Frame {
+    use noisefree::layout::outputs::{BufferId, Output, OutputSet};
+    use noisefree::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
+    let fv: Vec<FilterVector> = direct
+        .iter()
+        .zip(indirect)
+        .map(|(d, i)| FilterVector {
+            direct: *d,
+            indirect: *i,
+            ..Default::default()
+        })
+        .collect();
+    Frame::on_host(
+        FrameInfo {
+            width: p.width,
+            height: p.height,
+            spp: 1,
+            sample_capacity: 0,
+            shadow_lights: Vec::new(),
+            scene: SceneInfo::unknown(),
+        },
+        OutputSet::of(&[Output::Colour, Output::LightField]),
+        VarianceForm::Variances,
+        vec![
+            (BufferId::FilterVectors, HostBuffer::from_slice(&fv)),
+            (BufferId::LightFieldPixels, HostBuffer::from_slice(field)),
+        ],
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"))
+}
