@@ -4,7 +4,7 @@
 //!
 //! - [`DdfSettings`]: the parameters of Table 6.2, defaults of Table 7.2;
 //! - `device.rs`: the OpenCL kernels of kernels/filters/ddf.cl (naive, vector loads,
-//!   local-memory rows; holes);
+//!   local-memory rows; holes; packed float16 lanes);
 //! - `reference.rs`: the plain Rust reference of the same equations.
 
 mod device;
@@ -33,6 +33,9 @@ pub enum Variant {
     Vector,
     /// Local-memory rows (§6.3.2, Fig. 6.10), `work_group` pixels per work-group.
     Rows,
+    /// Ours, for CPUs: `device::PACK` adjacent pixels per work-item on float16 lanes
+    /// (kernels/filters/ddf_packed.cl), the neighbours read from padded planes.
+    Packed,
 }
 
 /// The direction factor of eq. 6.14.
@@ -100,7 +103,8 @@ crate::filter_settings! {
         /// Sky pixels keep their unfiltered colour (§6.3.4); auto: on when the scene has an
         /// environment light (else no pixel can be sky).
         pub sky: Auto<bool> = Auto::Auto,
-        /// Kernel variant (§6.3): "naive", "vector" or "rows".
+        /// Kernel variant (§6.3): "naive", "vector", "rows" or "packed" (ours: 16 pixels
+        /// per work-item on float16 lanes).
         pub variant: Variant = Variant::Rows,
         /// Work-group size of the rows variant (§6.3.2).
         pub work_group: u32 = 64,
