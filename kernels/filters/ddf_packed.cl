@@ -1,19 +1,25 @@
 // The data-driven filter's packed variant (DDF_VARIANT 3; included by filters/ddf.cl, whose
-// helpers it uses): one work-item filters DDF_PACK (8 or 16) horizontally adjacent pixels of
-// one row, every tap's arithmetic written on floatN vectors whose lane i is pixel x0 + i.
+// helpers it uses): one work-item filters DDF_PACK (16) horizontally adjacent pixels of one
+// row, every tap's arithmetic written on float16 vectors whose lane i is pixel x0 + i.
 //
 // Why: PoCL packs work-items into SIMD lanes only for kernels without loops of their own; the
 // per-work-item tap loops of variants 0-2 run on scalar floats with a scalar exp (7 % of the
 // device's float16 FMA peak, results/README.md "Roofline"). Here the packing is explicit.
 //
 // Layout: `ddf_pack` first copies the FilterVectors (and the direction term's input) into
-// planes, one float per pixel and lane of F, each image row padded by `half` zeros on the
-// left and at least `half` on the right, so that the neighbours x0 + i + dx of all lanes are
-// one vloadN at any dx, at the image borders too. Lanes whose neighbour lies outside the
+// "lines": each image row becomes DDF_LINES lines of `stride` floats, line k holding lane k
+// of F of every pixel of the row, padded by `half` zeros on the left and at least `half` on
+// the right, so that the neighbours x0 + i + dx of all lanes are one vloadN at any dx, at the
+// image borders too. The lines of one row are adjacent (a row of 512 pixels at kw 21: 35 kB):
+// with one plane per lane of F instead, each tap read 16 places 1 MB apart, and the kernel
+// took 1.7x as long (512 x 512, kw 21, measured side by side, loaded machine). Lanes whose neighbour lies outside the
 // image get weight 0 through select() (the other variants skip them: adding 0 to the sums
 // leaves the same bits); rows outside the image are skipped as a whole (the same for every
-// lane). Every lane does the same float operations in the same order as ddf_neighbour, so
-// the result is the same as variants 0-2 and the Rust reference.
+// lane). Every lane does the same float operations in the same order as ddf_neighbour (with
+// FP_CONTRACT OFF from ddf.cl). The result is not bit-identical all the same: measured within
+// 2.8e-7 (relative) of variant 2 and 2.6e-7 of the Rust reference (tests/ddf.rs
+// every_variant_matches_the_rust_reference); PoCL's float16 exp or division need not round
+// like the scalar ones (not investigated further).
 
 #if DDF_PACK == 16
 #define floatP float16
@@ -21,48 +27,42 @@
 #define vloadP vload16
 #define vstoreP vstore16
 #define LANE_IDS (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
-#elif DDF_PACK == 8
-#define floatP float8
-#define intP int8
-#define vloadP vload8
-#define vstoreP vstore8
-#define LANE_IDS (int8)(0, 1, 2, 3, 4, 5, 6, 7)
 #else
-#error "noisefree: DDF_PACK must be 8 or 16"
+#error "noisefree: DDF_PACK must be 16 (src/filters/ddf/device.rs PACK)"
 #endif
 
-// Planes after the 16 of F: the direction term's input (neighbour_direction).
+// Lines after the 16 of F: the direction term's input (neighbour_direction).
 #if DDF_DIRECTION == 1
-#define DDF_DIRECTION_PLANES 3
+#define DDF_DIRECTION_LINES 3
 #elif DDF_DIRECTION == 2
-#define DDF_DIRECTION_PLANES 1
+#define DDF_DIRECTION_LINES 1
 #else
-#define DDF_DIRECTION_PLANES 0
+#define DDF_DIRECTION_LINES 0
 #endif
+#define DDF_LINES (16 + DDF_DIRECTION_LINES)
 
-// The planes of rows row0.. (global size: width x rows): plane k of pixel (x, y) at
-// k * plane + y * stride + half + x.
+// The lines of rows row0.. (global size: width x rows): lane k of pixel (x, y) at
+// (y * DDF_LINES + k) * stride + half + x.
 __kernel void ddf_pack(__constant const DdfParams* p,
                        __global const float* f,
                        __global const float* gb,
                        __global const float* state,
-                       __global float* planes,
+                       __global float* lines,
                        uint stride,
-                       uint plane,
                        uint row0) {
     int x = get_global_id(0), y = (int)row0 + get_global_id(1);
     if (x >= (int)p->width || y >= (int)p->height) return;
     uint pixel = (uint)y * p->width + (uint)x;
-    size_t at = (size_t)y * stride + (size_t)p->half_width + (size_t)x;
+    __global float* at = lines + (size_t)y * DDF_LINES * stride + p->half_width + x;
     float fv[16];
     vstore16(vload16(pixel, f), 0, fv);
-    for (int k = 0; k < 16; ++k) planes[(size_t)k * plane + at] = fv[k];
-#if DDF_DIRECTION_PLANES > 0
+    for (int k = 0; k < 16; ++k) at[(size_t)k * stride] = fv[k];
+#if DDF_DIRECTION_LINES > 0
     float3 d = neighbour_direction(p, gb, state, pixel);
-    planes[16 * (size_t)plane + at] = d.x;
-#if DDF_DIRECTION_PLANES == 3
-    planes[17 * (size_t)plane + at] = d.y;
-    planes[18 * (size_t)plane + at] = d.z;
+    at[16 * (size_t)stride] = d.x;
+#if DDF_DIRECTION_LINES == 3
+    at[17 * (size_t)stride] = d.y;
+    at[18 * (size_t)stride] = d.z;
 #endif
 #endif
 }
@@ -117,9 +117,8 @@ __kernel void ddf_filter(__constant const DdfParams* p,
                          __global const float* gb,
                          __global const float* state,
                          __global float4* out,
-                         __global const float* planes,
-                         uint stride,
-                         uint plane) {
+                         __global const float* lines,
+                         uint stride) {
     int x0 = get_global_id(0) * DDF_PACK, y = get_global_id(1);
     int w = (int)p->width, h = (int)p->height, r = p->half_width;
     if (x0 >= w || y >= h) return;
@@ -133,10 +132,10 @@ __kernel void ddf_filter(__constant const DdfParams* p,
         for (int j = 0; j < 5; ++j) s2[j][i] = one.sigma2_f[j];
     }
     for (int j = 0; j < 5; ++j) c.sigma2_f[j] = vloadP(0, s2[j]);
-    __global const float* centre = planes + (size_t)y * stride + r + x0;
-    for (int k = 0; k < 16; ++k) c.f[k] = vloadP(0, centre + (size_t)k * plane);
-    for (int k = 0; k < DDF_DIRECTION_PLANES; ++k)
-        c.direction[k] = vloadP(0, centre + (size_t)(16 + k) * plane);
+    __global const float* centre = lines + (size_t)y * DDF_LINES * stride + r + x0;
+    for (int k = 0; k < 16; ++k) c.f[k] = vloadP(0, centre + (size_t)k * stride);
+    for (int k = 0; k < DDF_DIRECTION_LINES; ++k)
+        c.direction[k] = vloadP(0, centre + (size_t)(16 + k) * stride);
     for (int k = 0; k < 3; ++k) c.c_fd[k] = c.c_fi[k] = (floatP)(0.0f);
     c.tw_d = c.tw_i = (floatP)(0.0f);
 
@@ -145,13 +144,13 @@ __kernel void ddf_filter(__constant const DdfParams* p,
     for (int dy = -r; dy <= r; dy += p->step) {
         int ny = y + dy;
         if (ny < 0 || ny >= h) continue;           // the same for every lane
-        __global const float* row = planes + (size_t)ny * stride + r + x0;
+        __global const float* row = lines + (size_t)ny * DDF_LINES * stride + r + x0;
         for (int dx = -r; dx <= r; dx += p->step) {
             intP nx = (intP)(x0 + dx) + LANE_IDS;
             intP inside = nx >= 0 && nx < w;      // out-of-image neighbours weigh 0
-            for (int k = 0; k < 16; ++k) n[k] = vloadP(0, row + (size_t)k * plane + dx);
-            for (int k = 0; k < DDF_DIRECTION_PLANES; ++k)
-                n_direction[k] = vloadP(0, row + (size_t)(16 + k) * plane + dx);
+            for (int k = 0; k < 16; ++k) n[k] = vloadP(0, row + (size_t)k * stride + dx);
+            for (int k = 0; k < DDF_DIRECTION_LINES; ++k)
+                n_direction[k] = vloadP(0, row + (size_t)(16 + k) * stride + dx);
             ddf_neighbour_p(p, &c, n, n_direction, inside);
         }
     }

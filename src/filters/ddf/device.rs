@@ -16,8 +16,10 @@ use crate::layout::{DdfParams, Float4};
 use crate::render::Frame;
 
 impl Variant {
+    /// DDF_VARIANT of a variant resolved for the device ([`Variant::for_device`]).
     fn define(self) -> u32 {
         match self {
+            Variant::Auto => unreachable!("auto is resolved for the device before the build"),
             Variant::Naive => 0,
             Variant::Vector => 1,
             Variant::Rows => 2,
@@ -32,7 +34,6 @@ pub const PACK: u32 = 16;
 /// Work-items per work-group of the packed variant unless one is given.
 pub const PACKED_GROUP: usize = 8;
 
-
 /// The kernel of one variant and option set, for one image size.
 pub struct DdfKernel {
     gpu: Arc<Gpu>,
@@ -42,8 +43,8 @@ pub struct DdfKernel {
     settings: DdfSettings,
     width: u32,
     height: u32,
-    /// The packed variant's first pass, `ddf_pack`, which fills its planes
-    /// (kernels/filters/ddf_packed.cl), and the planes; None for the other variants.
+    /// The packed variant's first pass, `ddf_pack`, which fills its lines
+    /// (kernels/filters/ddf_packed.cl), and the lines; None for the other variants.
     pack: Option<(Kernel, Buffer<f32>)>,
 }
 
@@ -65,6 +66,10 @@ impl DdfKernel {
         work_group: Option<usize>,
     ) -> Result<Self> {
         settings.validate()?;
+        let settings = &DdfSettings {
+            variant: settings.variant.for_device(&gpu.summary.kind),
+            ..settings.clone()
+        };
         let flag = |b: bool| (b as u32).to_string();
         let defines = vec![
             (
@@ -89,19 +94,22 @@ impl DdfKernel {
         let params = gpu.upload(&[settings.params(width, height, 1.0, 1.0)])?;
         let out = gpu.zeroed::<Float4>(pixels, "filtered image")?;
         let (w, h) = (width as usize, height as usize);
-        // The packed variant's planes and the pass that fills them (ddf_packed.cl).
-        let planes = if settings.variant == Variant::Packed {
+        // The packed variant's lines and the pass that fills them (ddf_packed.cl).
+        let lines = if settings.variant == Variant::Packed {
             let half = settings.params(width, height, 1.0, 1.0).half_width as u32;
-            // Floats per padded plane row: half, the row rounded up to PACK pixels, half.
+            // Floats per padded line: half, the row rounded up to PACK pixels, half.
             let stride = half + round_up(w, PACK as usize) as u32 + half;
-            let count = 16 + match settings.direction {
+            // Lines per image row: the 16 lanes of F and the direction term's input.
+            let lines = 16 + match settings.direction {
                 DirectionTerm::Thesis => 0,
                 DirectionTerm::Difference => 3,
                 DirectionTerm::Neighbour => 1,
             };
-            let plane = stride * height;
             // Zeroed once: the padding is never written, so it stays 0 (finite, masked).
-            let buffer = gpu.zeroed::<f32>(count * plane as usize, "packed filter planes")?;
+            let buffer = gpu.zeroed::<f32>(
+                lines * stride as usize * h,
+                "the packed data-driven filter's lines",
+            )?;
             let pack = Kernel::builder()
                 .program(&program)
                 .name("ddf_pack")
@@ -112,12 +120,11 @@ impl DdfKernel {
                 .arg_named("state", None::<&Buffer<u8>>)
                 .arg(&buffer)
                 .arg(stride)
-                .arg(plane)
                 .arg_named("row0", 0u32)
                 .global_work_size([w, h])
                 .build()
                 .context("creating the data-driven filter's packing kernel")?;
-            Some((pack, buffer, stride, plane))
+            Some((pack, buffer, stride))
         } else {
             None
         };
@@ -172,8 +179,8 @@ impl DdfKernel {
                 }
             }
         }
-        if let Some((_, buffer, stride, plane)) = &planes {
-            b.arg(buffer).arg(*stride).arg(*plane);
+        if let Some((_, buffer, stride)) = &lines {
+            b.arg(buffer).arg(*stride);
         }
         let kernel = b
             .build()
@@ -186,10 +193,11 @@ impl DdfKernel {
             settings: settings.clone(),
             width,
             height,
-            pack: planes.map(|(pack, buffer, _, _)| (pack, buffer)),
+            pack: lines.map(|(pack, buffer, _)| (pack, buffer)),
         })
     }
 
+    /// The variant run (auto resolved for the device).
     pub fn variant(&self) -> Variant {
         self.settings.variant
     }
@@ -233,7 +241,7 @@ impl DdfKernel {
         let mut kernel_time = Duration::ZERO;
         let mut items = self.width;
         if self.pack.is_some() {
-            kernel_time += self.fill_planes(frame, &rows)?;
+            kernel_time += self.fill_lines(frame, &rows)?;
             items = self.width.div_ceil(PACK);
         }
         // SAFETY: all buffers outlive the launch (we wait for it) and hold width x height
@@ -257,9 +265,9 @@ impl DdfKernel {
 }
 
 impl DdfKernel {
-    /// The packed variant's first pass over the rows the band `rows` reads (the band and
+    /// The packed variant's first pass (its lines) over the rows the band `rows` reads (the band and
     /// [`DdfKernel::reach`] rows either side); returns its kernel time.
-    fn fill_planes(&mut self, frame: &Frame, rows: &Range<u32>) -> Result<Duration> {
+    fn fill_lines(&mut self, frame: &Frame, rows: &Range<u32>) -> Result<Duration> {
         let Some((pack, _)) = &self.pack else {
             return Ok(Duration::ZERO);
         };
@@ -276,7 +284,7 @@ impl DdfKernel {
         pack.set_arg("state", frame.device(&self.gpu, BufferId::WelfordState)?)?;
         pack.set_arg("row0", r0)?;
         let mut event = Event::empty();
-        // SAFETY: the frame's buffers and the planes outlive the launch (we wait for it); the
+        // SAFETY: the frame's buffers and the lines outlive the launch (we wait for it); the
         // kernel skips work-items outside the image.
         unsafe {
             pack.cmd()
