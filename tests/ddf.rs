@@ -339,6 +339,47 @@ fn sky_pixels_pass_through_bit_exactly() {
     }
 }
 
+/// Groups of 16 sky pixels (the packed variant's work-items, which then skip every tap) and a
+/// partial group at the right edge: sky keeps its colour, the surface pixels next to it are
+/// filtered as the reference filters them.
+#[test]
+fn whole_groups_of_sky_pass_through() {
+    let b = Buffers::from_fn(45, 6, 100.0, |x, y| {
+        if x >= 16 {
+            fv(
+                0.1 + 0.021 * x as f32,
+                0.7 - 0.05 * y as f32,
+                SKY_DEPTH,
+                0.0,
+            )
+        } else {
+            fv(0.5 + 0.01 * (x % 3) as f32, 0.25, 4.0, 0.5)
+        }
+    });
+    let beauty = b.beauty();
+    let s = DdfSettings::default();
+    let want = reference(&b.frame(), &s).unwrap();
+    for v in VARIANTS {
+        let out = device(&b, &s, v);
+        for (i, f) in b.filter_vectors.iter().enumerate() {
+            if f.depth >= SKY_DEPTH {
+                assert_eq!(
+                    out.pixels[i].map(f32::to_bits),
+                    beauty.pixels[i].map(f32::to_bits),
+                    "{} pixel {i}",
+                    label(v)
+                );
+            }
+        }
+        let d = max_rel_diff(&out, &want);
+        assert!(
+            d <= MAX_REL_TO_REFERENCE,
+            "{}: {d:e} from the reference",
+            label(v)
+        );
+    }
+}
+
 /// As printed, eq. 6.14's factor exp(-sigma2_f,3) is the same for every neighbour and cancels
 /// in eq. 6.21: sigma_f direction does not change the image (Table 7.1's "rather random"
 /// direction results). The difference variant does depend on it.

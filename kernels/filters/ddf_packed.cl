@@ -138,6 +138,19 @@ __kernel void ddf_filter(__constant const DdfParams* p,
         c.direction[k] = vloadP(0, centre + (size_t)(16 + k) * stride);
     for (int k = 0; k < 3; ++k) c.c_fd[k] = c.c_fi[k] = (floatP)(0.0f);
     c.tw_d = c.tw_i = (floatP)(0.0f);
+    int lanes = min(DDF_PACK, w - x0);
+#if DDF_SKY
+    // A group of sky pixels only (lanes past the image's edge count as sky) keeps its colours
+    // without visiting a tap (§6.3.4): the other variants skip sky pixels one by one.
+    if (all(c.f[6] >= SKY_DEPTH || LANE_IDS >= lanes)) {
+        for (int i = 0; i < lanes; ++i) {
+            uint pixel = (uint)(y * w + x0 + i);
+            float16 fc = vload16(pixel, f);
+            out[pixel] = (float4)(fc.s012 + fc.s345, 0.0f);
+        }
+        return;
+    }
+#endif
 
     floatP n[16];
     floatP n_direction[3];
@@ -167,7 +180,6 @@ __kernel void ddf_filter(__constant const DdfParams* p,
 #endif
         vstoreP(v, 0, rgb[k]);
     }
-    int lanes = min(DDF_PACK, w - x0);
     for (int i = 0; i < lanes; ++i)
         out[y * w + x0 + i] = (float4)(rgb[0][i], rgb[1][i], rgb[2][i], 0.0f);
 }
