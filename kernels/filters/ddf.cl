@@ -6,8 +6,8 @@
 //   DDF_VARIANT   0: naive, every neighbour's FilterVector read from global memory field by
 //                    field (Fig. 6.8); 1: the same with float16 vector loads (§6.3.1);
 //                 2: local-memory rows (§6.3.2, Fig. 6.10), float16 loads;
-//                 3: packed, DDF_PACK (8 or 16) pixels per work-item on floatN lanes
-//                    (filters/ddf_packed.cl).
+//                 3: packed, DDF_PACK (16) pixels per work-item on float16 lanes
+//                    (filters/ddf_packed.cl; ours, not in the thesis).
 //   DDF_SKY       1: sky pixels keep their unfiltered colour (§6.3.4); 0 when the scene has
 //                    no environment light (no pixel can be sky).
 //   DDF_TEXTURE2  1: the texture2 term of eq. 6.14; 0 drops it.

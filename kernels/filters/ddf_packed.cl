@@ -12,14 +12,14 @@
 // the right, so that the neighbours x0 + i + dx of all lanes are one vloadN at any dx, at the
 // image borders too. The lines of one row are adjacent (a row of 512 pixels at kw 21: 35 kB):
 // with one plane per lane of F instead, each tap read 16 places 1 MB apart, and the kernel
-// took 1.7x as long (512 x 512, kw 21, measured side by side, loaded machine). Lanes whose neighbour lies outside the
-// image get weight 0 through select() (the other variants skip them: adding 0 to the sums
-// leaves the same bits); rows outside the image are skipped as a whole (the same for every
-// lane). Every lane does the same float operations in the same order as ddf_neighbour (with
-// FP_CONTRACT OFF from ddf.cl). The result is not bit-identical all the same: measured within
-// 2.8e-7 (relative) of variant 2 and 2.6e-7 of the Rust reference (tests/ddf.rs
-// every_variant_matches_the_rust_reference); PoCL's float16 exp or division need not round
-// like the scalar ones (not investigated further).
+// took 1.7x as long (512 x 512, kw 21, measured side by side, loaded machine). Lanes whose
+// neighbour lies outside the image get weight 0 through select() (the other variants skip
+// them: adding 0 to the sums leaves the same bits); rows outside the image are skipped as a
+// whole (the same for every lane). Every lane does the same float operations in the same
+// order as ddf_neighbour (with FP_CONTRACT OFF from ddf.cl). The result is not bit-identical
+// all the same: measured within 2.8e-7 (relative) of variant 2 and 2.6e-7 of the Rust
+// reference (tests/ddf.rs every_variant_matches_the_rust_reference); PoCL's float16 exp or
+// division need not round like the scalar ones (not investigated further).
 
 #if DDF_PACK == 16
 #define floatP float16
