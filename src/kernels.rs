@@ -72,6 +72,10 @@ pub const SOURCES: &[(&str, &str)] = &[
     ),
     ("filters/ddf.cl", include_str!("../kernels/filters/ddf.cl")),
     (
+        "filters/ddf_packed.cl",
+        include_str!("../kernels/filters/ddf_packed.cl"),
+    ),
+    (
         "filters/atrous.cl",
         include_str!("../kernels/filters/atrous.cl"),
     ),

@@ -147,6 +147,8 @@ fn every_filter_on_bands_gives_the_bytes_of_the_merged_film_and_of_one_device() 
         "holes = true\nkw = 9",
         "variant = \"naive\"",
         "variant = \"vector\"",
+        // The default is auto: packed on PoCL (a CPU), so rows is asked for by name.
+        "variant = \"rows\"",
     ] {
         requests.push(("ddf".into(), toml::from_str(extra).unwrap()));
     }

@@ -2,10 +2,12 @@
 // spatial term whose feature weights are relaxed where the pixel's own features are noisy
 // (eq. 6.10), filtering direct and indirect light separately (eqs. 6.11-6.21).
 //
-// Build options (src/filters/ddf.rs):
+// Build options (src/filters/ddf/device.rs):
 //   DDF_VARIANT   0: naive, every neighbour's FilterVector read from global memory field by
 //                    field (Fig. 6.8); 1: the same with float16 vector loads (§6.3.1);
-//                 2: local-memory rows (§6.3.2, Fig. 6.10), float16 loads.
+//                 2: local-memory rows (§6.3.2, Fig. 6.10), float16 loads;
+//                 3: packed, DDF_PACK (16) pixels per work-item on float16 lanes
+//                    (filters/ddf_packed.cl; ours, not in the thesis).
 //   DDF_SKY       1: sky pixels keep their unfiltered colour (§6.3.4); 0 when the scene has
 //                    no environment light (no pixel can be sky).
 //   DDF_TEXTURE2  1: the texture2 term of eq. 6.14; 0 drops it.
@@ -248,6 +250,10 @@ __kernel void ddf_filter(__constant const DdfParams* p,
     out[pixel] = ddf_output(&c);
 }
 
+#elif DDF_VARIANT == 3
+
+#include "filters/ddf_packed.cl"
+
 #else
-#error "noisefree: DDF_VARIANT must be 0, 1 or 2"
+#error "noisefree: DDF_VARIANT must be 0, 1, 2 or 3"
 #endif

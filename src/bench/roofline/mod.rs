@@ -37,6 +37,8 @@ const KERNELS: &[&str] = &[
     "ddf-vector",
     "ddf-rows",
     "ddf-rows+holes",
+    "ddf-packed",
+    "ddf-packed+holes",
     "atrous",
 ];
 
@@ -48,11 +50,12 @@ fn ddf_settings(label: &str) -> DdfSettings {
     let variant = match label {
         "ddf-naive" => Variant::Naive,
         "ddf-vector" => Variant::Vector,
+        "ddf-packed" | "ddf-packed+holes" => Variant::Packed,
         _ => Variant::Rows,
     };
     DdfSettings {
         variant,
-        holes: label == "ddf-rows+holes",
+        holes: label.ends_with("+holes"),
         ..Default::default()
     }
 }

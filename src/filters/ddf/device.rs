@@ -3,10 +3,10 @@
 
 use std::ops::Range;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
-use ocl::{Buffer, Kernel};
+use ocl::{Buffer, Event, Kernel};
 
 use super::{DdfSettings, DirectionTerm, Variant};
 use crate::filters::{FilterRun, PreparedFilter};
@@ -16,14 +16,23 @@ use crate::layout::{DdfParams, Float4};
 use crate::render::Frame;
 
 impl Variant {
+    /// DDF_VARIANT of a variant resolved for the device ([`Variant::for_device`]).
     fn define(self) -> u32 {
         match self {
+            Variant::Auto => unreachable!("auto is resolved for the device before the build"),
             Variant::Naive => 0,
             Variant::Vector => 1,
             Variant::Rows => 2,
+            Variant::Packed => 3,
         }
     }
 }
+
+/// Pixels per work-item of the packed variant (DDF_PACK: one float16 lane each).
+pub const PACK: u32 = 16;
+
+/// Work-items per work-group of the packed variant unless one is given.
+pub const PACKED_GROUP: usize = 8;
 
 /// The kernel of one variant and option set, for one image size.
 pub struct DdfKernel {
@@ -34,6 +43,9 @@ pub struct DdfKernel {
     settings: DdfSettings,
     width: u32,
     height: u32,
+    /// The packed variant's first pass, `ddf_pack`, which fills its lines
+    /// (kernels/filters/ddf_packed.cl), and the lines; None for the other variants.
+    pack: Option<(Kernel, Buffer<f32>)>,
 }
 
 impl DdfKernel {
@@ -43,7 +55,8 @@ impl DdfKernel {
     }
 
     /// Like [`DdfKernel::new`]; the naive and vector variants run in work-groups of
-    /// `work_group` x 1 pixels when given (the driver chooses otherwise). The rows variant's
+    /// `work_group` x 1 pixels when given (the driver chooses otherwise), the packed variant
+    /// in work-groups of `work_group` x 1 work-items of [`PACK`] pixels. The rows variant's
     /// work-group is `settings.work_group`.
     pub fn with_work_group(
         gpu: Arc<Gpu>,
@@ -53,6 +66,10 @@ impl DdfKernel {
         work_group: Option<usize>,
     ) -> Result<Self> {
         settings.validate()?;
+        let settings = &DdfSettings {
+            variant: settings.variant.for_device(&gpu.summary.kind),
+            ..settings.clone()
+        };
         let flag = |b: bool| (b as u32).to_string();
         let defines = vec![
             (
@@ -70,12 +87,47 @@ impl DdfKernel {
                 }
                 .to_string(),
             ),
+            ("DDF_PACK".to_string(), PACK.to_string()),
         ];
         let program = gpu.program("filters/ddf.cl", &defines, "")?;
         let pixels = width as usize * height as usize;
         let params = gpu.upload(&[settings.params(width, height, 1.0, 1.0)])?;
         let out = gpu.zeroed::<Float4>(pixels, "filtered image")?;
         let (w, h) = (width as usize, height as usize);
+        // The packed variant's lines and the pass that fills them (ddf_packed.cl).
+        let lines = if settings.variant == Variant::Packed {
+            let half = settings.params(width, height, 1.0, 1.0).half_width as u32;
+            // Floats per padded line: half, the row rounded up to PACK pixels, half.
+            let stride = half + round_up(w, PACK as usize) as u32 + half;
+            // Lines per image row: the 16 lanes of F and the direction term's input.
+            let lines = 16 + match settings.direction {
+                DirectionTerm::Thesis => 0,
+                DirectionTerm::Difference => 3,
+                DirectionTerm::Neighbour => 1,
+            };
+            // Zeroed once: the padding is never written, so it stays 0 (finite, masked).
+            let buffer = gpu.zeroed::<f32>(
+                lines * stride as usize * h,
+                "the packed data-driven filter's lines",
+            )?;
+            let pack = Kernel::builder()
+                .program(&program)
+                .name("ddf_pack")
+                .queue(gpu.queue.clone())
+                .arg_named("p", &params)
+                .arg_named("f", None::<&Buffer<u8>>)
+                .arg_named("gb", None::<&Buffer<u8>>)
+                .arg_named("state", None::<&Buffer<u8>>)
+                .arg(&buffer)
+                .arg(stride)
+                .arg_named("row0", 0u32)
+                .global_work_size([w, h])
+                .build()
+                .context("creating the data-driven filter's packing kernel")?;
+            Some((pack, buffer, stride))
+        } else {
+            None
+        };
         let mut b = Kernel::builder();
         b.program(&program)
             .name("ddf_filter")
@@ -101,15 +153,34 @@ impl DdfKernel {
                 b.global_work_size([round_up(w, work_group), h])
                     .local_work_size([work_group, 1]);
             }
-            _ => match work_group {
-                Some(wg) if wg > 0 => {
-                    b.global_work_size([round_up(w, wg), h])
-                        .local_work_size([wg, 1]);
+            v => {
+                // The packed variant: one work-item per PACK pixels of a row.
+                let items = if v == Variant::Packed {
+                    w.div_ceil(PACK as usize)
+                } else {
+                    w
+                };
+                // PoCL runs a work-group's work-items in one thread and may keep every
+                // work-item's private arrays (kB each for the packed variant) on that
+                // thread's stack: letting it choose the group for 32 x 512 items overflowed
+                // the stack (a crash at 512 x 512), so the packed variant's group is fixed.
+                let work_group = match (v, work_group) {
+                    (Variant::Packed, None) => Some(PACKED_GROUP),
+                    _ => work_group,
+                };
+                match work_group {
+                    Some(wg) if wg > 0 => {
+                        b.global_work_size([round_up(items, wg), h])
+                            .local_work_size([wg, 1]);
+                    }
+                    _ => {
+                        b.global_work_size([items, h]);
+                    }
                 }
-                _ => {
-                    b.global_work_size([w, h]);
-                }
-            },
+            }
+        }
+        if let Some((_, buffer, stride)) = &lines {
+            b.arg(buffer).arg(*stride);
         }
         let kernel = b
             .build()
@@ -122,9 +193,11 @@ impl DdfKernel {
             settings: settings.clone(),
             width,
             height,
+            pack: lines.map(|(pack, buffer, _)| (pack, buffer)),
         })
     }
 
+    /// The variant run (auto resolved for the device).
     pub fn variant(&self) -> Variant {
         self.settings.variant
     }
@@ -165,23 +238,62 @@ impl DdfKernel {
         self.kernel
             .set_arg("state", frame.device(&self.gpu, BufferId::WelfordState)?)?;
         let rows = rows.start.min(self.height)..rows.end.min(self.height);
+        let mut kernel_time = Duration::ZERO;
+        let mut items = self.width;
+        if self.pack.is_some() {
+            kernel_time += self.fill_lines(frame, &rows)?;
+            items = self.width.div_ceil(PACK);
+        }
         // SAFETY: all buffers outlive the launch (we wait for it) and hold width x height
         // pixels; the kernel skips work-items outside the image.
         let event = unsafe {
             enqueue_rows(
                 &self.kernel,
-                self.width,
+                items,
                 self.height,
                 rows.clone(),
                 "the data-driven filter",
             )?
         };
-        let kernel_time = event_duration(&event)?;
+        kernel_time += event_duration(&event)?;
         Ok(FilterRun {
             image: read_rgb_rows(&self.out, self.width, self.height, rows)?,
             wall_time: start.elapsed(),
             kernel_time: Some(kernel_time),
         })
+    }
+}
+
+impl DdfKernel {
+    /// The packed variant's first pass (its lines) over the rows the band `rows` reads (the band and
+    /// [`DdfKernel::reach`] rows either side); returns its kernel time.
+    fn fill_lines(&mut self, frame: &Frame, rows: &Range<u32>) -> Result<Duration> {
+        let Some((pack, _)) = &self.pack else {
+            return Ok(Duration::ZERO);
+        };
+        let reach = self.reach();
+        let (r0, r1) = (
+            rows.start.saturating_sub(reach),
+            rows.end.saturating_add(reach).min(self.height),
+        );
+        if r0 >= r1 {
+            return Ok(Duration::ZERO);
+        }
+        pack.set_arg("f", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
+        pack.set_arg("gb", frame.device(&self.gpu, BufferId::WelfordSums)?)?;
+        pack.set_arg("state", frame.device(&self.gpu, BufferId::WelfordState)?)?;
+        pack.set_arg("row0", r0)?;
+        let mut event = Event::empty();
+        // SAFETY: the frame's buffers and the lines outlive the launch (we wait for it); the
+        // kernel skips work-items outside the image.
+        unsafe {
+            pack.cmd()
+                .global_work_size([self.width as usize, (r1 - r0) as usize])
+                .enew(&mut event)
+                .enq()
+                .context("launching the data-driven filter's packing pass")?;
+        }
+        event_duration(&event)
     }
 }
 

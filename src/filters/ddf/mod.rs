@@ -4,7 +4,7 @@
 //!
 //! - [`DdfSettings`]: the parameters of Table 6.2, defaults of Table 7.2;
 //! - `device.rs`: the OpenCL kernels of kernels/filters/ddf.cl (naive, vector loads,
-//!   local-memory rows; holes);
+//!   local-memory rows; holes; packed float16 lanes);
 //! - `reference.rs`: the plain Rust reference of the same equations.
 
 mod device;
@@ -27,12 +27,33 @@ pub use reference::reference;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Variant {
+    /// `packed` on CPU devices, `rows` on the others: on PoCL (CPU) the packed variant took
+    /// 0.15x the time of rows at 512 x 512, kw 21, within 2.8e-7 (relative) of its image
+    /// (results/README.md "Roofline", tests/ddf.rs). A GPU's SIMD lanes are work-items already: 16 pixels per work-item would
+    /// mean 16 times fewer work-items, each holding ~50 float16 values in registers (lower
+    /// occupancy); not measured (no GPU was available), so GPUs keep the thesis's variant.
+    Auto,
     /// Every neighbour's FilterVector from global memory, field by field (Fig. 6.8).
     Naive,
     /// The same with float16 vector loads (§6.3.1).
     Vector,
     /// Local-memory rows (§6.3.2, Fig. 6.10), `work_group` pixels per work-group.
     Rows,
+    /// Ours, for CPUs: `device::PACK` adjacent pixels per work-item on float16 lanes
+    /// (kernels/filters/ddf_packed.cl), the neighbours read from padded planes.
+    Packed,
+}
+
+impl Variant {
+    /// The variant this one stands for on a device of `kind` (`DeviceSummary::kind`: "CPU",
+    /// "GPU", ...): [`Variant::Auto`] chosen, the others as they are.
+    pub fn for_device(self, kind: &str) -> Variant {
+        match self {
+            Variant::Auto if kind == "CPU" => Variant::Packed,
+            Variant::Auto => Variant::Rows,
+            v => v,
+        }
+    }
 }
 
 /// The direction factor of eq. 6.14.
@@ -100,8 +121,9 @@ crate::filter_settings! {
         /// Sky pixels keep their unfiltered colour (§6.3.4); auto: on when the scene has an
         /// environment light (else no pixel can be sky).
         pub sky: Auto<bool> = Auto::Auto,
-        /// Kernel variant (§6.3): "naive", "vector" or "rows".
-        pub variant: Variant = Variant::Rows,
+        /// Kernel variant (§6.3): "naive", "vector", "rows", "packed" (ours: 16 pixels per
+        /// work-item on float16 lanes) or "auto" (packed on a CPU, rows on other devices).
+        pub variant: Variant = Variant::Auto,
         /// Work-group size of the rows variant (§6.3.2).
         pub work_group: u32 = 64,
     }
