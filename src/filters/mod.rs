@@ -88,7 +88,7 @@ pub trait FilterKind: Send + Sync + 'static {
     /// image passes through as rendered (a shadow filter on a scene without a sphere light).
     /// The studies leave such a filter out of that scene, so that a row never repeats the
     /// unfiltered image under a filter's name.
-    fn applies(_settings: &Self::Settings) -> bool {
+    fn applies(_settings: &Self::Settings, _scene: &SceneInfo) -> bool {
         true
     }
 
@@ -151,7 +151,7 @@ impl<K: FilterKind> Filter for K {
         let mut typed: K::Settings = settings::from_table(&requested)?;
         K::check(&typed)?;
         let notes = K::specialise(&mut typed, scene);
-        Ok(Configured::new::<K>(requested, typed, notes))
+        Ok(Configured::new::<K>(requested, typed, notes, scene))
     }
 }
 

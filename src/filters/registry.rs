@@ -54,11 +54,12 @@ impl Configured {
         requested: toml::Table,
         typed: K::Settings,
         notes: Vec<String>,
+        scene: &SceneInfo,
     ) -> Configured {
         use super::DeclaredSettings as _;
         let effective = settings::to_table(&typed);
         let needs = K::needs(&typed);
-        let applies = K::applies(&typed);
+        let applies = K::applies(&typed, scene);
         let for_render = typed.clone();
         Configured {
             name: K::NAME,
@@ -80,7 +81,7 @@ impl Configured {
         let requested = settings::to_table(&settings);
         let mut typed = settings;
         let notes = K::specialise(&mut typed, scene);
-        Ok(Configured::new::<K>(requested, typed, notes))
+        Ok(Configured::new::<K>(requested, typed, notes, scene))
     }
 
     pub fn name(&self) -> &'static str {

@@ -48,6 +48,15 @@ pub struct SceneInfo {
     /// perpendicular to (this -> the light's centre). Files written before: the origin.
     #[serde(default)]
     pub scene_centre: [f32; 3],
+    /// Whether paths go on past their first surface (max_depth above 1, or Russian roulette):
+    /// false means a direct-light-only image, with no indirect light to filter. Files written
+    /// before this field existed read as true.
+    #[serde(default = "yes")]
+    pub indirect: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl SceneInfo {
@@ -63,6 +72,7 @@ impl SceneInfo {
             effects,
             camera: arrays.camera(),
             scene_size: arrays.params.scene_size,
+            indirect: arrays.params.rr_depth > 1 || scene.render.russian_roulette,
             setting: scene.render.setting,
             seed: arrays.params.seed,
             sphere_lights: arrays
@@ -94,6 +104,7 @@ impl SceneInfo {
                 focal_distance: 1.0,
             },
             scene_size: 0.0,
+            indirect: true,
             setting: Setting::Indoor,
             seed: 0,
             sphere_lights: Vec::new(),

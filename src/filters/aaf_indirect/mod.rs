@@ -48,7 +48,7 @@ use crate::gpu::Gpu;
 use crate::layout::AafIndirectParams;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::indirect::bandlimit::DIFFUSE_BANDLIMIT;
-use crate::render::{FrameInfo, IndirectSampling, RenderOptions};
+use crate::render::{FrameInfo, IndirectSampling, RenderOptions, SceneInfo};
 pub use device::AafIndirectKernel;
 pub use reference::{compose, prepare, reference};
 
@@ -161,6 +161,12 @@ impl FilterKind for AafIndirect {
 
     fn check(s: &AafIndirectSettings) -> Result<()> {
         s.validate()
+    }
+
+    /// Wherever paths go past their first surface (a direct-light-only scene has no indirect
+    /// light to filter).
+    fn applies(_: &AafIndirectSettings, scene: &SceneInfo) -> bool {
+        scene.indirect
     }
 
     fn needs(_: &AafIndirectSettings) -> OutputSet {

@@ -232,7 +232,7 @@ impl FilterKind for AafShadows {
         specialise_light(&mut s.light, scene)
     }
 
-    fn applies(s: &AafShadowSettings) -> bool {
+    fn applies(s: &AafShadowSettings, _scene: &SceneInfo) -> bool {
         s.light_index().is_some()
     }
 

@@ -338,10 +338,10 @@ impl FilterKind for Sheared {
         notes
     }
 
-    /// Depth of field wherever the camera has a lens, diffuse indirect light, or the shadows
-    /// of a sphere light.
-    fn applies(s: &ShearedSettings) -> bool {
-        s.is_dof() || s.is_gi() || s.light_index().is_some()
+    /// Depth of field wherever the camera has a lens, the shadows of a sphere light, or
+    /// diffuse indirect light where paths go past their first surface.
+    fn applies(s: &ShearedSettings, scene: &SceneInfo) -> bool {
+        s.is_dof() || (s.is_gi() && scene.indirect) || s.light_index().is_some()
     }
 
     fn needs(s: &ShearedSettings) -> OutputSet {
