@@ -35,7 +35,6 @@ use crate::filters::sheared::{STEPS, Sheared, ShearedKernel, ShearedSettings};
 use crate::imaging::write_rgb8_png;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::metrics::mse_rgb;
-use crate::render::Renderer;
 
 /// Path samples per pixel of the AAF renders (the rest of the image, and the replaced term).
 const AAF_PATH_SPP: u32 = 16;
@@ -168,7 +167,9 @@ fn study_scene(
                 Cell::Aaf(a) => Configured::typed::<AafShadows>(a, &study.info)?,
                 Cell::Sheared(sh) => Configured::typed::<Sheared>(sh, &study.info)?,
             };
-            let mut r = aaf_renderer(ctx, study, &s, &c)?;
+            let outputs = OutputSet::colour().union(c.needs());
+            debug_assert!(outputs.contains(Output::Shadows));
+            let mut r = study.renderer_for(ctx, &s, outputs, AAF_PATH_SPP, Some(&c))?;
             r.render_samples(AAF_PATH_SPP)?;
             let frame = r.frame();
             // The sparse + adaptive light samples and the light field's l² of every
@@ -242,20 +243,6 @@ fn sheared_steps(
     ));
     std::fs::write(ctx.out.join(format!("sheared-steps-{scene}.md")), md)?;
     Ok(())
-}
-
-/// A renderer gathering what `c` (aaf-shadows) needs, its shadow sampling set.
-fn aaf_renderer(
-    ctx: &Context,
-    study: &StudyScene,
-    s: &super::study::Sizes,
-    c: &Configured,
-) -> Result<Renderer> {
-    let mut o = super::study::options(&study.scene, s, study.arrays.params.seed);
-    o.outputs = OutputSet::colour().union(c.needs());
-    debug_assert!(o.outputs.contains(Output::Shadows));
-    c.adjust_render(&mut o);
-    Renderer::with_arrays(ctx.gpu.clone(), &study.scene, study.arrays.clone(), &o)
 }
 
 /// The sheared rows against adaptive AAF: AAF's light spp and seconds at the row's MSE

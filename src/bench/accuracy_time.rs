@@ -72,12 +72,13 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                     "accuracy-time: {name} {label} up to {max_spp} spp"
                 ));
                 let outputs = candidate.needs();
-                let mut r = study.renderer(ctx, &s, outputs, max_spp)?;
+                let filter = candidate.filter();
+                let mut r = study.renderer_for(ctx, &s, outputs, max_spp, filter)?;
                 let mut prepared = candidate.prepare(ctx, r.frame().info())?;
                 // Warm-up: one frame builds and loads everything, then the render restarts.
                 r.render_samples(1)?;
                 prepared.run(&r.frame())?;
-                let mut r2 = study.renderer(ctx, &s, outputs, max_spp)?;
+                let mut r2 = study.renderer_for(ctx, &s, outputs, max_spp, filter)?;
                 let mut render_time = Duration::ZERO;
                 for &spp in &checkpoints {
                     let start = Instant::now();

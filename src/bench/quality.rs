@@ -70,7 +70,7 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
                 continue;
             }
             ctx.say(&format!("quality: {name} {label} {spp} spp"));
-            let mut r = study.renderer(ctx, &s, candidate.needs(), spp)?;
+            let mut r = study.renderer_for(ctx, &s, candidate.needs(), spp, candidate.filter())?;
             r.render_samples(spp)?;
             let frame = r.frame();
             let mut prepared = candidate.prepare(ctx, frame.info())?;

@@ -84,10 +84,27 @@ impl StudyScene {
         outputs: OutputSet,
         spp: u32,
     ) -> Result<Renderer> {
+        self.renderer_for(ctx, s, outputs, spp, None)
+    }
+
+    /// [`StudyScene::renderer`], sampling as `filter` asks ([`Configured::adjust_render`]:
+    /// AAF's sample counts, the sheared filter's field and its effect), as `render --filter`
+    /// does.
+    pub fn renderer_for(
+        &self,
+        ctx: &Context,
+        s: &Sizes,
+        outputs: OutputSet,
+        spp: u32,
+        filter: Option<&Configured>,
+    ) -> Result<Renderer> {
         let mut o = options(&self.scene, s, self.arrays.params.seed);
         o.outputs = outputs;
         if outputs.contains(Output::Samples) {
             o.sample_capacity = spp;
+        }
+        if let Some(f) = filter {
+            f.adjust_render(&mut o);
         }
         Renderer::with_arrays(ctx.gpu.clone(), &self.scene, self.arrays.clone(), &o)
     }
@@ -296,6 +313,14 @@ impl<'a> Candidate<'a> {
             Candidate::Unfiltered => "unfiltered".into(),
             Candidate::Filter { label, .. } => label.clone(),
             Candidate::Oidn(_, q) => q.label(),
+        }
+    }
+
+    /// The filter, for candidates that are one of ours.
+    pub fn filter(&self) -> Option<&'a Configured> {
+        match self {
+            Candidate::Filter { configured, .. } => Some(configured),
+            _ => None,
         }
     }
 
