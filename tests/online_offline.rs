@@ -26,8 +26,8 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
     let scenes = bundled_scenes();
     assert_eq!(
         scenes.len(),
-        11,
-        "the five thesis scenes, their DOF variants and Grids (AAF's sphere-light scene)"
+        12,
+        "the five thesis scenes, their DOF variants, Grids and Curved (AAF's sphere-light scenes)"
     );
     for path in scenes {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
