@@ -78,7 +78,7 @@ pub enum Per {
     /// `sample_capacity` elements per pixel, pixel-major (index = pixel · capacity + sample).
     Sample,
     /// One element per pixel for each light plane of the shadow output (the sphere lights a
-    /// filter asks for, [`crate::render::ShadowSampling::lights`]), pixel-major (index =
+    /// filter asks for: the render's `ShadowSampling::lights`), pixel-major (index =
     /// pixel · planes + plane): a row of pixels stays contiguous, so splitting and merging by
     /// rows or by elements works as for [`Per::Pixel`].
     Light,
