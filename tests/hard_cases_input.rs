@@ -984,6 +984,8 @@ fn typed_values(key: &str) -> &'static [&'static str] {
         "\"naive\"",
         "\"vector\"",
         "\"rows\"",
+        "\"packed\"",
+        "\"auto\"",
         "\"current\"",
         "\"original\"",
         "\"other\"",
