@@ -80,6 +80,9 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                 prepared.run(&r.frame())?;
                 let mut r2 = study.renderer_for(ctx, &s, outputs, max_spp, filter)?;
                 let mut render_time = Duration::ZERO;
+                // The sampling passes run once, before the first samples: their spp is
+                // read back once (the light field is ~2 kB a pixel).
+                let mut pass_spp = None;
                 for &spp in &checkpoints {
                     let start = Instant::now();
                     r2.render_samples(spp - r2.samples_done())?;
@@ -91,7 +94,10 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
                         let m = metrics::compare(&img, &reference)?;
                         let mut row = key;
                         row.extend([
-                            num(frame.pass_spp()?),
+                            num(match pass_spp {
+                                Some(v) => v,
+                                None => *pass_spp.insert(frame.pass_spp()?),
+                            }),
                             num((render_time + filter_time).as_secs_f64()),
                             num(m.mse_luv),
                             num(m.rel_mse),
