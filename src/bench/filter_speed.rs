@@ -11,7 +11,7 @@ use glam::Vec3;
 use super::plot::{Chart, Series, line_chart};
 use super::table::{ResultTable, num};
 use super::{Context, bar};
-use crate::filters::ddf::{DdfKernel, DdfSettings, Variant};
+use crate::filters::ddf::{DdfKernel, DdfSettings, PACKED_GROUP, Variant};
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{Frame, RenderOptions, Renderer};
 use crate::scene::{self, Scene};
@@ -28,8 +28,27 @@ const SCENES: &[&str] = &[
 ];
 
 /// The kernel variants: the unoptimised one (Figs. 7.2-7.6), float16 loads (§6.3.1), local
-/// memory rows (§6.3.2) and rows with holes (§6.3.3; Figs. 7.7-7.12).
-const VARIANTS: &[&str] = &["naive", "vector", "rows", "rows+holes"];
+/// memory rows (§6.3.2) and rows with holes (§6.3.3; Figs. 7.7-7.12), then ours for CPUs,
+/// 16 pixels per work-item on float16 lanes, without and with holes.
+const VARIANTS: &[&str] = &[
+    "naive",
+    "vector",
+    "rows",
+    "rows+holes",
+    "packed",
+    "packed+holes",
+];
+
+/// The work-groups a variant is measured at: the thesis's 64 and 256 (`groups`), except the
+/// packed variant, whose group is fixed ([`PACKED_GROUP`] work-items; PoCL's own choice
+/// crashed at 512 x 512).
+fn groups_of(variant: &str, groups: &[usize]) -> Vec<usize> {
+    if variant.starts_with("packed") {
+        vec![PACKED_GROUP]
+    } else {
+        groups.to_vec()
+    }
+}
 
 /// A scene by its name in the table (`outside_sky`: Outside with the camera turned to the sky).
 fn load(ctx: &Context, name: &str) -> Result<Scene> {
@@ -80,8 +99,8 @@ pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {
         "max_ms",
     ];
     let mut t = ctx.table("filter-speed", &columns, 6, fresh)?;
-    let cells =
-        (scenes.len() * resolutions.len() * widths.len() * VARIANTS.len() * groups.len()) as u64;
+    let per_kw: usize = VARIANTS.iter().map(|v| groups_of(v, &groups).len()).sum();
+    let cells = (scenes.len() * resolutions.len() * widths.len() * per_kw) as u64;
     let pb = bar(ctx, cells, "filter speed");
     for &name in scenes {
         let mut scene = None;
@@ -89,7 +108,7 @@ pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {
             let mut input = None;
             for &kw in &widths {
                 for &variant in VARIANTS {
-                    for &wg in &groups {
+                    for wg in groups_of(variant, &groups) {
                         let key = vec![
                             name.to_string(),
                             w.to_string(),
@@ -139,11 +158,12 @@ fn measure(
     let (v, naive_wg) = match variant {
         "naive" => (Variant::Naive, Some(wg)),
         "vector" => (Variant::Vector, Some(wg)),
+        "packed" | "packed+holes" => (Variant::Packed, None),
         _ => (Variant::Rows, None),
     };
     let mut settings = DdfSettings {
         kw,
-        holes: variant == "rows+holes",
+        holes: variant.ends_with("+holes"),
         variant: v,
         work_group: wg as u32,
         ..Default::default()
@@ -167,7 +187,8 @@ fn measure(
 }
 
 /// One plot per scene: the upper bound (max) kernel time against the kernel width, a line per
-/// resolution and variant (work-group 64), as the thesis's figures; the table holds them all.
+/// resolution and variant (work-group 64; packed at its fixed group), as the thesis's figures;
+/// the table holds them all.
 fn write_report(ctx: &Context, t: &ResultTable) -> Result<()> {
     let recs = t.records();
     let scenes = super::table::distinct(&recs, "scene");
@@ -177,13 +198,15 @@ fn write_report(ctx: &Context, t: &ResultTable) -> Result<()> {
          full view, Fig. 7.11). Kernel time from OpenCL profiling events: min (the thesis's lower\n\
          bound), median and max (its upper bound) over repeated runs after one warm-up run. The\n\
          plots show the upper bound at work-group 64; `naive` is the unoptimised kernel of Figs.\n\
-         7.2-7.6, `rows` and `rows+holes` the optimised ones of Figs. 7.7-7.12.\n\n",
+         7.2-7.6, `rows` and `rows+holes` the optimised ones of Figs. 7.7-7.12; `packed` and\n\
+         `packed+holes` are ours for CPUs (16 pixels per work-item, work-group fixed at 8).\n\n",
     );
     for name in &scenes {
         let mut series: Vec<Series> = Vec::new();
         for r in recs
             .iter()
-            .filter(|r| r["scene"] == *name && r["work_group"] == "64")
+            .filter(|r| r["scene"] == *name)
+            .filter(|r| r["work_group"] == "64" || r["variant"].starts_with("packed"))
         {
             let label = format!("{} {}x{}", r["variant"], r["width"], r["height"]);
             let p = (

@@ -20,7 +20,7 @@ use crate::gpu::Gpu;
 use crate::layout::DdfParams;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{FrameInfo, SceneInfo};
-pub use device::DdfKernel;
+pub use device::{DdfKernel, PACKED_GROUP};
 pub use reference::reference;
 
 /// How a pixel's neighbourhood is read (§6.3).
