@@ -136,8 +136,15 @@ fn rendered_field_and_device_steps_match_the_reference() {
     let mut kinds = [0usize; 3];
     for lf in &field {
         assert!(lf.count == 9.0 || lf.count == 0.0, "{lf:?}");
-        assert!(lf.extra_samples <= lf.count);
-        if lf.extra_samples > 0.0 {
+        // GI takes no fallback samples: the lane is depth of field's.
+        assert_eq!(lf.extra_samples, 0.0, "{lf:?}");
+        // z_min, z_max over the samples that met a reflector; (0, 0) when none did.
+        assert!(
+            lf.slopes[0] > 0.0 || lf.slopes == [0.0, 0.0],
+            "{:?}",
+            lf.slopes
+        );
+        if lf.slopes[1] > 0.0 {
             assert!(
                 0.0 < lf.slopes[0] && lf.slopes[0] <= lf.slopes[1],
                 "{:?}",
@@ -155,7 +162,7 @@ fn rendered_field_and_device_steps_match_the_reference() {
         assert!(lf.extra[..3].iter().all(|a| (0.0..=1.0).contains(a)));
         kinds[if lf.count == 0.0 {
             0
-        } else if lf.extra_samples > 0.0 {
+        } else if lf.slopes[1] > 0.0 {
             2
         } else {
             1
@@ -163,6 +170,11 @@ fn rendered_field_and_device_steps_match_the_reference() {
     }
     eprintln!("pixels without a receiver / with no reflector hit / filtered: {kinds:?}");
     assert!(kinds[2] > field.len() / 2, "{kinds:?}");
+    // The pass's spp (quality and accuracy-time studies' `pass_spp`): l² per receiver, no
+    // fallback samples.
+    let receivers = field.iter().filter(|lf| lf.count > 0.0).count();
+    let spp = frame.pass_spp().unwrap();
+    assert_eq!(spp, (9 * receivers) as f64 / field.len() as f64, "{spp}");
     // Through the registry (auto picks GI on a pinhole scene without sphere lights).
     let auto = ShearedSettings {
         side: 3,
@@ -212,7 +224,6 @@ fn grazing_sky_and_empty_pixels_stay_finite() {
             let mut lf = LightFieldPixel {
                 jitter: [rng.uniform(), rng.uniform()],
                 count: 9.0,
-                extra_samples: 9.0,
                 slopes: [0.5, 2.0],
                 scale: [10f32.powi(y as i32 / 2), 10f32.powi(y as i32 / 2)],
                 position: [x as f32 * 10f32.powi(y as i32 / 2), 0.0, y as f32],
@@ -225,9 +236,9 @@ fn grazing_sky_and_empty_pixels_stay_finite() {
             }
             match x % 5 {
                 0 => lf = LightFieldPixel::default(),
-                1 => (lf.extra_samples, lf.slopes) = (0.0, [0.0, 0.0]),
+                1 => lf.slopes = [0.0, 0.0],
                 2 => lf.slopes = [1.0, 1.0],
-                3 => lf.slopes = [0.0, 0.0],
+                3 => lf.slopes = [0.0, 1e-30],
                 _ => lf.normal = [1.0, 1e-7, 0.0],
             }
             lf
@@ -238,7 +249,7 @@ fn grazing_sky_and_empty_pixels_stay_finite() {
     for (lf, g) in field.iter().zip(&guide) {
         let kind = if lf.count == 0.0 {
             NONE
-        } else if lf.extra_samples == 0.0 {
+        } else if lf.slopes[1] == 0.0 {
             OWN
         } else {
             FILTERED

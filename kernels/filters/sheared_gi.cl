@@ -45,7 +45,8 @@ __kernel void gi_prepare(__constant const ShearedParams* p, __global const float
         return;
     }
     float d = lf[LIGHT_FIELD_PIXEL_SCALE];
-    if (!(lf[LIGHT_FIELD_PIXEL_EXTRA_SAMPLES] > 0.0f)) {
+    // No sample met a reflector (z_max = 0, kernels/render/gi_field.cl): z is undefined.
+    if (!(lf[LIGHT_FIELD_PIXEL_SLOPES + 1] > 0.0f)) {
         guide[i] = (float4)(0.0f, 0.0f, GI_OWN, d);
         return;
     }

@@ -103,7 +103,9 @@ __kernel void gi_field_sample(SHADOW_SCENE_PARAMS, __global float* light_field,
     bool hit = reflectors > 0.0f;
     lf[LIGHT_FIELD_PIXEL_SLOPES] = hit ? z_min : 0.0f;
     lf[LIGHT_FIELD_PIXEL_SLOPES + 1] = hit ? z_max : 0.0f;
-    lf[LIGHT_FIELD_PIXEL_EXTRA_SAMPLES] = reflectors;
+    // The lane is depth of field's fallback count (lens_field.cl); GI takes no extra samples,
+    // and "a sample met a reflector" is z_max > 0 (hit distances are positive).
+    lf[LIGHT_FIELD_PIXEL_EXTRA_SAMPLES] = 0.0f;
     vstore3(albedo * inv * inv, 0, lf + LIGHT_FIELD_PIXEL_EXTRA);
     vstore3(r.p, 0, lf + LIGHT_FIELD_PIXEL_POSITION);
     vstore3(r.ns, 0, lf + LIGHT_FIELD_PIXEL_NORMAL);

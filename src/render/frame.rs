@@ -551,13 +551,10 @@ impl Frame {
         }
         if self.outputs.contains(Output::LightField) {
             let p: &[LightFieldPixel] = self.host_slice(BufferId::LightFieldPixels)?;
-            // `extra_samples` holds the depth-of-field fallback's 36; the GI field keeps its
-            // count of reflector hits there (kernels/render/gi_field.cl), and a camera with a
-            // lens means depth of field (sheared GI refuses a thin lens).
-            let dof = self.info.scene.camera.lens_radius > 0.0;
+            // `extra_samples`: the depth-of-field fallback's 36 (0 for shadows and GI).
             total += p
                 .iter()
-                .map(|p| (p.count + if dof { p.extra_samples } else { 0.0 }) as f64)
+                .map(|p| (p.count + p.extra_samples) as f64)
                 .sum::<f64>();
         }
         if self.outputs.contains(Output::Indirect) {

@@ -10,8 +10,9 @@
 //! **Lanes** (the depth-of-field names, GI meanings): `samples`/`green`/`blue` lane b·l + a: the
 //! weighted demodulated indirect radiance w(v) L_i(v) of grid point (a, b) (a along the tangent
 //! t of the receiver's shading normal, b along n × t); `jitter`; `slopes`: s_min, s_max of s = z
-//! (the first bounce's hit distance) over the samples that hit something (0, 0: none did);
-//! `extra_samples`: how many did; `extra` rgb: the mean albedo of the samples' receiver points;
+//! (the first bounce's hit distance) over the samples that hit something (0, 0: none did, so
+//! z_max > 0 tells a pixel whose samples met a reflector); `extra_samples`: 0 (depth of
+//! field's fallback count; GI takes no extra samples); `extra` rgb: the mean albedo of the samples' receiver points;
 //! `position`, `normal`: the pixel centre's receiver; `scale`: its pixel's world size d;
 //! `dir1`, `dir2`: the image row and column (the filter walks them); `count`: l² for a
 //! receiver, 0 for none (sky, emitter or a glossy first hit).

@@ -69,7 +69,8 @@ pub fn prepare(p: &ShearedParams, field: &[LightFieldPixel]) -> Vec<Guide> {
                 return [0.0, 0.0, NONE, 0.0];
             }
             let d = lf.scale[0];
-            if !(lf.extra_samples > 0.0) {
+            // No sample met a reflector (z_max = 0): z is undefined.
+            if !(lf.slopes[1] > 0.0) {
                 return [0.0, 0.0, OWN, d];
             }
             let [a, b] = lf.slopes;
