@@ -99,6 +99,9 @@ fn plane_pixels(
                 target: 4.0,
                 object: 0.0,
                 reflectors: 4.0,
+                bandlimit: DIFFUSE_BANDLIMIT,
+                lobe: 0.0,
+                pad: [0.0; 2],
             }
         })
         .collect()

@@ -133,7 +133,7 @@ pub struct Scatter {
     pub absorbed: bool,
 }
 
-fn reflect_dir(d: Vec3, n: Vec3) -> Vec3 {
+pub fn reflect_dir(d: Vec3, n: Vec3) -> Vec3 {
     d - 2.0 * d.dot(n) * n
 }
 
