@@ -3,7 +3,7 @@
 # renders at SIZE² (256 by default), compares each with the cached reference REF (an EXR from
 # `noisefree reference scenes/cornell_diffuse.toml --width 256 --height 256 --spp 2048`), and
 # prints one line per render: name, MSE (RGB), relMSE, and the render's spp lines.
-# Usage: scripts/aaf-indirect-study.sh REF.exr [OUT_DIR]; MC_SPP, AAF_PATH_SPP, FOOTPRINTS,
+# Usage: scripts/aaf-indirect-study.sh REF.exr [OUT_DIR]; SCENE, MC_SPP, AAF_PATH_SPP, FOOTPRINTS,
 # DDF_SPP (lists, empty: none), AAF_FLAGS and AAF_TAG choose the rows.
 set -euo pipefail
 REF=${1:?the reference EXR}

@@ -7,24 +7,20 @@
 
 mod common;
 
+use common::aaf::{aaf_indirect_filtered, indirect_frame, indirect_renderer};
 use common::*;
-use noisefree::filters::Configured;
-use noisefree::filters::aaf_indirect::{AafIndirect, AafIndirectSettings, prepare, reference};
+use noisefree::filters::aaf_indirect::{AafIndirectSettings, prepare, reference};
 use noisefree::filters::aaf_pass::{self, NONE};
 use noisefree::filters::settings::Auto;
-use noisefree::imaging::RgbImage;
-use noisefree::layout::outputs::{BufferId, Output, OutputSet};
-use noisefree::layout::{FilterVector, IndirectPixel};
+use noisefree::layout::IndirectPixel;
+use noisefree::layout::outputs::BufferId;
 use noisefree::render::cpu::indirect::passes;
 use noisefree::render::cpu::pathtrace::ReferenceOptions;
 use noisefree::render::indirect::bandlimit::{
     DIFFUSE_BANDLIMIT, beta, glossy_bandlimit, sample_count,
 };
 use noisefree::render::shadows::bandlimit::adaptive_plan;
-use noisefree::render::{
-    Frame, FrameInfo, HostBuffer, IndirectSampling, Renderer, SceneArrays, SceneInfo, VarianceForm,
-};
-use noisefree::scene::Scene;
+use noisefree::render::{Frame, IndirectSampling, SceneArrays};
 
 /// Small counts, so the tests stay quick on PoCL.
 fn small(glossy: bool) -> AafIndirectSettings {
@@ -36,56 +32,11 @@ fn small(glossy: bool) -> AafIndirectSettings {
     }
 }
 
-fn render(scene: &Scene, w: u32, h: u32, spp: u32, sampling: IndirectSampling) -> Renderer {
-    let mut o = options(scene, w, h, 5);
-    o.outputs = OutputSet::of(&[Output::Indirect]);
-    o.indirect = sampling;
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(spp).unwrap();
-    r
-}
-
-/// The filter as `render --filter aaf-indirect` runs it.
-fn filtered(frame: &Frame, s: &AafIndirectSettings) -> RgbImage {
-    Configured::typed::<AafIndirect>(s.clone(), &frame.info().scene)
-        .unwrap()
-        .prepare(frame.info(), &gpu())
-        .unwrap()
-        .run(frame)
-        .unwrap()
-        .image
-}
-
 fn indirect_pixels(frame: &Frame) -> Vec<IndirectPixel> {
     frame
         .host_slice::<IndirectPixel>(BufferId::IndirectPixels)
         .unwrap()
         .to_vec()
-}
-
-/// A host frame holding `pixels` as its indirect output and F = 0.
-fn indirect_frame(w: u32, h: u32, pixels: &[IndirectPixel]) -> Frame {
-    let n = pixels.len();
-    Frame::on_host(
-        FrameInfo {
-            width: w,
-            height: h,
-            spp: 1,
-            sample_capacity: 0,
-            shadow_lights: Vec::new(),
-            scene: SceneInfo::unknown(),
-        },
-        OutputSet::of(&[Output::Colour, Output::Indirect]),
-        VarianceForm::Variances,
-        vec![
-            (
-                BufferId::FilterVectors,
-                HostBuffer::from_slice(&vec![FilterVector::default(); n]),
-            ),
-            (BufferId::IndirectPixels, HostBuffer::from_slice(pixels)),
-        ],
-    )
-    .unwrap_or_else(|e| panic!("{e:#}"))
 }
 
 fn lanes(p: &IndirectPixel) -> [f32; 22] {
@@ -124,7 +75,7 @@ fn sampling_passes_match_the_rust_reference() {
     let scene = bundled_scene("cornell_glossy");
     let (w, h) = (40, 40);
     let sampling = small(true).sampling();
-    let r = render(&scene, w, h, 1, sampling);
+    let r = indirect_renderer(&scene, w, h, 1, sampling);
     let device = indirect_pixels(&r.frame());
     let arrays = SceneArrays::build(&scene, &options(&scene, w, h, 5).frame).unwrap();
     let ro = ReferenceOptions {
@@ -190,7 +141,7 @@ fn glossy_bandlimit_beta_and_n_by_hand_and_in_other_units() {
     // The device writes each receiver's Ω and follows eq. 4.6 with it.
     let scene = bundled_scene("cornell_glossy");
     let s = small(true);
-    let r = render(&scene, 40, 40, 1, s.sampling());
+    let r = indirect_renderer(&scene, 40, 40, 1, s.sampling());
     let px = indirect_pixels(&r.frame());
     let (mut seen, mut adapted) = ([false; 2], 0);
     for p in px.iter().filter(|p| p.weight > 0.0) {
@@ -226,8 +177,8 @@ fn glossy_off_is_the_diffuse_only_filter() {
     let scene = bundled_scene("cornell_glossy");
     let (w, h) = (40, 40);
     let (on_s, off_s) = (small(true), small(false));
-    let on = render(&scene, w, h, 2, on_s.sampling());
-    let off = render(&scene, w, h, 2, off_s.sampling());
+    let on = indirect_renderer(&scene, w, h, 2, on_s.sampling());
+    let off = indirect_renderer(&scene, w, h, 2, off_s.sampling());
     let (on_f, off_f) = (on.frame(), off.frame());
     let (on_px, off_px) = (indirect_pixels(&on_f), indirect_pixels(&off_f));
     let fv = off_f.filter_vectors().unwrap();
@@ -250,9 +201,9 @@ fn glossy_off_is_the_diffuse_only_filter() {
     assert!(metal > 50, "{metal}");
     // The filter: off keeps F at metal pixels and filters the rest as with glossy on (a
     // neighbour of the other lobe lends nothing), whichever frame it is given.
-    let img_off = filtered(&off_f, &off_s);
-    let img_on = filtered(&on_f, &on_s);
-    assert_eq!(filtered(&on_f, &off_s).pixels, img_off.pixels);
+    let img_off = aaf_indirect_filtered(&off_f, &off_s);
+    let img_on = aaf_indirect_filtered(&on_f, &on_s);
+    assert_eq!(aaf_indirect_filtered(&on_f, &off_s).pixels, img_off.pixels);
     let (mut receivers, mut changed) = (0, 0);
     for (i, p) in on_px.iter().enumerate() {
         if glossy_receiver(p) {
@@ -291,9 +242,9 @@ fn kernels_match_the_reference_and_one_run_equals_one_per_lobe() {
     let scene = bundled_scene("cornell_glossy");
     let (w, h) = (48, 48);
     let s = small(true);
-    let r = render(&scene, w, h, 1, s.sampling());
+    let r = indirect_renderer(&scene, w, h, 1, s.sampling());
     let frame = r.frame();
-    let device = filtered(&frame, &s);
+    let device = aaf_indirect_filtered(&frame, &s);
     let cpu = reference(&frame, &s).unwrap();
     let diff = max_rel_diff(&device, &cpu);
     eprintln!("kernel against reference, glossy on: {diff:e}");
@@ -342,7 +293,7 @@ fn the_glossy_estimate_is_the_path_tracers_indirect_light() {
         max_spp: SPARSE,
         ..small(true).sampling()
     };
-    let r = render(&scene, w, h, PATHS, sampling);
+    let r = indirect_renderer(&scene, w, h, PATHS, sampling);
     let frame = r.frame();
     let px = indirect_pixels(&frame);
     let fv = frame.filter_vectors().unwrap();
@@ -412,7 +363,7 @@ emission = [20, 20, 20]
 "#,
     );
     let s = small(true);
-    let r = render(&scene, 32, 24, 1, s.sampling());
+    let r = indirect_renderer(&scene, 32, 24, 1, s.sampling());
     let frame = r.frame();
     let mut px = indirect_pixels(&frame);
     assert!(px.iter().any(glossy_receiver));
@@ -420,7 +371,7 @@ emission = [20, 20, 20]
         px.iter()
             .all(|p| p.reflectors == 0.0 && p.irradiance == [0.0; 3])
     );
-    let out = filtered(&frame, &s);
+    let out = aaf_indirect_filtered(&frame, &s);
     assert_finite(&out, "open sky");
     assert!(max_rel_diff(&out, &reference(&frame, &s).unwrap()) < 1e-6);
     // z_min = 0 (a contact) on every receiver, a reflector on two thirds of them.
@@ -431,7 +382,7 @@ emission = [20, 20, 20]
         p.reflectors = if i % 3 == 0 { 0.0 } else { 1.0 };
     }
     let f = indirect_frame(32, 24, &px);
-    let out = filtered(&f, &s);
+    let out = aaf_indirect_filtered(&f, &s);
     assert_finite(&out, "z_min = 0");
     assert!(max_rel_diff(&out, &reference(&f, &s).unwrap()) < 1e-6);
 }
@@ -466,7 +417,7 @@ fn the_glossy_filter_is_the_same_in_millimetres_and_kilometres() {
         })
         .collect();
     let s = small(true);
-    let want = filtered(&indirect_frame(w, h, &base), &s);
+    let want = aaf_indirect_filtered(&indirect_frame(w, h, &base), &s);
     for k in [1e-3f32, 1e3] {
         let scaled: Vec<IndirectPixel> = base
             .iter()
@@ -478,7 +429,7 @@ fn the_glossy_filter_is_the_same_in_millimetres_and_kilometres() {
                 ..*p
             })
             .collect();
-        let got = filtered(&indirect_frame(w, h, &scaled), &s);
+        let got = aaf_indirect_filtered(&indirect_frame(w, h, &scaled), &s);
         let diff = max_rel_diff(&got, &want);
         eprintln!("lengths x{k}: {diff:e}");
         // Measured 4.8e-7 (the scaled lengths' rounding in the weights); bound 2e-6.

@@ -9,12 +9,9 @@ use rayon::prelude::*;
 
 use super::pathtrace::{
     ReferenceOptions, environment_radiance, reflect_dir, sample_direct_light, scatter,
-    surface_albedo, surface_at,
+    surface_albedo, surface_at, survives,
 };
-use super::rng::{
-    DIM_BSDF_U, DIM_BSDF_V, DIM_PIXEL_X, DIM_PIXEL_Y, DIM_RUSSIAN_ROULETTE, rng_sample_key,
-    rng_uniform,
-};
+use super::rng::{DIM_BSDF_U, DIM_BSDF_V, DIM_PIXEL_X, DIM_PIXEL_Y, rng_sample_key, rng_uniform};
 use super::sampling::{sample_diffuse, sample_phong_lobe};
 use super::shadows::{Receiver, aaf_receiver};
 use crate::arrays::SceneArrays;
@@ -46,15 +43,8 @@ pub fn indirect_radiance(
     let mut count_emission = false;
     let mut z = f32::INFINITY;
     for bounce in 1..params.max_vertices {
-        if bounce >= params.rr_depth {
-            if !opt.russian_roulette {
-                break;
-            }
-            let survive = 0.95f32.min(throughput.max_element());
-            if !(rng_uniform(key, bounce, DIM_RUSSIAN_ROULETTE) < survive) {
-                break;
-            }
-            throughput /= survive;
+        if !survives(s, opt, &mut throughput, key, bounce) {
+            break;
         }
         *rays += 1;
         let Some(hit) = intersect_closest(s, o, d, f32::INFINITY) else {
