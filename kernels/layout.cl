@@ -327,13 +327,14 @@ typedef struct __attribute__((aligned(16))) {
 #define LIGHT_FIELD_PIXEL_EXTRA 68
 #define LIGHT_FIELD_PIXEL_FLOATS 72
 
-// AAF diffuse indirect light (Wang 2013 ch. 4; kernels/render/indirect.cl): the primary
-// hit through the pixel centre (and the lens centre) and the indirect samples of the
-// sparse and the adaptive pass.
+// AAF indirect light (Wang 2013 ch. 4; kernels/render/indirect.cl): the primary hit
+// through the pixel centre (and the lens centre) and the indirect samples of the sparse
+// and the adaptive pass, for one of two lobes: a diffuse receiver's cosine-weighted
+// hemisphere or a metal receiver's Phong lobe (the seed's separate glossy buffer).
 typedef struct __attribute__((aligned(16))) {
-    float irradiance[3]; // Σ L_i over the indirect samples: the albedo-demodulated indirect irradiance / π  (cosine-weighted hemisphere samples, so albedo · Σ L_i / `weight` is the indirect  light a Lambertian receiver sends to the camera).
+    float irradiance[3]; // Σ L_i over the indirect samples, L_i the radiance arriving along the sampled  direction. Diffuse: cosine-weighted samples, so albedo · Σ L_i / `weight` is the  indirect light a Lambertian receiver sends to the camera (Σ L_i / n is the  demodulated irradiance / π). Glossy: samples of the Phong lobe (f cos / pdf is the  metal's colour), so colour · Σ L_i / `weight` is the metal's indirect light.
     float samples; // Indirect samples traced (sparse + adaptive), 0 for no receiver.
-    float albedo[3]; // Σ albedo(x_k) over the samples' points x_k on the receiver.
+    float albedo[3]; // Σ albedo(x_k) over the samples' points x_k on the receiver (a metal's colour).
     float weight; // Samples whose point lay on the centre's receiver (the normaliser of both sums).
     float position[3]; // World position of the centre's hit.
     float z_min; // z_min: the nearest first-bounce hit over the sparse samples (eqs. 4.4, 4.6); 0 when  no sample hit a surface.
@@ -343,6 +344,9 @@ typedef struct __attribute__((aligned(16))) {
     float target; // n(x) of eq. 4.6 clamped to [sparse, max] (before rounding to whole strata).
     float object; // The object hit: mesh part for triangles, −1 − index for spheres.
     float reflectors; // Sparse samples whose first bounce hit a surface (the z's are defined when > 0).
+    float bandlimit; // Ω_h^max of the receiver's lobe (eq. 4.5): 2.8 diffuse, 3.6 + 0.084 m for a metal  of Phong exponent m; 0 for no receiver. Eqs. 4.4 and 4.6 use it.
+    float lobe; // The lobe: 0 diffuse, 1 glossy (a metal receiver).
+    float pad[2];
 } IndirectPixel;
 // Float lanes of IndirectPixel (offset / 4).
 #define INDIRECT_PIXEL_IRRADIANCE 0
@@ -357,7 +361,9 @@ typedef struct __attribute__((aligned(16))) {
 #define INDIRECT_PIXEL_TARGET 17
 #define INDIRECT_PIXEL_OBJECT 18
 #define INDIRECT_PIXEL_REFLECTORS 19
-#define INDIRECT_PIXEL_FLOATS 20
+#define INDIRECT_PIXEL_BANDLIMIT 20
+#define INDIRECT_PIXEL_LOBE 21
+#define INDIRECT_PIXEL_FLOATS 24
 
 // Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
 typedef struct __attribute__((aligned(16))) {
@@ -398,7 +404,7 @@ typedef struct __attribute__((aligned(16))) {
     uint height;
     int radius; // Half width of the 1-D window, pixels.
     uint axis; // 0: the pass along rows (x), 1: along columns (y).
-    float bandlimit; // Ω_h^max of eq. 4.5.
+    uint glossy; // 1: glossy (metal) receivers are filtered; 0: they keep F as rendered.
     float footprints; // The floor of β in pixel footprints (eq. 4.4's d / 0.15: 1 / 0.15).
     float normal_cos; // cos of the largest normal angle between neighbours.
     float depth_tolerance; // Largest offset along the normal, in units of β.

@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# AAF diffuse indirect light (seed 000 ch. 4) on cornell_diffuse against Monte Carlo and ddf:
+# AAF indirect light (seed 000 ch. 4) on cornell_diffuse (or SCENE) against Monte Carlo and ddf:
 # renders at SIZE² (256 by default), compares each with the cached reference REF (an EXR from
 # `noisefree reference scenes/cornell_diffuse.toml --width 256 --height 256 --spp 2048`), and
 # prints one line per render: name, MSE (RGB), relMSE, and the render's spp lines.
-# Usage: scripts/aaf-indirect-study.sh REF.exr [OUT_DIR]; MC_SPP, AAF_PATH_SPP, FOOTPRINTS,
+# Usage: scripts/aaf-indirect-study.sh REF.exr [OUT_DIR]; SCENE, MC_SPP, AAF_PATH_SPP, FOOTPRINTS,
 # DDF_SPP (lists, empty: none), AAF_FLAGS and AAF_TAG choose the rows.
 set -euo pipefail
 REF=${1:?the reference EXR}
 OUT=${2:-out/aaf-indirect-study}
 SIZE=${SIZE:-256}
 NF=${NF:-target/release/noisefree}
-SCENE=scenes/cornell_diffuse.toml
+SCENE=${SCENE:-scenes/cornell_diffuse.toml}
 mkdir -p "$OUT"
 run() {
     local name=$1

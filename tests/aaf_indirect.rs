@@ -6,19 +6,17 @@
 
 mod common;
 
-use common::aaf::floor_scene;
+use common::aaf::{aaf_indirect_filtered, floor_scene, indirect_frame, indirect_renderer};
 use common::*;
-use noisefree::filters::Configured;
-use noisefree::filters::aaf_indirect::{AafIndirect, AafIndirectSettings, reference};
+use noisefree::filters::aaf_indirect::{AafIndirectSettings, reference};
 use noisefree::imaging::RgbImage;
+use noisefree::layout::IndirectPixel;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
-use noisefree::layout::{FilterVector, IndirectPixel};
 use noisefree::render::indirect::bandlimit::{
     DIFFUSE_BANDLIMIT, SEED_FOOTPRINTS, beta, sample_count,
 };
 use noisefree::render::shadows::bandlimit::adaptive_plan;
-use noisefree::render::{Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, Tile, VarianceForm};
-use noisefree::scene::Scene;
+use noisefree::render::{Renderer, Tile};
 
 /// Small counts, so the tests stay quick on PoCL.
 fn small() -> AafIndirectSettings {
@@ -27,51 +25,6 @@ fn small() -> AafIndirectSettings {
         max_spp: 25,
         ..Default::default()
     }
-}
-
-fn render(scene: &Scene, w: u32, h: u32, spp: u32, s: &AafIndirectSettings) -> Renderer {
-    let mut o = options(scene, w, h, 5);
-    o.outputs = OutputSet::of(&[Output::Indirect]);
-    o.indirect = s.sampling();
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(spp).unwrap();
-    r
-}
-
-/// The filter as `render --filter aaf-indirect` runs it.
-fn filtered(frame: &Frame, s: &AafIndirectSettings) -> RgbImage {
-    Configured::typed::<AafIndirect>(s.clone(), &frame.info().scene)
-        .unwrap()
-        .prepare(frame.info(), &gpu())
-        .unwrap()
-        .run(frame)
-        .unwrap()
-        .image
-}
-
-/// A host frame holding `pixels` as its indirect output and F = 0.
-fn indirect_frame(w: u32, h: u32, pixels: &[IndirectPixel]) -> Frame {
-    let n = pixels.len();
-    Frame::on_host(
-        FrameInfo {
-            width: w,
-            height: h,
-            spp: 1,
-            sample_capacity: 0,
-            shadow_lights: Vec::new(),
-            scene: SceneInfo::unknown(),
-        },
-        OutputSet::of(&[Output::Colour, Output::Indirect]),
-        VarianceForm::Variances,
-        vec![
-            (
-                BufferId::FilterVectors,
-                HostBuffer::from_slice(&vec![FilterVector::default(); n]),
-            ),
-            (BufferId::IndirectPixels, HostBuffer::from_slice(pixels)),
-        ],
-    )
-    .unwrap_or_else(|e| panic!("{e:#}"))
 }
 
 /// Receivers on the plane z = 0 at pixel spacing `d`, L from `l` (grey), albedo 1, z_min
@@ -99,6 +52,9 @@ fn plane_pixels(
                 target: 4.0,
                 object: 0.0,
                 reflectors: 4.0,
+                bandlimit: DIFFUSE_BANDLIMIT,
+                lobe: 0.0,
+                pad: [0.0; 2],
             }
         })
         .collect()
@@ -115,9 +71,9 @@ fn max_abs(a: &RgbImage, b: &RgbImage) -> f32 {
 #[test]
 fn kernels_match_the_reference_on_a_rendered_frame() {
     let s = small();
-    let r = render(&bundled_scene("cornell_diffuse"), 48, 48, 1, &s);
+    let r = indirect_renderer(&bundled_scene("cornell_diffuse"), 48, 48, 1, s.sampling());
     let frame = r.frame();
-    let device = filtered(&frame, &s);
+    let device = aaf_indirect_filtered(&frame, &s);
     let cpu = reference(&frame, &s).unwrap();
     let diff = max_rel_diff(&device, &cpu);
     eprintln!("kernel against reference: {diff:e}");
@@ -166,7 +122,7 @@ fn separable_passes_equal_the_2d_filter_at_constant_beta() {
             .fold(0.0, f64::max)
     };
     let (device, cpu) = (
-        worst(&filtered(&frame, &s)),
+        worst(&aaf_indirect_filtered(&frame, &s)),
         worst(&reference(&frame, &s).unwrap()),
     );
     eprintln!("separable against 2-D at constant beta: device {device:e}, reference {cpu:e}");
@@ -178,7 +134,7 @@ fn separable_passes_equal_the_2d_filter_at_constant_beta() {
 #[test]
 fn constant_images_pass_through_and_z_min_zero_stays_finite() {
     let s = small();
-    let r = render(&bundled_scene("cornell_diffuse"), 40, 40, 1, &s);
+    let r = indirect_renderer(&bundled_scene("cornell_diffuse"), 40, 40, 1, s.sampling());
     let frame = r.frame();
     let mut px: Vec<IndirectPixel> = frame
         .host_slice::<IndirectPixel>(BufferId::IndirectPixels)
@@ -189,7 +145,7 @@ fn constant_images_pass_through_and_z_min_zero_stays_finite() {
         p.irradiance = [0.37 * p.weight; 3];
         p.albedo = [p.weight; 3];
     }
-    let out = filtered(&indirect_frame(40, 40, &px), &s);
+    let out = aaf_indirect_filtered(&indirect_frame(40, 40, &px), &s);
     let mut worst = 0f32;
     for (p, o) in px.iter().zip(&out.pixels) {
         let want = if p.weight > 0.0 { 0.37 } else { 0.0 };
@@ -206,7 +162,7 @@ fn constant_images_pass_through_and_z_min_zero_stays_finite() {
             p.z_max = 0.0;
         }
     }
-    let out = filtered(&indirect_frame(40, 40, &px), &s);
+    let out = aaf_indirect_filtered(&indirect_frame(40, 40, &px), &s);
     assert_finite(&out, "z_min = 0");
     let diff = max_abs(&out, &reference(&indirect_frame(40, 40, &px), &s).unwrap());
     eprintln!("z_min = 0: kernel against reference {diff:e}");
@@ -236,7 +192,7 @@ fn beta_and_n_by_hand() {
 #[test]
 fn the_sampling_pass_follows_eq_4_6_in_whole_strata() {
     let s = small();
-    let r = render(&bundled_scene("cornell_diffuse"), 40, 40, 1, &s);
+    let r = indirect_renderer(&bundled_scene("cornell_diffuse"), 40, 40, 1, s.sampling());
     let (sampling, stats) = r.indirect_stats().expect("the indirect output");
     assert_eq!(sampling, s.sampling());
     let frame = r.frame();
@@ -281,7 +237,7 @@ fn open_sky_no_reflector_stays_finite() {
     // has a reflector (z undefined) and the indirect light is exactly 0.
     let scene = floor_scene(common::aaf::OVERHEAD, "");
     let s = small();
-    let r = render(&scene, 32, 24, 1, &s);
+    let r = indirect_renderer(&scene, 32, 24, 1, s.sampling());
     let frame = r.frame();
     let px: &[IndirectPixel] = frame.host_slice(BufferId::IndirectPixels).unwrap();
     assert!(px.iter().any(|p| p.weight > 0.0));
@@ -289,7 +245,7 @@ fn open_sky_no_reflector_stays_finite() {
         px.iter()
             .all(|p| p.reflectors == 0.0 && p.irradiance == [0.0; 3])
     );
-    let out = filtered(&frame, &s);
+    let out = aaf_indirect_filtered(&frame, &s);
     assert_finite(&out, "open sky");
     let diff = max_rel_diff(&out, &reference(&frame, &s).unwrap());
     assert!(diff < 1e-6, "{diff}");

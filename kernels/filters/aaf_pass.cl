@@ -5,10 +5,12 @@
 // pass's result), and the filter's compose kernel reads the result. src/filters/aaf_pass is
 // the same code in Rust and says why each test is what it is.
 //
-// guide, three float4 per pixel: (position, kind), (normal, beta), (axis, 0). The distance
+// guide, three float4 per pixel: (position, kind), (normal, beta), (axis, group). The distance
 // between two pixels is measured in the plane perpendicular to `axis` (shadows: the direction
 // to the light, the "plane parallel to the light"; indirect light: the receiver's normal, its
-// tangent plane); offsets along it beyond depth_tolerance * beta reject the neighbour.
+// tangent plane); offsets along it beyond depth_tolerance * beta reject the neighbour, and so
+// does a neighbour of another group (indirect light: the other lobe, diffuse or glossy, which
+// the seed filters as a separate buffer; shadows: all 0).
 // Values are float4 (shadows use x, indirect light rgb); the weights are those of the pixel
 // being written, the sum normalised (sum w v / sum w).
 #pragma OPENCL FP_CONTRACT OFF
@@ -32,7 +34,8 @@ __kernel void aaf_pass(__global const float4* guide, __global const float4* in,
     float4 g1 = guide[3 * i + 1];
     float3 pos = g0.xyz;
     float3 normal = g1.xyz;
-    float3 dir = guide[3 * i + 2].xyz;
+    float4 g2 = guide[3 * i + 2];
+    float3 dir = g2.xyz;
     float beta = g1.w;
     // Finite for any beta > 0, so that 0 * it is 0, never NaN.
     float inv_two_beta2 = fmin(1.0f / (2.0f * beta * beta), FLT_MAX);
@@ -45,7 +48,7 @@ __kernel void aaf_pass(__global const float4* guide, __global const float4* in,
         if (k == c) continue;
         int j = i + (k - c) * stride;
         float4 q0 = guide[3 * j];
-        if (q0.w == AAF_NONE) continue;
+        if (q0.w == AAF_NONE || guide[3 * j + 2].w != g2.w) continue;
         float4 q1 = guide[3 * j + 1];
         if (dot(normal, q1.xyz) < normal_cos) continue;
         float3 delta = q0.xyz - pos;

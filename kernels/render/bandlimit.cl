@@ -28,7 +28,7 @@ inline float aaf_sample_count(float s1, float s2, float pixel_size, float light_
     return 4.0f * a * a * b * b;
 }
 
-// AAF diffuse indirect light (Wang 2013 §4.2; src/render/indirect/bandlimit.rs).
+// AAF indirect light, diffuse and glossy (Wang 2013 §4.2; src/render/indirect/bandlimit.rs).
 
 // Eq. 4.4: beta = max(2 z_min / Omega_h^max, footprints * d) (the seed's d / 0.15 is
 // footprints = 1 / 0.15).
@@ -36,6 +36,10 @@ inline float aaf_indirect_beta(float z_min, float pixel_size, float bandlimit,
                                float footprints) {
     return fmax(2.0f * z_min / bandlimit, footprints * pixel_size);
 }
+
+// Eq. 4.5: Omega_h^max of a Phong lobe of exponent m (the glossy lobe of a metal receiver;
+// the diffuse 2.8 is the host's IndirectSampling::bandlimit).
+inline float aaf_glossy_bandlimit(float m) { return 3.6f + 0.084f * m; }
 
 // z below this counts as this (a reflector touching the receiver): n stays finite or +inf.
 #define AAF_MIN_Z 1.0e-30f

@@ -1,16 +1,25 @@
-// AAF diffuse indirect light, the sampling side (Wang 2013 ch. 4, the passes of §3.4 with
-// z_min / z_max in place of the slopes, after Mehta et al. 2013). Compiled into the
-// megakernel's program with OUTPUT_INDIRECT; src/render/indirect says why each choice is what
-// it is, src/render/indirect/bandlimit.rs is eqs. 4.4-4.6 in Rust.
+// AAF indirect light, the sampling side (Wang 2013 ch. 4, the passes of §3.4 with z_min /
+// z_max in place of the slopes, after Mehta et al. 2013). Compiled into the megakernel's
+// program with OUTPUT_INDIRECT; src/render/indirect says why each choice is what it is,
+// src/render/indirect/bandlimit.rs is eqs. 4.4-4.6 in Rust, src/render/cpu/indirect.rs is this
+// file in Rust.
+//
+// Two lobes share the passes and the per-pixel output (the seed's separate diffuse and
+// specular buffers, §4.3: a pixel's centre receiver is one or the other): a diffuse receiver
+// samples the cosine-weighted hemisphere, a metal receiver (with `glossy`) its Phong lobe
+// around the mirror direction of the camera ray through the sample's point, as the megakernel
+// samples it (kernels/render/materials.cl scatter). Either way f cos / pdf is the receiver's
+// albedo (the metal's colour), so sum L_i / n is the demodulated indirect light.
 //
 // - indirect_sparse (pass 1): the pixel centre's first hit through the lens centre (the
-//   receiver: a diffuse surface; its position, normal, object and pixel size d are what the
-//   filter's weights use) and sqrt_spp^2 indirect samples, one per stratum of the cosine-
-//   weighted hemisphere, each from its own random point of the pixel that lies on the
-//   receiver's object: the demodulated indirect radiance sum L_i, the albedo sum, and the
-//   nearest and farthest first-bounce hit (z_min, z_max).
-// - indirect_adaptive (pass 2): n(x) of eq. 4.6 clamped to [sparse, max], the samples beyond
-//   the sparse ones as one more square of strata (the shadow passes' plan).
+//   receiver; its position, normal, object and pixel size d are what the filter's weights
+//   use; its lobe's Omega_h^max of eq. 4.5) and sqrt_spp^2 indirect samples, one per stratum
+//   of the lobe, each from its own random point of the pixel that lies on the receiver's
+//   object: the demodulated indirect radiance sum L_i, the albedo sum, and the nearest and
+//   farthest first-bounce hit (z_min, z_max).
+// - indirect_adaptive (pass 2): n(x) of eq. 4.6 with the pixel's Omega, clamped to
+//   [sparse, max], the samples beyond the sparse ones as one more square of strata (the shadow
+//   passes' plan).
 #ifndef NOISEFREE_INDIRECT_CL
 #define NOISEFREE_INDIRECT_CL
 
@@ -100,22 +109,34 @@ typedef struct {
     float weight, z_min, z_max, reflectors;
 } IndirectSums;
 
+// The lobe of a receiver: 1 glossy (a metal), 0 diffuse.
+inline float indirect_lobe(const SceneRefs* s, const ShadowReceiver* r) {
+    return s->materials[r->material].kind == MATERIAL_METAL ? 1.0f : 0.0f;
+}
+
 // k x k indirect samples of pixel (x, y), numbered from `first`, one per stratum of the
-// cosine-weighted hemisphere, each from its own random point of the pixel, kept when that
-// point lies on the centre's receiver `object`.
+// receiver's lobe (the cosine-weighted hemisphere, or the Phong lobe around the mirror
+// direction of the camera ray through the sample's point), each from its own random point of
+// the pixel, kept when that point lies on the centre's receiver `object` with the centre's
+// `lobe`.
 inline void indirect_samples(const SceneRefs* s, uint x, uint y, uint pixel, float object,
-                             uint first, uint k, IndirectSums* acc, uint* rays) {
+                             float lobe, uint first, uint k, IndirectSums* acc, uint* rays) {
     float inv_k = 1.0f / (float)k;
+    bool glossy = lobe > 0.0f;
     for (uint i = 0u; i < k; ++i) {
         for (uint j = 0u; j < k; ++j) {
             uint key = rng_sample_key(s->params->seed, pixel,
                                       INDIRECT_SAMPLE_BASE + first + i * k + j);
             ShadowReceiver q;
             float jx = rng_uniform(key, 0u, DIM_PIXEL_X), jy = rng_uniform(key, 0u, DIM_PIXEL_Y);
-            if (!shadow_receiver(s, x, y, jx, jy, &q, rays) || q.object != object) continue;
+            if (!aaf_receiver(s, x, y, jx, jy, glossy, &q, rays) || q.object != object
+                || indirect_lobe(s, &q) != lobe)
+                continue;
             float u = ((float)i + rng_uniform(key, 0u, DIM_BSDF_U)) * inv_k;
             float v = ((float)j + rng_uniform(key, 0u, DIM_BSDF_V)) * inv_k;
-            float3 d = sample_diffuse(u, v, q.ns);
+            float3 d = glossy ? sample_phong_lobe(u, v, reflect_dir(q.d, q.ns),
+                                                  s->materials[q.material].exponent)
+                              : sample_diffuse(u, v, q.ns);
             acc->weight += 1.0f;
             acc->albedo += q.albedo;
             if (dot(d, q.ng) <= 0.0f) continue;   // below the geometric surface: absorbed
@@ -131,9 +152,11 @@ inline void indirect_samples(const SceneRefs* s, uint x, uint y, uint pixel, flo
     }
 }
 
-// Pass 1.
+// Pass 1. `glossy`: metal receivers are sampled too (their Phong lobe); `bandlimit` is the
+// diffuse Omega_h^max of eq. 4.5.
 __kernel void indirect_sparse(SHADOW_SCENE_PARAMS, __global float* indirect_pixels,
-                              __global uint* indirect_rays, uint sqrt_spp) {
+                              __global uint* indirect_rays, uint sqrt_spp, uint glossy,
+                              float bandlimit) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
@@ -142,9 +165,10 @@ __kernel void indirect_sparse(SHADOW_SCENE_PARAMS, __global float* indirect_pixe
     for (uint i = 0u; i < INDIRECT_PIXEL_FLOATS; ++i) px[i] = 0.0f;
     uint rays = 0u;
     ShadowReceiver r;
-    if (shadow_receiver(&s, x, y, 0.5f, 0.5f, &r, &rays)) {
+    if (aaf_receiver(&s, x, y, 0.5f, 0.5f, glossy != 0u, &r, &rays)) {
+        float lobe = indirect_lobe(&s, &r);
         IndirectSums acc = {(float3)(0.0f), (float3)(0.0f), 0.0f, INFINITY, 0.0f, 0.0f};
-        indirect_samples(&s, x, y, pixel, r.object, 0u, sqrt_spp, &acc, &rays);
+        indirect_samples(&s, x, y, pixel, r.object, lobe, 0u, sqrt_spp, &acc, &rays);
         bool z = acc.reflectors > 0.0f;
         px[INDIRECT_PIXEL_SAMPLES] = acc.weight > 0.0f ? (float)(sqrt_spp * sqrt_spp) : 0.0f;
         px[INDIRECT_PIXEL_WEIGHT] = acc.weight;
@@ -155,6 +179,9 @@ __kernel void indirect_sparse(SHADOW_SCENE_PARAMS, __global float* indirect_pixe
                                         / (float)params->image_height;
         px[INDIRECT_PIXEL_TARGET] = px[INDIRECT_PIXEL_SAMPLES];
         px[INDIRECT_PIXEL_OBJECT] = r.object;
+        px[INDIRECT_PIXEL_BANDLIMIT] =
+            lobe > 0.0f ? aaf_glossy_bandlimit(materials[r.material].exponent) : bandlimit;
+        px[INDIRECT_PIXEL_LOBE] = lobe;
         vstore3(acc.irradiance, 0, px + INDIRECT_PIXEL_IRRADIANCE);
         vstore3(acc.albedo, 0, px + INDIRECT_PIXEL_ALBEDO);
         vstore3(r.p, 0, px + INDIRECT_PIXEL_POSITION);
@@ -163,11 +190,11 @@ __kernel void indirect_sparse(SHADOW_SCENE_PARAMS, __global float* indirect_pixe
     indirect_rays[pixel] = rays;
 }
 
-// Pass 2: receivers with a reflector get n(x) of eq. 4.6 clamped to [sparse_spp, max_spp],
-// the samples beyond the sparse ones as one more k x k square (shadow_adaptive's plan).
+// Pass 2: receivers with a reflector get n(x) of eq. 4.6 (with their lobe's Omega) clamped to
+// [sparse_spp, max_spp], the samples beyond the sparse ones as one more k x k square
+// (shadow_adaptive's plan).
 __kernel void indirect_adaptive(SHADOW_SCENE_PARAMS, __global float* indirect_pixels,
-                                __global uint* indirect_rays, uint sparse_spp, uint max_spp,
-                                float bandlimit) {
+                                __global uint* indirect_rays, uint sparse_spp, uint max_spp) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
@@ -175,7 +202,7 @@ __kernel void indirect_adaptive(SHADOW_SCENE_PARAMS, __global float* indirect_pi
     __global float* px = indirect_pixels + (size_t)pixel * INDIRECT_PIXEL_FLOATS;
     if (!(px[INDIRECT_PIXEL_WEIGHT] > 0.0f) || !(px[INDIRECT_PIXEL_REFLECTORS] > 0.0f)) return;
     float n = aaf_indirect_count(px[INDIRECT_PIXEL_Z_MIN], px[INDIRECT_PIXEL_Z_MAX],
-                                 px[INDIRECT_PIXEL_PIXEL_SIZE], bandlimit);
+                                 px[INDIRECT_PIXEL_PIXEL_SIZE], px[INDIRECT_PIXEL_BANDLIMIT]);
     float target = fmin(fmax(n, (float)sparse_spp), (float)max_spp);
     px[INDIRECT_PIXEL_TARGET] = target;
     uint extra = (uint)ceil(target - (float)sparse_spp);
@@ -187,7 +214,8 @@ __kernel void indirect_adaptive(SHADOW_SCENE_PARAMS, __global float* indirect_pi
                         vload3(0, px + INDIRECT_PIXEL_ALBEDO), px[INDIRECT_PIXEL_WEIGHT],
                         px[INDIRECT_PIXEL_Z_MIN], px[INDIRECT_PIXEL_Z_MAX],
                         px[INDIRECT_PIXEL_REFLECTORS]};
-    indirect_samples(&s, x, y, pixel, px[INDIRECT_PIXEL_OBJECT], sparse_spp, k, &acc, &rays);
+    indirect_samples(&s, x, y, pixel, px[INDIRECT_PIXEL_OBJECT], px[INDIRECT_PIXEL_LOBE],
+                     sparse_spp, k, &acc, &rays);
     vstore3(acc.irradiance, 0, px + INDIRECT_PIXEL_IRRADIANCE);
     vstore3(acc.albedo, 0, px + INDIRECT_PIXEL_ALBEDO);
     px[INDIRECT_PIXEL_WEIGHT] = acc.weight;

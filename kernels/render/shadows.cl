@@ -60,28 +60,38 @@ inline float hit_object(const SceneRefs* s, const Hit* hit) {
 
 // The first hit of the ray through the point (x + jx, y + jy) of the image from the lens
 // centre, when it is a receiver: a diffuse surface (the path tracer connects to lights there
-// only).
+// only), or with `glossy` a metal too (the indirect passes' glossy lobe, kernels/render/
+// indirect.cl). `d` is the camera ray's direction, `material` the surface's material.
 typedef struct {
-    float3 p, ng, ns, albedo;
+    float3 p, ng, ns, albedo, d;
     float t;
     float object;
+    uint material;
 } ShadowReceiver;
 
-inline bool shadow_receiver(const SceneRefs* s, uint x, uint y, float jx, float jy,
-                            ShadowReceiver* r, uint* rays) {
+inline bool aaf_receiver(const SceneRefs* s, uint x, uint y, float jx, float jy, bool glossy,
+                         ShadowReceiver* r, uint* rays) {
     float3 o = s->params->camera_origin.xyz;
     float3 d = pinhole_direction(s->params, x, y, jx, jy);
     Hit hit = intersect_closest(s, o, d, INFINITY, rays);
     if (hit.kind == HIT_NONE) return false;
     Surface sf = surface_at(s, &hit, o, d);
-    if (s->materials[sf.material].kind != MATERIAL_DIFFUSE) return false;
+    uint kind = s->materials[sf.material].kind;
+    if (kind != MATERIAL_DIFFUSE && !(glossy && kind == MATERIAL_METAL)) return false;
     r->p = sf.p;
     r->ng = sf.ng;
     r->ns = sf.ns;
     r->albedo = surface_albedo(s, &sf);
+    r->d = d;
     r->t = hit.t;
     r->object = hit_object(s, &hit);
+    r->material = sf.material;
     return true;
+}
+
+inline bool shadow_receiver(const SceneRefs* s, uint x, uint y, float jx, float jy,
+                            ShadowReceiver* r, uint* rays) {
+    return aaf_receiver(s, x, y, jx, jy, false, r, rays);
 }
 
 #define SHADOW_SCENE_PARAMS                                                                  \

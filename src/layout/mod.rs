@@ -461,18 +461,21 @@ device_structs! {
         pub pad3: f32,
     }
 
-    /// AAF diffuse indirect light (Wang 2013 ch. 4; kernels/render/indirect.cl): the primary
-    /// hit through the pixel centre (and the lens centre) and the indirect samples of the
-    /// sparse and the adaptive pass.
+    /// AAF indirect light (Wang 2013 ch. 4; kernels/render/indirect.cl): the primary hit
+    /// through the pixel centre (and the lens centre) and the indirect samples of the sparse
+    /// and the adaptive pass, for one of two lobes: a diffuse receiver's cosine-weighted
+    /// hemisphere or a metal receiver's Phong lobe (the seed's separate glossy buffer).
     #[align(16)]
     pub struct IndirectPixel {
-        /// Σ L_i over the indirect samples: the albedo-demodulated indirect irradiance / π
-        /// (cosine-weighted hemisphere samples, so albedo · Σ L_i / `weight` is the indirect
-        /// light a Lambertian receiver sends to the camera).
+        /// Σ L_i over the indirect samples, L_i the radiance arriving along the sampled
+        /// direction. Diffuse: cosine-weighted samples, so albedo · Σ L_i / `weight` is the
+        /// indirect light a Lambertian receiver sends to the camera (Σ L_i / n is the
+        /// demodulated irradiance / π). Glossy: samples of the Phong lobe (f cos / pdf is the
+        /// metal's colour), so colour · Σ L_i / `weight` is the metal's indirect light.
         pub irradiance: [f32; 3],
         /// Indirect samples traced (sparse + adaptive), 0 for no receiver.
         pub samples: f32,
-        /// Σ albedo(x_k) over the samples' points x_k on the receiver.
+        /// Σ albedo(x_k) over the samples' points x_k on the receiver (a metal's colour).
         pub albedo: [f32; 3],
         /// Samples whose point lay on the centre's receiver (the normaliser of both sums).
         pub weight: f32,
@@ -494,6 +497,12 @@ device_structs! {
         pub object: f32,
         /// Sparse samples whose first bounce hit a surface (the z's are defined when > 0).
         pub reflectors: f32,
+        /// Ω_h^max of the receiver's lobe (eq. 4.5): 2.8 diffuse, 3.6 + 0.084 m for a metal
+        /// of Phong exponent m; 0 for no receiver. Eqs. 4.4 and 4.6 use it.
+        pub bandlimit: f32,
+        /// The lobe: 0 diffuse, 1 glossy (a metal receiver).
+        pub lobe: f32,
+        pub pad: [f32; 2],
     }
 
     /// Parameters of the AAF diffuse-indirect filter (kernels/filters/aaf_indirect.cl).
@@ -505,8 +514,8 @@ device_structs! {
         pub radius: i32,
         /// 0: the pass along rows (x), 1: along columns (y).
         pub axis: u32,
-        /// Ω_h^max of eq. 4.5.
-        pub bandlimit: f32,
+        /// 1: glossy (metal) receivers are filtered; 0: they keep F as rendered.
+        pub glossy: u32,
         /// The floor of β in pixel footprints (eq. 4.4's d / 0.15: 1 / 0.15).
         pub footprints: f32,
         /// cos of the largest normal angle between neighbours.

@@ -50,8 +50,9 @@ pub enum Output {
     /// 4-D light field): with the shadow output the shadow light's visibility and its axes on
     /// the screen; without it (a thin lens) the radiance through the lens, slopes and hit.
     LightField,
-    /// AAF diffuse indirect light (Wang 2013 ch. 4): the sparse + adaptive indirect samples
-    /// of each pixel's centre receiver, albedo-demodulated, with z_min and z_max.
+    /// AAF indirect light (Wang 2013 ch. 4): the sparse + adaptive indirect samples of each
+    /// pixel's centre receiver (diffuse, or a metal's glossy lobe), demodulated, with z_min
+    /// and z_max.
     Indirect,
 }
 
@@ -231,6 +232,8 @@ const I_PIXEL_SIZE: usize = lane(offset_of!(IndirectPixel, pixel_size));
 const I_TARGET: usize = lane(offset_of!(IndirectPixel, target));
 const I_OBJECT: usize = lane(offset_of!(IndirectPixel, object));
 const I_REFLECTORS: usize = lane(offset_of!(IndirectPixel, reflectors));
+const I_BANDLIMIT: usize = lane(offset_of!(IndirectPixel, bandlimit));
+const I_LOBE: usize = lane(offset_of!(IndirectPixel, lobe));
 const L_SAMPLES: usize = lane(offset_of!(LightFieldPixel, samples));
 const L_JITTER: usize = lane(offset_of!(LightFieldPixel, jitter));
 const L_DIR1: usize = lane(offset_of!(LightFieldPixel, dir1));
@@ -618,9 +621,11 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("indirect.target", IndirectPixels, I_TARGET),
             ch("indirect.object", IndirectPixels, I_OBJECT),
             ch("indirect.reflectors", IndirectPixels, I_REFLECTORS),
+            ch("indirect.bandlimit", IndirectPixels, I_BANDLIMIT),
+            ch("indirect.lobe", IndirectPixels, I_LOBE),
         ],
-        doc: "diffuse indirect light: demodulated indirect samples of the centre's receiver, \
-              z_min, z_max, pixel size (AAF ch. 4)",
+        doc: "indirect light of diffuse and glossy receivers: demodulated indirect samples of \
+              the centre's receiver, z_min, z_max, pixel size, bandlimit, lobe (AAF ch. 4)",
     },
 ];
 

@@ -1,12 +1,14 @@
-//! Helpers of the AAF soft-shadow tests (tests/aaf_*.rs).
+//! Helpers of the AAF soft-shadow and indirect-light tests (tests/aaf_*.rs).
 
 use noisefree::filters::Configured;
+use noisefree::filters::aaf_indirect::{AafIndirect, AafIndirectSettings};
 use noisefree::filters::aaf_shadows::{AafShadowSettings, AafShadows};
 use noisefree::imaging::RgbImage;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
-use noisefree::layout::{FilterVector, ShadowPixel, ShadowTerms};
+use noisefree::layout::{FilterVector, IndirectPixel, ShadowPixel, ShadowTerms};
 use noisefree::render::{
-    Frame, FrameInfo, HostBuffer, Renderer, SceneInfo, ShadowSampling, VarianceForm,
+    Frame, FrameInfo, HostBuffer, IndirectSampling, Renderer, SceneInfo, ShadowSampling,
+    VarianceForm,
 };
 use noisefree::scene::Scene;
 
@@ -104,6 +106,59 @@ pub fn shadow_frame(w: u32, h: u32, pixels: Vec<ShadowPixel>, light: [f32; 4]) -
                 HostBuffer::from_slice(&vec![ShadowTerms::default(); n]),
             ),
             (BufferId::ShadowPixels, HostBuffer::from_slice(&pixels)),
+        ],
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+/// `spp` path samples of `scene` at w × h (seed 5) with the indirect output sampled as
+/// `sampling`.
+pub fn indirect_renderer(
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    spp: u32,
+    sampling: IndirectSampling,
+) -> Renderer {
+    let mut o = options(scene, w, h, 5);
+    o.outputs = OutputSet::of(&[Output::Indirect]);
+    o.indirect = sampling;
+    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
+    r.render_samples(spp).unwrap();
+    r
+}
+
+/// The filter as `render --filter aaf-indirect` runs it (configured, specialised, prepared).
+pub fn aaf_indirect_filtered(frame: &Frame, s: &AafIndirectSettings) -> RgbImage {
+    Configured::typed::<AafIndirect>(s.clone(), &frame.info().scene)
+        .unwrap()
+        .prepare(frame.info(), &gpu())
+        .unwrap()
+        .run(frame)
+        .unwrap()
+        .image
+}
+
+/// A host frame holding `pixels` as its indirect output and F = 0.
+pub fn indirect_frame(w: u32, h: u32, pixels: &[IndirectPixel]) -> Frame {
+    let n = pixels.len();
+    Frame::on_host(
+        FrameInfo {
+            width: w,
+            height: h,
+            spp: 1,
+            sample_capacity: 0,
+            shadow_lights: Vec::new(),
+            scene: SceneInfo::unknown(),
+        },
+        OutputSet::of(&[Output::Colour, Output::Indirect]),
+        VarianceForm::Variances,
+        vec![
+            (
+                BufferId::FilterVectors,
+                HostBuffer::from_slice(&vec![FilterVector::default(); n]),
+            ),
+            (BufferId::IndirectPixels, HostBuffer::from_slice(pixels)),
         ],
     )
     .unwrap_or_else(|e| panic!("{e:#}"))

@@ -1,4 +1,4 @@
-//! The AAF diffuse-indirect filter on the device (kernels/filters/aaf_indirect.cl and the
+//! The AAF indirect filter (diffuse and glossy) on the device (kernels/filters/aaf_indirect.cl and the
 //! shared passes of kernels/filters/aaf_pass.cl): prepare, rows, columns, compose.
 
 use std::ops::Range;
@@ -16,7 +16,7 @@ use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AafIndirectParams, Float4};
 use crate::render::Frame;
 
-/// The AAF diffuse-indirect filter, built for an image size.
+/// The AAF indirect filter, built for an image size.
 pub struct AafIndirectKernel {
     gpu: Arc<Gpu>,
     prepare: Kernel,

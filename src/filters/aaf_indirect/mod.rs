@@ -1,4 +1,4 @@
-//! Axis-aligned filtering of diffuse indirect light (B. Wang, "A Fast Filter for
+//! Axis-aligned filtering of indirect light, diffuse and glossy (B. Wang, "A Fast Filter for
 //! Physically-Based Rendering", UCB 2013, ch. 4, after Mehta, Wang, Ramamoorthi, Durand 2013;
 //! digest shared/notes/seeds-aaf-sheared.md §2): settings here, the OpenCL kernels of
 //! kernels/filters/aaf_indirect.cl in `device.rs`, their plain Rust reference in
@@ -26,11 +26,22 @@
 //!   2 z_min / 2.8 is 0.36 m at z_min = 0.5 m): the window truncates the Gaussian there, as
 //!   the authors' code truncates at 2 z_min / (μ Ω d) pixels; radius 40 measured the same
 //!   relMSE (0.00378 against 0.00374) at twice the time.
-//! - **Pixels**: no receiver (sky, a non-diffuse surface, an emitter) keeps F as rendered; a
-//!   receiver whose sparse samples met no reflector (z undefined) keeps its own L and lends it;
-//!   the rest are filtered.
-//! - **Glossy indirect light** (the seed's separate buffer with Ω = 3.6 + 0.084 m) is not
-//!   built: a metal receiver's indirect light stays as the path tracer rendered it.
+//! - **Glossy indirect light** (§4.3: "separate buffers for the diffuse and specular
+//!   components ... filtered separately"; `glossy`): a metal receiver (a normalised Phong
+//!   lobe of exponent m) has its own estimate, its lobe's samples demodulated by the metal's
+//!   colour (src/render/indirect), filtered with its own Ω = 3.6 + 0.084 m (eq. 4.5) in β
+//!   and n, and multiplied by the colour: final = F.direct + colour · filtered glossy L. A
+//!   pixel's centre receiver is one or the other, so the two "buffers" are one per-pixel
+//!   record with a lobe; one run of the two 1-D passes filters both, a neighbour of the other
+//!   lobe being rejected (the pass's `group`): exactly the two separate runs, each with the
+//!   other lobe's pixels lending nothing (tests/aaf_indirect_glossy.rs), at the cost of one.
+//!   The glossy integrand depends on the outgoing direction; like the seed we filter it in
+//!   image space with the wider bandlimit (src/render/indirect says why that holds for
+//!   moderate exponents). Off: a metal receiver's indirect light stays as the path tracer
+//!   rendered it, bit for bit today's filter.
+//! - **Pixels**: no receiver (sky, a mirror or glass surface, a metal without `glossy`, an
+//!   emitter) keeps F as rendered; a receiver whose sparse samples met no reflector (z
+//!   undefined) keeps its own L and lends it; the rest are filtered.
 //! - **Silhouettes**: the indirect samples lie on the centre's object; a pixel whose other
 //!   part shows another surface gets the centre surface's indirect light over all of it.
 //! - **A thin lens**: the receiver is the lens-centre ray's hit, as for the shadow filter.
@@ -43,6 +54,7 @@ use std::sync::Arc;
 use anyhow::{Result, bail};
 
 use super::aaf_pass::PassParams;
+use super::settings::Auto;
 use super::{FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::AafIndirectParams;
@@ -53,8 +65,8 @@ pub use device::AafIndirectKernel;
 pub use reference::{compose, prepare, reference};
 
 crate::filter_settings! {
-    /// The AAF diffuse-indirect filter's settings: how the indirect output is sampled, and how
-    /// it is filtered.
+    /// The AAF indirect filter's settings: how the indirect output is sampled, and how it is
+    /// filtered.
     pub struct AafIndirectSettings, flags "aafi-" {
         /// Indirect samples per pixel of the sparse pass: a square (whole strata).
         pub sparse_spp: u32 = 16,
@@ -76,6 +88,10 @@ crate::filter_settings! {
         pub depth_tolerance: f32 = 0.5,
         /// Largest |β − β′| / max(β, β′) between two filtered pixels; inf: no test.
         pub beta_tolerance: f32 = f32::INFINITY,
+        /// Metal receivers' glossy indirect light, sampled and filtered with its own bandlimit
+        /// 3.6 + 0.084 m (eq. 4.5); off: it stays as rendered. auto: on when the scene has a
+        /// metal surface.
+        pub glossy: Auto<bool> = Auto::Auto,
     }
 }
 
@@ -105,12 +121,19 @@ impl AafIndirectSettings {
         Ok(())
     }
 
+    /// Whether metal receivers are sampled and filtered. `auto` left as is counts as on: in a
+    /// scene without metal that is exactly off (no pixel has a glossy receiver).
+    pub fn glossy(&self) -> bool {
+        self.glossy.or(true)
+    }
+
     /// How the renderer samples the indirect output for these settings.
     pub fn sampling(&self) -> IndirectSampling {
         IndirectSampling {
             sparse_spp: self.sparse_spp,
             max_spp: self.max_spp,
             bandlimit: DIFFUSE_BANDLIMIT,
+            glossy: self.glossy(),
         }
     }
 
@@ -129,7 +152,7 @@ impl AafIndirectSettings {
             height,
             radius: self.radius as i32,
             axis: 0,
-            bandlimit: DIFFUSE_BANDLIMIT,
+            glossy: self.glossy() as u32,
             footprints: self.footprints,
             normal_cos: self.normal_cos(),
             depth_tolerance: self.depth_tolerance,
@@ -150,17 +173,36 @@ impl AafIndirectSettings {
     }
 }
 
-/// The AAF diffuse-indirect filter in the registry.
+/// The AAF indirect filter in the registry.
 pub struct AafIndirect;
 
 impl FilterKind for AafIndirect {
     type Settings = AafIndirectSettings;
     const NAME: &'static str = "aaf-indirect";
-    const SUMMARY: &'static str = "axis-aligned filtering of diffuse indirect light, with \
-         adaptive indirect sampling (Wang 2013 ch. 4; on the device)";
+    const SUMMARY: &'static str = "axis-aligned filtering of diffuse and glossy indirect light, \
+         with adaptive indirect sampling (Wang 2013 ch. 4; on the device)";
 
     fn check(s: &AafIndirectSettings) -> Result<()> {
         s.validate()
+    }
+
+    /// `glossy = auto` becomes on when the scene has a metal surface.
+    fn specialise(s: &mut AafIndirectSettings, scene: &SceneInfo) -> Vec<String> {
+        let mut notes = Vec::new();
+        if s.glossy.is_auto() {
+            let metal = scene.has("HAS_METAL");
+            s.glossy = Auto::Set(metal);
+            notes.push(format!(
+                "glossy = {metal}: {}",
+                if metal {
+                    "the scene has metal surfaces, whose glossy indirect light is filtered \
+                     with Ω = 3.6 + 0.084 m"
+                } else {
+                    "no metal surface, no glossy receiver"
+                }
+            ));
+        }
+        notes
     }
 
     /// Wherever paths go past their first surface (a direct-light-only scene has no indirect

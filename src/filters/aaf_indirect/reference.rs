@@ -13,7 +13,8 @@ use crate::layout::{AafIndirectParams, FilterVector, IndirectPixel};
 use crate::render::Frame;
 use crate::render::indirect::bandlimit::beta;
 
-/// `aaf_indirect_prepare`: the shared pass's guide and the values (L in rgb).
+/// `aaf_indirect_prepare`: the shared pass's guide (the lobe as its group) and the values
+/// (L in rgb); glossy receivers are none unless `p.glossy`.
 pub fn prepare(
     p: &AafIndirectParams,
     pixels: &[IndirectPixel],
@@ -22,10 +23,10 @@ pub fn prepare(
         .par_iter()
         .map(|px| {
             let (mut v, mut b, mut kind) = ([0.0f32; 3], 0.0, NONE);
-            if px.weight > 0.0 {
+            if px.weight > 0.0 && (px.lobe == 0.0 || p.glossy != 0) {
                 v = px.irradiance.map(|c| c / px.weight);
                 if px.reflectors > 0.0 {
-                    b = beta(px.z_min, px.pixel_size, p.bandlimit, p.footprints);
+                    b = beta(px.z_min, px.pixel_size, px.bandlimit, p.footprints);
                     kind = FILTERED;
                 } else {
                     kind = LIT;
@@ -38,13 +39,15 @@ pub fn prepare(
                 normal,
                 beta: b,
                 axis: normal,
+                group: px.lobe,
             };
             (g, [v[0], v[1], v[2], 0.0])
         })
         .unzip()
 }
 
-/// `aaf_indirect_compose`: F.direct + mean albedo · L (F as is for no receiver).
+/// `aaf_indirect_compose`: F.direct + mean albedo (a metal's colour) · L (F as is for no
+/// receiver).
 pub fn compose(
     fv: &[FilterVector],
     pixels: &[IndirectPixel],

@@ -11,7 +11,8 @@
 //! prefactors cancel in a normalised mean). r is the world distance in the plane perpendicular
 //! to the pixel's `axis` (shadows: the direction to the light; indirect light: the normal, as
 //! the authors' released code projects onto the tangent plane). A neighbour is rejected when it
-//! is [`NONE`], when its normal is more than `normal_cos` away, when its offset along `axis`
+//! is [`NONE`], when its `group` differs (the indirect filter's lobes, diffuse and glossy: the
+//! seed's separate buffers; the shadow filter's pixels are all group 0), when its normal is more than `normal_cos` away, when its offset along `axis`
 //! exceeds `depth_tolerance` · β (the weight ignores that offset), and, when it is
 //! [`FILTERED`] too, when |β − β′| > `beta_tolerance` · max(β, β′).
 
@@ -30,7 +31,7 @@ pub const LIT: f32 = 1.0;
 pub const FILTERED: f32 = 2.0;
 
 /// What the pass knows of one pixel (three float4 on the device: (position, kind),
-/// (normal, β), (axis, 0)).
+/// (normal, β), (axis, group)).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PassPixel {
     pub position: Vec3,
@@ -39,6 +40,8 @@ pub struct PassPixel {
     pub beta: f32,
     /// Unit direction whose component of an offset is dropped from the distance.
     pub axis: Vec3,
+    /// Pixels share values only within one group.
+    pub group: f32,
 }
 
 impl PassPixel {
@@ -47,7 +50,7 @@ impl PassPixel {
         [
             self.position.extend(self.kind).to_array(),
             self.normal.extend(self.beta).to_array(),
-            self.axis.extend(0.0).to_array(),
+            self.axis.extend(self.group).to_array(),
         ]
     }
 }
@@ -98,7 +101,7 @@ pub fn pass(p: &PassParams, guide: &[PassPixel], input: &[[f32; 4]]) -> Vec<[f32
                 }
                 let j = (i + (k - c) * stride) as usize;
                 let q = &guide[j];
-                if q.kind == NONE || g.normal.dot(q.normal) < p.normal_cos {
+                if q.kind == NONE || q.group != g.group || g.normal.dot(q.normal) < p.normal_cos {
                     continue;
                 }
                 let delta = q.position - g.position;

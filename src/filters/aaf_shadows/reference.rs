@@ -40,6 +40,7 @@ pub fn prepare(p: &AafShadowParams, pixels: &[ShadowPixel]) -> (Vec<PassPixel>, 
                 normal: Vec3::from(px.normal),
                 beta,
                 axis,
+                group: 0.0,
             };
             (g, [v, 0.0, 0.0, 0.0])
         })

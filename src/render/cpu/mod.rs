@@ -10,10 +10,12 @@
 //! | kernels/render/camera.cl     | [`sampling::camera_ray`]     |
 //! | kernels/render/textures.cl, materials.cl, lights.cl, film.cl, pathtrace.cl | [`pathtrace`] |
 //! | kernels/render/shadows.cl, bandlimit.cl | [`shadows`], [`crate::render::shadows::bandlimit`] |
+//! | kernels/render/indirect.cl   | [`indirect`], [`crate::render::indirect::bandlimit`] |
 //!
 //! The ray queries of kernels/arrays/trace.cl and kernels/geometry.cl are mirrored by
 //! [`crate::arrays::trace`] and [`crate::geometry`], which the host also uses (autofocus).
 
+pub mod indirect;
 pub mod lens_field;
 pub mod light_field;
 pub mod pathtrace;

@@ -133,7 +133,7 @@ pub struct Scatter {
     pub absorbed: bool,
 }
 
-fn reflect_dir(d: Vec3, n: Vec3) -> Vec3 {
+pub fn reflect_dir(d: Vec3, n: Vec3) -> Vec3 {
     d - 2.0 * d.dot(n) * n
 }
 
@@ -377,6 +377,30 @@ impl ShadowTarget {
 }
 
 /// Algorithm 1 for one sample (kernels/render/pathtrace.cl trace_path).
+/// Alg. 1 lines 5-11: from rr_depth on, whether the path goes on (its throughput divided by
+/// the survival probability, max component capped at 0.95); without Russian roulette it ends
+/// there.
+pub fn survives(
+    s: &SceneArrays,
+    opt: ReferenceOptions,
+    throughput: &mut Vec3,
+    key: u32,
+    bounce: u32,
+) -> bool {
+    if bounce < s.params.rr_depth {
+        return true;
+    }
+    if !opt.russian_roulette {
+        return false;
+    }
+    let survive = 0.95f32.min(throughput.max_element());
+    if !(rng_uniform(key, bounce, DIM_RUSSIAN_ROULETTE) < survive) {
+        return false;
+    }
+    *throughput /= survive;
+    true
+}
+
 pub fn trace_path(
     s: &SceneArrays,
     opt: ReferenceOptions,
@@ -411,15 +435,8 @@ pub fn trace_path_from(
     let shadow_light = target.light;
     let shadow = (shadow_light < params.light_count).then(|| &s.lights[shadow_light as usize]);
     for bounce in 0..params.max_vertices {
-        if bounce >= params.rr_depth {
-            if !opt.russian_roulette {
-                break;
-            }
-            let survive = 0.95f32.min(throughput.max_element());
-            if !(rng_uniform(key, bounce, DIM_RUSSIAN_ROULETTE) < survive) {
-                break;
-            }
-            throughput /= survive;
+        if !survives(s, opt, &mut throughput, key, bounce) {
+            break;
         }
         *rays += 1;
         let Some(hit) = intersect_closest(s, o, d, f32::INFINITY) else {

@@ -14,7 +14,7 @@ use super::sampling::{pinhole_direction, sample_cone};
 use crate::arrays::SceneArrays;
 use crate::arrays::trace::{Hit, Prim, intersect_closest, occluder_range};
 use crate::geometry::{offset_ray_origin, ray_sphere};
-use crate::layout::{Light, MATERIAL_DIFFUSE, ShadowPixel};
+use crate::layout::{Light, MATERIAL_DIFFUSE, MATERIAL_METAL, ShadowPixel};
 use crate::render::shadows::ShadowSampling;
 use crate::render::shadows::bandlimit::{adaptive_plan, isqrt_floor, sample_count};
 
@@ -41,16 +41,17 @@ pub fn hit_object(s: &SceneArrays, hit: &Hit) -> f32 {
     }
 }
 
-/// A receiver (kernels/render/shadows.cl `ShadowReceiver`).
+/// A receiver (kernels/render/shadows.cl `ShadowReceiver`); `d` is the camera ray's direction.
 pub struct Receiver {
     pub sf: Surface,
     pub albedo: Vec3,
+    pub d: Vec3,
     pub t: f32,
     pub object: f32,
 }
 
 /// The first hit through the point (x + jx, y + jy) of the image from the lens centre, when
-/// it is a receiver.
+/// it is a receiver: a diffuse surface.
 pub fn receiver(
     s: &SceneArrays,
     x: u32,
@@ -59,17 +60,32 @@ pub fn receiver(
     jy: f32,
     rays: &mut u32,
 ) -> Option<Receiver> {
+    aaf_receiver(s, x, y, jx, jy, false, rays)
+}
+
+/// [`receiver`], with `glossy` a metal surface too (kernels/render/shadows.cl `aaf_receiver`).
+pub fn aaf_receiver(
+    s: &SceneArrays,
+    x: u32,
+    y: u32,
+    jx: f32,
+    jy: f32,
+    glossy: bool,
+    rays: &mut u32,
+) -> Option<Receiver> {
     let o = s.params.camera_origin.xyz();
     let d = pinhole_direction(&s.params, x, y, jx, jy);
     *rays += 1;
     let hit = intersect_closest(s, o, d, f32::INFINITY)?;
     let sf = surface_at(s, &hit, o, d);
-    if s.materials[sf.material as usize].kind != MATERIAL_DIFFUSE {
+    let kind = s.materials[sf.material as usize].kind;
+    if kind != MATERIAL_DIFFUSE && !(glossy && kind == MATERIAL_METAL) {
         return None;
     }
     Some(Receiver {
         albedo: surface_albedo(s, &sf),
         sf,
+        d,
         t: hit.t,
         object: hit_object(s, &hit),
     })

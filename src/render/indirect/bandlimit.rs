@@ -9,7 +9,8 @@
 //!   distance (the digest's reading).
 //! - d: the world size of one pixel at the receiver (t_hit · 2 tan(fov/2) / height); A_p = d².
 //! - Ω_h^max: the bandlimit of the BRDF-weighted incident light, 2.8 for a diffuse receiver,
-//!   3.6 + 0.084 m for a Phong lobe of exponent m (eq. 4.5; the glossy buffer is not built here).
+//!   3.6 + 0.084 m for a Phong lobe of exponent m (eq. 4.5: a metal receiver's glossy lobe;
+//!   kernels/render/bandlimit.cl `aaf_glossy_bandlimit`).
 //!
 //! Eq. 4.4 as printed: β = max(2 z_min / Ω_h^max, d / 0.15). Both terms are in metres. The
 //! second is a floor of 1/0.15 ≈ 6.7 pixel footprints; `footprints` here is that factor, a

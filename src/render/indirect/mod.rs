@@ -1,30 +1,53 @@
-//! AAF diffuse indirect light, the sampling side (Wang 2013 ch. 4 with the passes of §3.4):
-//! the indirect output ([`crate::layout::outputs::Output::Indirect`]), gathered when a filter
-//! asks for it (src/filters/aaf_indirect).
+//! AAF indirect light, the sampling side (Wang 2013 ch. 4 with the passes of §3.4): the
+//! indirect output ([`crate::layout::outputs::Output::Indirect`]), gathered when a filter asks
+//! for it (src/filters/aaf_indirect). kernels/render/indirect.cl runs it on the device,
+//! src/render/cpu/indirect.rs is the same code in Rust.
 //!
 //! The estimator, per pixel. The receiver is the hit of the ray through the pixel centre from
-//! the lens centre (a diffuse surface; its position, normal, object and pixel size d are what
-//! the filter's weights use). Each indirect sample starts at its own random point x_k of the
-//! pixel that lies on the receiver's object, leaves in a direction stratified over the
-//! cosine-weighted hemisphere, and follows the path tracer's rules from the first bounce on,
-//! counting only what the path tracer counts as indirect (kernels/render/indirect.cl
-//! `indirect_radiance`). With cosine sampling the Lambertian estimate is albedo · L_i, so
-//! Σ L_i / n is the albedo-demodulated indirect light (irradiance / π) and Σ albedo(x_k) / n
-//! the albedo that multiplies it back (§2.3 of the digest: filter irradiance, not L_on). The
-//! first bounce's hit distance gives z_min and z_max (the maximum reflector distance: the
-//! seed's z_max is undefined).
+//! the lens centre (a diffuse surface, or with `glossy` a metal; its position, normal, object
+//! and pixel size d are what the filter's weights use). Each indirect sample starts at its own
+//! random point x_k of the pixel that lies on the receiver's object, leaves in a direction
+//! stratified over the receiver's lobe, and follows the path tracer's rules from the first
+//! bounce on, counting only what the path tracer counts as indirect (kernels/render/
+//! indirect.cl `indirect_radiance`). The first bounce's hit distance gives z_min and z_max
+//! (the maximum reflector distance: the seed's z_max is undefined).
+//!
+//! Two lobes, one output (the seed's §4.3 keeps "separate buffers for the diffuse and specular
+//! components"; here a pixel's centre receiver is diffuse or metal, never both, so one
+//! per-pixel record with its `lobe` and its Ω_h^max holds either, and the filter keeps the
+//! lobes apart):
+//! - **Diffuse**: cosine-weighted hemisphere samples, so the Lambertian estimate is
+//!   albedo · L_i: Σ L_i / n is the albedo-demodulated indirect light (irradiance / π) and
+//!   Σ albedo(x_k) / n the albedo that multiplies it back (§2.3 of the digest: filter
+//!   irradiance, not L_on). Ω_h^max = 2.8 (eq. 4.5).
+//! - **Glossy** (a metal: the normalised Phong lobe of exponent m around the mirror
+//!   direction, kernels/render/materials.cl): the lobe is sampled exactly as the megakernel
+//!   samples it, so f cos / pdf is the metal's colour and Σ L_i / n the colour-demodulated
+//!   glossy indirect light; Ω_h^max = 3.6 + 0.084 m (eq. 4.5, m taken as the seed's
+//!   Blinn-Phong exponent: our lobe is Phong's, around the mirror direction). The mirror
+//!   direction is that of the camera ray through each sample's point x_k, so the estimate is
+//!   for the view through the pixel. The glossy integrand depends on the outgoing direction;
+//!   the seed still filters it in image space (over the receiver's tangent plane) with the
+//!   wider bandlimit, i.e. a narrower β = 2 z_min / Ω, and so do we. Across β the view
+//!   direction turns by about β / t (t the camera distance) and the mirror direction by up to
+//!   twice that, 4 z_min / (Ω t); the lobe's half width is about 1.18 / √m. On
+//!   cornell_glossy (t ≈ 3.4 m, z_min up to about 1 m, and the filter's window of 20 pixels
+//!   at 256² is about 0.2 m, turning the mirror by at most 0.12 rad) that is below the gold's
+//!   half width (m = 400: 0.03 against 0.06 rad) and about the aluminium's (m = 50: 0.12
+//!   against 0.17 rad): moderately specular receivers, as the seed assumes, are where this
+//!   holds; a near-mirror metal far from its reflectors would be blurred across views.
 //!
 //! The passes run once, before the first path samples ([`super::Renderer::render_samples`]):
 //! 1. `indirect_sparse`: sparse_spp = k² samples per pixel, one per stratum, with z_min, z_max.
-//! 2. `indirect_adaptive`: n(x) of eq. 4.6 clamped to [sparse_spp, max_spp]; the samples
-//!    beyond the sparse ones as one more square of strata (the shadow passes' plan,
-//!    [`super::shadows::bandlimit::adaptive_plan`]). A receiver whose sparse samples met no
-//!    reflector (every ray left to the sky) has no z and keeps its sparse samples.
+//! 2. `indirect_adaptive`: n(x) of eq. 4.6 with the pixel's Ω, clamped to [sparse_spp,
+//!    max_spp]; the samples beyond the sparse ones as one more square of strata (the shadow
+//!    passes' plan, [`super::shadows::bandlimit::adaptive_plan`]). A receiver whose sparse
+//!    samples met no reflector (every ray left to the sky) has no z and keeps its sparse
+//!    samples.
 //!
-//! Only the diffuse first hit's indirect light is sampled: a glossy (metal) receiver's indirect
-//! light stays as the path tracer rendered it (the seed's separate glossy buffer with its own
-//! bandlimit, eq. 4.5, is not built). The firefly clamp (`sample_clamp`) does not apply to these
-//! samples.
+//! Without `glossy` a metal receiver is no receiver: its indirect light stays as the path
+//! tracer rendered it. Other non-diffuse surfaces (mirrors, glass) are never receivers. The
+//! firefly clamp (`sample_clamp`) does not apply to these samples.
 
 pub mod bandlimit;
 
@@ -45,8 +68,10 @@ pub struct IndirectSampling {
     pub sparse_spp: u32,
     /// Most samples per pixel after the adaptive pass (eq. 4.6 is clamped to it).
     pub max_spp: u32,
-    /// Ω_h^max of eq. 4.5 (2.8: diffuse).
+    /// Ω_h^max of a diffuse receiver (eq. 4.5: 2.8); a metal's is 3.6 + 0.084 m.
     pub bandlimit: f32,
+    /// Metal receivers are sampled too (their glossy lobe); off: only diffuse receivers.
+    pub glossy: bool,
 }
 
 impl Default for IndirectSampling {
@@ -55,6 +80,7 @@ impl Default for IndirectSampling {
             sparse_spp: 16,
             max_spp: 100,
             bandlimit: bandlimit::DIFFUSE_BANDLIMIT,
+            glossy: true,
         }
     }
 }
@@ -153,12 +179,13 @@ impl IndirectPasses {
         };
         let k = super::shadows::bandlimit::isqrt_floor(sampling.sparse_spp);
         let mut b = build("indirect_sparse");
-        b.arg_named("sqrt_spp", k);
+        b.arg_named("sqrt_spp", k)
+            .arg_named("glossy", sampling.glossy as u32)
+            .arg_named("bandlimit", sampling.bandlimit);
         let sparse = b.build().context("creating the sparse indirect kernel")?;
         let mut b = build("indirect_adaptive");
         b.arg_named("sparse_spp", sampling.sparse_spp)
-            .arg_named("max_spp", sampling.max_spp)
-            .arg_named("bandlimit", sampling.bandlimit);
+            .arg_named("max_spp", sampling.max_spp);
         let adaptive = b.build().context("creating the adaptive indirect kernel")?;
         Ok(IndirectPasses {
             sampling,
