@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::aaf::{aaf_indirect_filtered, floor_scene, indirect_frame, indirect_renderer};
+use common::aaf::{aaf_indirect_filtered, indirect_frame, indirect_renderer};
 use common::*;
 use noisefree::filters::aaf_indirect::{AafIndirectSettings, reference};
 use noisefree::imaging::RgbImage;
@@ -234,9 +234,49 @@ fn the_sampling_pass_follows_eq_4_6_in_whole_strata() {
 #[test]
 fn open_sky_no_reflector_stays_finite() {
     // A lit floor with nothing around it: every indirect ray leaves to the sky, so no pixel
-    // has a reflector (z undefined) and the indirect light is exactly 0.
-    let scene = floor_scene(common::aaf::OVERHEAD, "");
+    // has a reflector (z undefined) and the indirect light is exactly 0. Depth 3 so that the
+    // pass traces its first bounce (at depth 1 it traces nothing and this would test
+    // nothing); the light is far and tiny (a sphere light is a reflector too: a cosine
+    // sample meets it with probability ~1e-8 here, against ~1 % for the overhead light).
+    let floor = |light: &str| {
+        scene_from_toml(&format!(
+            r#"
+[render]
+max_depth = 3
+russian_roulette = false
+
+[camera]
+origin = [0, 3, 3]
+target = [0, 0, 0]
+fov = 40
+
+[[material]]
+name = "floor"
+type = "diffuse"
+color = [0.8, 0.8, 0.8]
+
+[[mesh]]
+generator = "quad"
+material = "floor"
+scale = 6
+
+[[light]]
+type = "sphere"
+{light}
+"#
+        ))
+    };
     let s = small();
+    // The pass does trace here: with the overhead light some bounce rays meet it.
+    let near = floor(&format!(
+        "{}\nemission = [20, 20, 20]",
+        common::aaf::OVERHEAD
+    ));
+    let r = indirect_renderer(&near, 32, 24, 1, s.sampling());
+    let near_frame = r.frame();
+    let px: &[IndirectPixel] = near_frame.host_slice(BufferId::IndirectPixels).unwrap();
+    assert!(px.iter().any(|p| p.reflectors > 0.0));
+    let scene = floor("center = [0, 100, 0]\nradius = 0.01\nemission = [2e6, 2e6, 2e6]");
     let r = indirect_renderer(&scene, 32, 24, 1, s.sampling());
     let frame = r.frame();
     let px: &[IndirectPixel] = frame.host_slice(BufferId::IndirectPixels).unwrap();

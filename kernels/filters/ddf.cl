@@ -19,13 +19,45 @@
 //                    is used for the indirect weight): neighbours whose bounce directions
 //                    scatter (rough surfaces) weigh more than mirror-like ones; it does not
 //                    cancel.
+//   DDF_FAST_EXP  1: a polynomial exponential in the weights of eqs. 6.15-6.16 (a fast mode,
+//                    `ddf_exp` below; tests/ddf.rs measures its error), 0: the built-in exp.
 // Holes (§6.3.3) and the kernel width are run-time parameters (DdfParams).
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
 
-#if !defined(DDF_VARIANT) || !defined(DDF_SKY) || !defined(DDF_TEXTURE2) || !defined(DDF_DIRECTION)
+#if !defined(DDF_VARIANT) || !defined(DDF_SKY) || !defined(DDF_TEXTURE2) || !defined(DDF_DIRECTION) \
+    || !defined(DDF_FAST_EXP)
 #error "noisefree: a data-driven filter switch is missing from the build options"
+#endif
+
+#if DDF_FAST_EXP
+// The fast mode's exponential, ours: exp(x) = 2^t, t = x log2(e) = n + f, n = floor(t); 2^f,
+// f in [0, 1), by a degree-5 polynomial fitted for relative error (largest 1.7e-7 in float32
+// Horner form over [0, 1]; the coefficients come from an iteratively reweighted least-squares
+// fit, not from a source), 2^n written into the exponent bits. For the weights' exponents,
+// x <= 0: below t = -126 (2^n leaves the normal range) it returns 0, as exp underflows there
+// to denormals that weigh nothing beside the centre's weight 1. On PoCL, exp and native_exp
+// run the same code (measured: bit-identical images), 29 flops' time per exp on float16
+// (results/README.md "Roofline"); this is 14 vector operations.
+#define DDF_POW2_FRACTION(f)                                                                   \
+    fma(f, fma(f, fma(f, fma(f, fma(f, 0.0018775767f, 0.0089893406f), 0.055826318f),          \
+                      0.24015361f), 0.69315308f), 0.99999994f)
+inline float __attribute__((overloadable)) ddf_exp(float x) {
+    float t = x * M_LOG2E_F;
+    float n = floor(t);
+    float r = DDF_POW2_FRACTION(t - n) * as_float((convert_int(n) + 127) << 23);
+    return t < -126.0f ? 0.0f : r;
+}
+inline float16 __attribute__((overloadable)) ddf_exp(float16 x) {
+    float16 t = x * M_LOG2E_F;
+    float16 n = floor(t);
+    float16 r = DDF_POW2_FRACTION(t - n) * as_float16((convert_int16(n) + 127) << 23);
+    return select(r, (float16)(0.0f), t < -126.0f);
+}
+#define DDF_EXP ddf_exp
+#else
+#define DDF_EXP exp
 #endif
 
 // F is read as one float16 and taken apart with swizzles (s012 direct, s345 indirect, s6
@@ -117,8 +149,8 @@ inline void ddf_neighbour(__constant const DdfParams* p, DdfCentre* c, float16 n
     // As printed: one factor for every neighbour, which cancels in eq. 6.21.
     e_fi += c->sigma2_f[3];
 #endif
-    float w_d = exp(-(e_dc + e_fd));                                         // eq. 6.15
-    float w_i = exp(-(e_ic + e_fi));                                         // eq. 6.16
+    float w_d = DDF_EXP(-(e_dc + e_fd));                                     // eq. 6.15
+    float w_i = DDF_EXP(-(e_ic + e_fi));                                     // eq. 6.16
     c->c_fd += w_d * n.s012;                                                 // eq. 6.17
     c->c_fi += w_i * n.s345;                                                 // eq. 6.18
     c->tw_d += w_d;                                                          // eq. 6.19

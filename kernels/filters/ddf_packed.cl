@@ -101,8 +101,8 @@ inline void ddf_neighbour_p(__constant const DdfParams* p, DdfPacked* c, const f
     e_fi += c->sigma2_f[3];                    // as printed; cancels in eq. 6.21
 #endif
     floatP zero = (floatP)(0.0f);
-    floatP w_d = select(zero, exp(-(e_dc + e_fd)), inside);                  // eq. 6.15
-    floatP w_i = select(zero, exp(-(e_ic + e_fi)), inside);                  // eq. 6.16
+    floatP w_d = select(zero, DDF_EXP(-(e_dc + e_fd)), inside);              // eq. 6.15
+    floatP w_i = select(zero, DDF_EXP(-(e_ic + e_fi)), inside);              // eq. 6.16
     for (int k = 0; k < 3; ++k) {
         c->c_fd[k] += w_d * n[k];                                            // eq. 6.17
         c->c_fi[k] += w_i * n[3 + k];                                        // eq. 6.18

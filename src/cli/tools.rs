@@ -25,6 +25,16 @@ pub struct CompareArgs {
     pub error_map: Option<PathBuf>,
 }
 
+/// Prints `text` and a newline to stdout; a reader that closed the pipe (`compare | head`) is
+/// not an error (`println!` panics on it).
+fn print_to_pipe(text: &str) -> Result<()> {
+    use std::io::Write;
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => Ok(r?),
+    }
+}
+
 pub fn compare(args: &CompareArgs) -> Result<()> {
     if let Some(p) = &args.error_map {
         imaging::check_output_path(p)?;
@@ -38,11 +48,12 @@ pub fn compare(args: &CompareArgs) -> Result<()> {
             args.reference.display()
         )
     })?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&m)?);
+    let text = if args.json {
+        serde_json::to_string_pretty(&m)?
     } else {
-        println!("{m}");
-    }
+        m.to_string()
+    };
+    print_to_pipe(&text)?;
     if let Some(p) = &args.error_map {
         let map = metrics::error_map(&test, &reference, ErrorScale::default())?;
 

@@ -39,6 +39,9 @@ const KERNELS: &[&str] = &[
     "ddf-rows+holes",
     "ddf-packed",
     "ddf-packed+holes",
+    // The fast mode (native_exp in the weights).
+    "ddf-packed-fast",
+    "ddf-packed-fast+holes",
     "atrous",
 ];
 
@@ -50,12 +53,13 @@ fn ddf_settings(label: &str) -> DdfSettings {
     let variant = match label {
         "ddf-naive" => Variant::Naive,
         "ddf-vector" => Variant::Vector,
-        "ddf-packed" | "ddf-packed+holes" => Variant::Packed,
+        l if l.starts_with("ddf-packed") => Variant::Packed,
         _ => Variant::Rows,
     };
     DdfSettings {
         variant,
         holes: label.ends_with("+holes"),
+        fast_exp: label.contains("-fast"),
         ..Default::default()
     }
 }

@@ -88,6 +88,7 @@ impl DdfKernel {
                 .to_string(),
             ),
             ("DDF_PACK".to_string(), PACK.to_string()),
+            ("DDF_FAST_EXP".to_string(), flag(settings.fast_exp)),
         ];
         let program = gpu.program("filters/ddf.cl", &defines, "")?;
         let pixels = width as usize * height as usize;

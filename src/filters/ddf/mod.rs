@@ -126,6 +126,13 @@ crate::filter_settings! {
         pub variant: Variant = Variant::Auto,
         /// Work-group size of the rows variant (§6.3.2).
         pub work_group: u32 = 64,
+        /// A fast mode: a degree-5 polynomial exponential (kernels/filters/ddf.cl `ddf_exp`)
+        /// in the two weights (eqs. 6.15, 6.16) in place of the built-in `exp`. On PoCL (CPU)
+        /// its image differs from the exact one by at most 4.2e-7 (relative;
+        /// tests/ddf.rs `fast_exp_stays_near_the_exact_filter`); the exact filter stays the
+        /// default. It saved 0-3 % of the packed kernel's time on PoCL (results/README.md
+        /// "Roofline"); OpenCL's native_exp gave the same bits as exp there.
+        pub fast_exp: bool = false,
     }
 }
 
