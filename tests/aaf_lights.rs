@@ -200,3 +200,21 @@ translate = [-0.4, 0.9, 0.3]
         }
     }
 }
+
+#[test]
+fn light_counts_beyond_the_shadow_planes_are_refused_or_capped() {
+    let s = AafShadowSettings {
+        light_count: 9,
+        ..Default::default()
+    };
+    let e = format!("{:#}", s.validate().unwrap_err());
+    assert!(e.contains("light_count") && e.contains("at most 8"), "{e}");
+    // A scene with ten sphere lights: auto filters the first eight and says so.
+    let mut info = SceneInfo::unknown();
+    info.sphere_lights = (0..10).map(|i| [i as f32, 3.0, 0.0, 0.2]).collect();
+    let mut s = AafShadowSettings::default();
+    let notes = AafShadows::specialise(&mut s, &info);
+    assert_eq!(s.filtered_lights(), (0..8).collect::<Vec<u32>>());
+    assert!(s.validate().is_ok());
+    assert!(notes.iter().any(|n| n.contains("8..10")), "{notes:?}");
+}

@@ -136,6 +136,22 @@ impl AafShadowSettings {
         }
     }
 
+    /// The filtered lights with their centre and radius in `scene`; an error naming the
+    /// light when the scene lacks one.
+    pub fn lights_of(&self, scene: &SceneInfo) -> Result<Vec<(u32, [f32; 4])>> {
+        self.filtered_lights()
+            .into_iter()
+            .map(|l| match scene.sphere_lights.get(l as usize) {
+                Some(c) => Ok((l, *c)),
+                None => bail!(
+                    "the aaf-shadows filter is set to sphere light {l}, but the scene has {} \
+                     sphere light(s)",
+                    scene.sphere_lights.len()
+                ),
+            })
+            .collect()
+    }
+
     /// How the renderer samples the shadow output for these settings: a plane per filtered
     /// light, each with its own sparse and adaptive passes.
     pub fn sampling(&self) -> ShadowSampling {
@@ -186,24 +202,6 @@ impl AafShadowSettings {
             depth_tolerance: self.depth_tolerance,
             beta_tolerance: self.beta_tolerance,
         }
-    }
-}
-
-impl AafShadowSettings {
-    /// The filtered lights with their centre and radius in `scene`; an error naming the
-    /// light when the scene lacks one.
-    pub fn lights_of(&self, scene: &SceneInfo) -> Result<Vec<(u32, [f32; 4])>> {
-        self.filtered_lights()
-            .into_iter()
-            .map(|l| match scene.sphere_lights.get(l as usize) {
-                Some(c) => Ok((l, *c)),
-                None => bail!(
-                    "the aaf-shadows filter is set to sphere light {l}, but the scene has {} \
-                     sphere light(s)",
-                    scene.sphere_lights.len()
-                ),
-            })
-            .collect()
     }
 }
 
