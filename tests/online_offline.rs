@@ -10,7 +10,7 @@ use noisefree::filters::{FilterRequest, Registry};
 use noisefree::imaging::RgbImage;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
 use noisefree::layout::{DepthShift, FilterVector, WelfordSums};
-use noisefree::render::{RenderOptions, Renderer, SceneArrays, SceneInfo};
+use noisefree::render::{LightPlanes, RenderOptions, Renderer, SceneArrays, SceneInfo};
 use noisefree::stats::RenderRecord;
 use noisefree::stats::samples::SampleSet;
 
@@ -26,8 +26,9 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
     let scenes = bundled_scenes();
     assert_eq!(
         scenes.len(),
-        12,
-        "the five thesis scenes, their DOF variants, Grids and Curved (AAF's sphere-light scenes)"
+        13,
+        "the five thesis scenes, their DOF variants, Grids, Curved and two_lights_shadows \
+         (the shadow filters' sphere-light scenes)"
     );
     for path in scenes {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
@@ -45,6 +46,15 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
             outputs = outputs.union(c.needs());
         }
         o.outputs = outputs;
+        // The shadow output holds a plane for every sphere light some filter reads
+        // (aaf-shadows and stylized-shadows: all of them; sheared: the first).
+        let mut lights = 0;
+        for c in &configured {
+            let mut wants = o.clone();
+            c.adjust_render(&mut wants);
+            lights |= wants.shadows.lights.0;
+        }
+        o.shadows.lights = LightPlanes(lights.max(1));
         o.sample_capacity = spp;
         let mut r = Renderer::with_arrays(gpu(), &scene, arrays, &o).unwrap();
         assert_eq!(r.scene_info, info);

@@ -13,6 +13,12 @@
 //    or beta differ too much.
 // 3. aaf_compose: F - (the light the filtered term replaces) + r * filtered visibility, r the
 //    mean of the unshadowed term over the pixel's light samples.
+//
+// Several sphere lights (Wang 2013 §3.4: "one light at a time"): the three steps run once per
+// light, each on its light's plane `plane` of `planes` in the shadow output (pixel-major,
+// src/layout/outputs.rs Per::Light); the first light's compose starts from F, every later
+// one from the image the previous one wrote (`chained`), so the output is
+// F - sum_l direct_l + sum_l r_l * filtered v_l, a light at a time.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -27,14 +33,18 @@ inline float3 aaf_lane3(__global const float* px, int lane) {
     return (float3)(px[lane], px[lane + 1], px[lane + 2]);
 }
 
+// Pixel i's element of the light plane `plane` of `planes` in a per-light buffer.
+#define AAF_PLANE(buffer, i, floats) ((buffer) + ((size_t)(i) * planes + plane) * (floats))
+
 // The pass's guide: (position, kind), (normal, beta), (direction to the light, 0); and the
 // value (h_n, 0, 0, 0).
 __kernel void aaf_prepare(__constant const AafShadowParams* p, __global const float* pixels,
-                          __global float4* guide, __global float4* visibility) {
+                          uint plane, uint planes, __global float4* guide,
+                          __global float4* visibility) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= p->width || y >= p->height) return;
     uint i = y * p->width + x;
-    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
+    __global const float* px = AAF_PLANE(pixels, i, SHADOW_PIXEL_FLOATS);
     float weight = px[SHADOW_PIXEL_WEIGHT];
     float v = 0.0f, beta = 0.0f, kind = AAF_NONE;
     if (weight > 0.0f) {
@@ -54,32 +64,39 @@ __kernel void aaf_prepare(__constant const AafShadowParams* p, __global const fl
     visibility[i] = (float4)(v, 0.0f, 0.0f, 0.0f);
 }
 
-// F - the replaced light + r * v at pixel i (F as is when `none`: no receiver).
-inline void aaf_compose_at(__global const float* fv, __global const float* terms,
-                           __global const float* pixels, uint i, bool none, float v,
-                           __global float4* image) {
-    __global const float* f = fv + (size_t)i * FILTER_VECTOR_FLOATS;
-    float3 beauty = aaf_lane3(f, FILTER_VECTOR_DIRECT) + aaf_lane3(f, FILTER_VECTOR_INDIRECT);
+// base - the replaced light + r * v at pixel i (base as is when `none`: no receiver); `t` and
+// `px` are the pixel's shadow terms and shadow pixel.
+inline void aaf_compose_at(float3 base, __global const float* t, __global const float* px,
+                           uint i, bool none, float v, __global float4* image) {
     if (none) {
-        image[i] = (float4)(beauty, 0.0f);
+        image[i] = (float4)(base, 0.0f);
         return;
     }
-    __global const float* t = terms + (size_t)i * SHADOW_TERMS_FLOATS;
-    __global const float* px = pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
-    float3 rest = beauty - aaf_lane3(t, SHADOW_TERMS_DIRECT);
+    float3 rest = base - aaf_lane3(t, SHADOW_TERMS_DIRECT);
     float3 r = aaf_lane3(px, SHADOW_PIXEL_UNSHADOWED) / px[SHADOW_PIXEL_SAMPLES];
     image[i] = (float4)(rest + r * v, 0.0f);
 }
 
-// This filter's compose: the shared pass's guide (the kind in guide[3 i].w) and its values.
+// F, the beauty, at pixel i.
+inline float3 aaf_beauty(__global const float* fv, uint i) {
+    __global const float* f = fv + (size_t)i * FILTER_VECTOR_FLOATS;
+    return aaf_lane3(f, FILTER_VECTOR_DIRECT) + aaf_lane3(f, FILTER_VECTOR_INDIRECT);
+}
+
+// This filter's compose, for the light of plane `plane`: the shared pass's guide (the kind in
+// guide[3 i].w) and its values; from F, or (`chained`) from the image of the lights before.
 __kernel void aaf_compose(__constant const AafShadowParams* p, __global const float* fv,
                           __global const float* terms, __global const float* pixels,
+                          uint plane, uint planes, uint chained,
                           __global const float4* guide,
                           __global const float4* visibility, __global float4* image) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= p->width || y >= p->height) return;
     uint i = y * p->width + x;
-    aaf_compose_at(fv, terms, pixels, i, guide[3 * i].w == AAF_NONE, visibility[i].x, image);
+    float3 base = chained ? image[i].xyz : aaf_beauty(fv, i);
+    aaf_compose_at(base, AAF_PLANE(terms, i, SHADOW_TERMS_FLOATS),
+                   AAF_PLANE(pixels, i, SHADOW_PIXEL_FLOATS), i, guide[3 * i].w == AAF_NONE,
+                   visibility[i].x, image);
 }
 
 // The sheared filter's (kernels/filters/sheared.cl): one float4 of guide per pixel with the
@@ -91,5 +108,7 @@ __kernel void aaf_compose_sheared(__constant const AafShadowParams* p, __global 
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= p->width || y >= p->height) return;
     uint i = y * p->width + x;
-    aaf_compose_at(fv, terms, pixels, i, guide[i].z == AAF_NONE, visibility[i], image);
+    aaf_compose_at(aaf_beauty(fv, i), terms + (size_t)i * SHADOW_TERMS_FLOATS,
+                   pixels + (size_t)i * SHADOW_PIXEL_FLOATS, i, guide[i].z == AAF_NONE,
+                   visibility[i], image);
 }

@@ -177,9 +177,13 @@ fn study_scene(
             let light = frame.pass_spp()?;
             let run = c.prepare(frame.info(), &ctx.gpu)?.run(&frame)?;
             let filter_time = run.kernel_time.unwrap_or(run.wall_time);
-            // The spp map of one adaptive row (max 100, the default) as a picture.
+            // The spp map of one adaptive row (max 100, the default) as a picture, and with
+            // several lights what each light spent and the filter's time.
             let map = if method == "aaf-adaptive" && setting == 100 {
                 let [(_, spp), _] = crate::stats::aov::shadow_pictures(&frame)?;
+                if frame.info().shadow_lights.len() > 1 {
+                    per_light(ctx, &frame, &study.name, filter_time)?;
+                }
                 Some(spp)
             } else {
                 None
@@ -204,6 +208,50 @@ fn study_scene(
     }
     pb.finish_and_clear();
     Ok(())
+}
+
+/// aaf-lights-SCENE.md: each light's average light spp (Σ n_l / N², eq. 3.5 with that
+/// light's slopes and size) in the default adaptive row of a scene with several sphere
+/// lights, their total, and the filter's kernel time (every light's four launches).
+fn per_light(
+    ctx: &Context,
+    frame: &crate::render::Frame,
+    scene: &str,
+    filter_time: std::time::Duration,
+) -> Result<()> {
+    let info = frame.info();
+    let pixels = (info.width as f64 * info.height as f64).max(1.0);
+    let mut md = format!(
+        "# aaf-shadows on {scene}: light samples per light (sparse 9, max 100; {} x {})\n\n\
+         | sphere light | radius | light spp (Σ n_l / N²) | max n_l |\n|---|---|---|---|\n",
+        info.width, info.height
+    );
+    let mut total = 0.0;
+    for &l in &info.shadow_lights {
+        let own = frame.light_plane(l, "the aaf-shadows study")?;
+        let plane = own.as_ref().unwrap_or(frame);
+        let px: &[crate::layout::ShadowPixel] =
+            plane.host_slice(crate::layout::outputs::BufferId::ShadowPixels)?;
+        let sum: f64 = px.iter().map(|p| p.samples as f64).sum();
+        let max = px.iter().map(|p| p.samples as u32).max().unwrap_or(0);
+        total += sum / pixels;
+        let radius = info
+            .scene
+            .sphere_lights
+            .get(l as usize)
+            .map_or(0.0, |c| c[3]);
+        md.push_str(&format!(
+            "| {l} | {radius} | {:.2} | {max} |\n",
+            sum / pixels
+        ));
+    }
+    md.push_str(&format!(
+        "| all | | {total:.2} | |\n\nFilter kernel time (every light's prepare, two 1-D \
+         passes and compose): {:.2} ms.\n",
+        filter_time.as_secs_f64() * 1e3
+    ));
+    std::fs::write(ctx.out.join(format!("aaf-lights-{scene}.md")), md)
+        .context("writing the per-light spp")
 }
 
 /// sheared-steps-SCENE.md: the kernel time of each step of the sheared filter (l = 3) on `frame`,

@@ -559,7 +559,13 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         let lights = sampling.lights.lights();
         let what = match lights.as_slice() {
             [one] => format!("shadow samples of sphere light {one}"),
-            many => format!("shadow samples of sphere lights {many:?} (all planes)"),
+            // The stats count every (pixel, plane): per light, averaged over the lights.
+            many => format!(
+                "shadow samples of sphere lights {many:?}, per light (the mean of the {} \
+                 lights; all of them: {:.2} spp over the image)",
+                many.len(),
+                stats.average_spp * many.len() as f64
+            ),
         };
         print_pass_stats(&what, &stats, sampling.sparse_spp, sampling.max_spp);
     }

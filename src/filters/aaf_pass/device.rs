@@ -79,6 +79,25 @@ impl DevicePasses {
     ) -> Result<FilterRun> {
         let h = self.height;
         let rows = rows.start.min(h)..rows.end.min(h);
+        let kernel_time = self.run_band(prepare, compose, radius, rows.clone())?;
+        Ok(FilterRun {
+            image: read_rgb_rows(image, self.width, self.height, rows)?,
+            wall_time: start.elapsed(),
+            kernel_time: Some(kernel_time),
+        })
+    }
+
+    /// [`Self::filter_band`]'s four launches without the read-back (a filter of several
+    /// lights runs them once per light); returns their kernel time.
+    pub fn run_band(
+        &self,
+        prepare: &Kernel,
+        compose: &Kernel,
+        radius: u32,
+        rows: Range<u32>,
+    ) -> Result<Duration> {
+        let h = self.height;
+        let rows = rows.start.min(h)..rows.end.min(h);
         let widened = rows.start.saturating_sub(radius)..(rows.end + radius).min(h);
         let mut kernel_time = Duration::ZERO;
         // SAFETY (both launches): the kernels' buffers are owned by the filter or the frame,
@@ -97,11 +116,7 @@ impl DevicePasses {
         let event =
             unsafe { enqueue_rows(compose, self.width, h, rows.clone(), "the AAF compose pass")? };
         kernel_time += event_duration(&event)?;
-        Ok(FilterRun {
-            image: read_rgb_rows(image, self.width, self.height, rows)?,
-            wall_time: start.elapsed(),
-            kernel_time: Some(kernel_time),
-        })
+        Ok(kernel_time)
     }
 
     /// The pass along rows over `widened` (the band and the rows the column pass reads

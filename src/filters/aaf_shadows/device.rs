@@ -1,5 +1,6 @@
-//! The AAF soft-shadow filter on the device (kernels/filters/aaf_shadows.cl): prepare, the
-//! pass along rows, the pass along columns, compose.
+//! The AAF soft-shadow filter on the device (kernels/filters/aaf_shadows.cl): per filtered
+//! light, prepare, the pass along rows, the pass along columns and compose (each light's
+//! compose on the image of the lights before it).
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -10,28 +11,35 @@ use ocl::{Buffer, Kernel};
 
 use super::AafShadowSettings;
 use crate::filters::aaf_pass::DevicePasses;
+use crate::gpu::read_rgb_rows;
 use crate::filters::{FilterRun, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{AafShadowParams, Float4};
 use crate::render::Frame;
 
-/// The filter's kernels and buffers for one image size and light.
-struct Passes {
+/// One filtered light's kernels: its parameters (centre, radius, σ) in `prepare` and
+/// `compose`, which read its plane of the shadow output.
+struct LightPasses {
+    /// The scene's sphere light (its plane is looked up in each frame).
+    light: u32,
     prepare: Kernel,
-    passes: DevicePasses,
     compose: Kernel,
     _params: Buffer<AafShadowParams>,
+}
+
+/// The filter's kernels and buffers for one image size: the 1-D passes and their buffers,
+/// shared by the lights, which run one after another.
+struct Passes {
+    lights: Vec<LightPasses>,
+    passes: DevicePasses,
     image: Buffer<Float4>,
 }
 
-/// The AAF soft-shadow filter, built for an image size and a light (none: the image passes
+/// The AAF soft-shadow filter, built for an image size and its lights (none: the image passes
 /// through untouched).
 pub struct AafShadowKernel {
     gpu: Arc<Gpu>,
-    /// The sphere light filtered: the frame's shadow plane read (src/layout/outputs.rs
-    /// `Per::Light`; a frame with other planes too gives its copy of this one).
-    light_index: Option<u32>,
     passes: Option<Passes>,
     width: u32,
     height: u32,
@@ -40,11 +48,12 @@ pub struct AafShadowKernel {
 }
 
 impl AafShadowKernel {
-    /// `light`: the filtered sphere light's centre and radius, or None.
+    /// `lights`: the filtered sphere lights (number, centre and radius), in increasing order;
+    /// empty: none.
     pub fn new(
         gpu: Arc<Gpu>,
         settings: &AafShadowSettings,
-        light: Option<[f32; 4]>,
+        lights: &[(u32, [f32; 4])],
         width: u32,
         height: u32,
     ) -> Result<AafShadowKernel> {
@@ -52,13 +61,13 @@ impl AafShadowKernel {
         if width == 0 || height == 0 {
             bail!("the image must be at least 1x1 pixels, got {width}x{height}");
         }
-        let passes = match light {
-            Some(l) => Some(Passes::new(&gpu, settings, l, width, height)?),
-            None => None,
+        let passes = if lights.is_empty() {
+            None
+        } else {
+            Some(Passes::new(&gpu, settings, lights, width, height)?)
         };
         Ok(AafShadowKernel {
             gpu,
-            light_index: settings.light_index(),
             passes,
             width,
             height,
@@ -67,22 +76,17 @@ impl AafShadowKernel {
     }
 
     /// Filters `frame` (width × height, with the shadow output unless there is no light) and
-    /// reads the image back; the kernel time sums the four launches.
+    /// reads the image back; the kernel time sums the launches (four per light).
     pub fn filter(&mut self, frame: &Frame) -> Result<FilterRun> {
         self.filter_rows(frame, 0..self.height)
     }
 
-    /// Filters the pixels of `rows` only (one band of a frame split across devices): the
-    /// prepare pass and the pass along rows run on the band widened by `radius` rows, which
-    /// the pass along columns reads, so the band's pixels get the bytes that filtering the
-    /// whole frame gives them. The image's other rows are black.
+    /// Filters the pixels of `rows` only (one band of a frame split across devices): each
+    /// light's prepare pass and pass along rows run on the band widened by `radius` rows,
+    /// which the pass along columns reads, so the band's pixels get the bytes that filtering
+    /// the whole frame gives them. The image's other rows are black.
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
-        let own = match self.light_index {
-            Some(l) if self.passes.is_some() => frame.light_plane(l, "the aaf-shadows filter")?,
-            _ => None,
-        };
-        let frame = own.as_ref().unwrap_or(frame);
         let h = self.height;
         let rows = rows.start.min(h)..rows.end.min(h);
         frame.check_size(self.width, self.height, "the aaf-shadows filter")?;
@@ -104,16 +108,41 @@ impl AafShadowKernel {
             OutputSet::of(&[Output::Colour, Output::Shadows]),
             "the aaf-shadows filter",
         )?;
+        let info = frame.info();
+        let planes = info.shadow_planes();
         let pixels = frame.device(&self.gpu, BufferId::ShadowPixels)?;
-        for k in [&p.prepare, &p.compose] {
-            k.set_arg("pixels", pixels)?;
+        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
+        let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
+        let mut kernel_time = Duration::ZERO;
+        for (k, l) in p.lights.iter().enumerate() {
+            let Some(plane) = info.shadow_plane(l.light) else {
+                bail!(
+                    "the aaf-shadows filter reads the shadows of sphere light {}, but the \
+                     frame's shadow output holds sphere light(s) {:?}: render it with the \
+                     filter asking for that light",
+                    l.light,
+                    info.shadow_lights
+                );
+            };
+            let plane = plane as u32;
+            l.prepare.set_arg("pixels", pixels)?;
+            l.prepare.set_arg("plane", plane)?;
+            l.prepare.set_arg("planes", planes)?;
+            l.compose.set_arg("pixels", pixels)?;
+            l.compose.set_arg("fv", fv)?;
+            l.compose.set_arg("terms", terms)?;
+            l.compose.set_arg("plane", plane)?;
+            l.compose.set_arg("planes", planes)?;
+            l.compose.set_arg("chained", (k > 0) as u32)?;
+            kernel_time +=
+                p.passes
+                    .run_band(&l.prepare, &l.compose, self.radius, rows.clone())?;
         }
-        p.compose
-            .set_arg("fv", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
-        p.compose
-            .set_arg("terms", frame.device(&self.gpu, BufferId::ShadowTerms)?)?;
-        p.passes
-            .filter_band(&p.prepare, &p.compose, &p.image, self.radius, rows, start)
+        Ok(FilterRun {
+            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
+            wall_time: start.elapsed(),
+            kernel_time: Some(kernel_time),
+        })
     }
 }
 
@@ -121,13 +150,12 @@ impl Passes {
     fn new(
         gpu: &Gpu,
         s: &AafShadowSettings,
-        light: [f32; 4],
+        lights: &[(u32, [f32; 4])],
         width: u32,
         height: u32,
     ) -> Result<Passes> {
         let program = gpu.program("filters/aaf_shadows.cl", &[], "")?;
         let n = width as usize * height as usize;
-        let params = gpu.upload(&[s.params(light, width, height, 0)])?;
         let passes = DevicePasses::new(gpu, &s.pass_params(width, height))?;
         let image = gpu.zeroed::<Float4>(n, "AAF image")?;
         let size = [width as usize, height as usize];
@@ -140,28 +168,43 @@ impl Passes {
             b
         };
         let none = None::<&Buffer<u8>>;
-        let prepare = kernel("aaf_prepare")
-            .arg_named("p", &params)
-            .arg_named("pixels", none)
-            .arg(&passes.guide)
-            .arg(&passes.values[0])
-            .build()
-            .context("creating the AAF prepare kernel")?;
-        let compose = kernel("aaf_compose")
-            .arg_named("p", &params)
-            .arg_named("fv", none)
-            .arg_named("terms", none)
-            .arg_named("pixels", none)
-            .arg(&passes.guide)
-            .arg(&passes.values[0])
-            .arg(&image)
-            .build()
-            .context("creating the AAF compose kernel")?;
+        let lights = lights
+            .iter()
+            .map(|&(light, sphere)| -> Result<LightPasses> {
+                let params = gpu.upload(&[s.params(sphere, width, height, 0)])?;
+                let prepare = kernel("aaf_prepare")
+                    .arg_named("p", &params)
+                    .arg_named("pixels", none)
+                    .arg_named("plane", 0u32)
+                    .arg_named("planes", 1u32)
+                    .arg(&passes.guide)
+                    .arg(&passes.values[0])
+                    .build()
+                    .context("creating the AAF prepare kernel")?;
+                let compose = kernel("aaf_compose")
+                    .arg_named("p", &params)
+                    .arg_named("fv", none)
+                    .arg_named("terms", none)
+                    .arg_named("pixels", none)
+                    .arg_named("plane", 0u32)
+                    .arg_named("planes", 1u32)
+                    .arg_named("chained", 0u32)
+                    .arg(&passes.guide)
+                    .arg(&passes.values[0])
+                    .arg(&image)
+                    .build()
+                    .context("creating the AAF compose kernel")?;
+                Ok(LightPasses {
+                    light,
+                    prepare,
+                    compose,
+                    _params: params,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
         Ok(Passes {
-            prepare,
+            lights,
             passes,
-            compose,
-            _params: params,
             image,
         })
     }

@@ -34,7 +34,16 @@
 //!   textures stay anti-aliased. Everything that is not the filtered term (other lights,
 //!   indirect light, emission, glossy surfaces, another surface in the same pixel) stays as
 //!   rendered.
-//! - **One light**, chosen by `light`; the other lights' shadows stay as rendered.
+//! - **Every sphere light, one at a time** (§3.4 filters one light; our scenes have several):
+//!   `light = auto` filters the scene's first `light_count` sphere lights (all of them, at
+//!   most [`MAX_SHADOW_PLANES`]), a number filters that light alone (the others' shadows stay
+//!   as rendered), -1 none. Each light has its own plane of the shadow output
+//!   (src/render/shadows: its own sparse pass, slope fill, slopes s1/s2 and adaptive pass, so
+//!   n_l(x) is eq. 3.5 for that light's slopes and size, clamped to [sparse_spp, max_spp]
+//!   alone; a pixel spends Σ_l n_l) and its own β (its σ), prepare, two 1-D passes and
+//!   compose: the output is F − Σ_l direct_l + Σ_l r_l · filtered h_l, composed a light at a
+//!   time in increasing light order. With one sphere light this is the one-light filter, byte
+//!   for byte.
 //! - **A thin lens**: the shadow samples use the ray through the pixel centre from the lens
 //!   centre (src/render/shadows), so the filtered term is in focus everywhere.
 
@@ -48,21 +57,24 @@ use anyhow::{Result, bail};
 use super::aaf_pass::PassParams;
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
-use crate::layout::outputs::{Output, OutputSet};
+use crate::layout::outputs::{MAX_SHADOW_PLANES, Output, OutputSet};
 use crate::layout::{AafShadowParams, Float4};
 use crate::render::shadows::bandlimit::light_sigma;
 use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling, LightPlanes};
 pub use device::AafShadowKernel;
-pub use reference::{compose, prepare, reference};
+pub use reference::{compose, compose_over, prepare, reference};
 
 crate::filter_settings! {
     /// The AAF soft-shadow filter's settings: how the shadow output is sampled, and how it is
     /// filtered.
     pub struct AafShadowSettings, flags "aaf-" {
         /// The sphere light whose shadows are filtered, counting from 0 in the scene's order;
-        /// auto: the first, or none when the scene has no sphere light (the image passes
-        /// through); -1: none.
+        /// auto: every sphere light (the first `light_count`), each filtered on its own, or
+        /// none when the scene has no sphere light (the image passes through); -1: none.
         pub light: Auto<i32> = Auto::Auto,
+        /// With light = auto: how many sphere lights are filtered, the scene's first ones
+        /// (0: all of them; at most 8, the shadow output's planes).
+        pub light_count: u32 = 0,
         /// Light samples per pixel of the sparse pass: a square (whole strata).
         pub sparse_spp: u32 = 9,
         /// Most light samples per pixel after the adaptive pass (eq. 3.5 is clamped to it);
@@ -89,6 +101,13 @@ pub const MAX_RADIUS: u32 = 1024;
 impl AafShadowSettings {
     pub fn validate(&self) -> Result<()> {
         check_light(self.light)?;
+        if self.light_count > MAX_SHADOW_PLANES {
+            bail!(
+                "light_count: at most {MAX_SHADOW_PLANES} sphere lights are filtered at once \
+                 (one plane of the shadow output each), got {}",
+                self.light_count
+            );
+        }
         self.sampling().check()?;
         for (v, name) in [(self.radius, "radius"), (self.fill_radius, "fill_radius")] {
             if v > MAX_RADIUS {
@@ -107,15 +126,42 @@ impl AafShadowSettings {
         Ok(())
     }
 
-    /// The sphere light filtered, if any (after specialisation; `auto` counts as the first).
-    pub fn light_index(&self) -> Option<u32> {
-        light_index(self.light)
+    /// The sphere lights filtered, in increasing order: `light` alone when set (none for -1),
+    /// else the first `light_count` (after specialisation the scene's count; before it, 0
+    /// counts as the first light alone).
+    pub fn filtered_lights(&self) -> Vec<u32> {
+        match self.light {
+            Auto::Auto => (0..self.light_count.max(1)).collect(),
+            Auto::Set(_) => light_index(self.light).into_iter().collect(),
+        }
     }
 
-    /// How the renderer samples the shadow output for these settings.
+    /// The filtered lights with their centre and radius in `scene`; an error naming the
+    /// light when the scene lacks one.
+    pub fn lights_of(&self, scene: &SceneInfo) -> Result<Vec<(u32, [f32; 4])>> {
+        self.filtered_lights()
+            .into_iter()
+            .map(|l| match scene.sphere_lights.get(l as usize) {
+                Some(c) => Ok((l, *c)),
+                None => bail!(
+                    "the aaf-shadows filter is set to sphere light {l}, but the scene has {} \
+                     sphere light(s)",
+                    scene.sphere_lights.len()
+                ),
+            })
+            .collect()
+    }
+
+    /// How the renderer samples the shadow output for these settings: a plane per filtered
+    /// light, each with its own sparse and adaptive passes.
     pub fn sampling(&self) -> ShadowSampling {
+        let lights = self.filtered_lights();
         ShadowSampling {
-            lights: LightPlanes::one(self.light_index().unwrap_or(0)),
+            lights: if lights.is_empty() {
+                LightPlanes::one(0)
+            } else {
+                LightPlanes::of(&lights)
+            },
             sparse_spp: self.sparse_spp,
             max_spp: self.max_spp,
             fill_radius: self.fill_radius,
@@ -220,20 +266,44 @@ pub struct AafShadows;
 impl FilterKind for AafShadows {
     type Settings = AafShadowSettings;
     const NAME: &'static str = "aaf-shadows";
-    const SUMMARY: &'static str = "axis-aligned filtering of one sphere light's soft shadows, \
-         with adaptive light sampling (Wang 2013 ch. 3; on the device)";
+    const SUMMARY: &'static str = "axis-aligned filtering of every sphere light's soft \
+         shadows, a light at a time, with adaptive light sampling (Wang 2013 ch. 3; on the \
+         device)";
 
     fn check(s: &AafShadowSettings) -> Result<()> {
         s.validate()
     }
 
-    /// `light = auto` becomes the first sphere light, or none when the scene has none.
+    /// `light = auto` becomes the scene's first `light_count` sphere lights (all of them, at
+    /// most [`MAX_SHADOW_PLANES`]), or none when the scene has none; a set `light` is
+    /// checked against the scene.
     fn specialise(s: &mut AafShadowSettings, scene: &SceneInfo) -> Vec<String> {
-        specialise_light(&mut s.light, scene)
+        let count = scene.sphere_lights.len() as u32;
+        if !s.light.is_auto() || count == 0 {
+            return specialise_light(&mut s.light, scene);
+        }
+        let all = if s.light_count == 0 {
+            count
+        } else {
+            s.light_count.min(count)
+        };
+        let n = all.min(MAX_SHADOW_PLANES);
+        s.light_count = n;
+        let mut notes = vec![format!(
+            "light_count = {n}: sphere light(s) 0..{n} of {count} filtered, each with its own \
+             sparse and adaptive passes, slopes and 1-D passes"
+        )];
+        if n < all {
+            notes.push(format!(
+                "the shadow output holds at most {MAX_SHADOW_PLANES} lights: sphere lights \
+                 {n}..{count} keep their shadows as rendered"
+            ));
+        }
+        notes
     }
 
     fn applies(s: &AafShadowSettings, _scene: &SceneInfo) -> bool {
-        s.light_index().is_some()
+        !s.filtered_lights().is_empty()
     }
 
     /// The shadow output, when there is a light to filter.
@@ -250,21 +320,10 @@ impl FilterKind for AafShadows {
         frame: &FrameInfo,
         gpu: &Arc<Gpu>,
     ) -> Result<Box<dyn PreparedFilter>> {
-        let light = match s.light_index() {
-            None => None,
-            Some(l) => match frame.scene.sphere_lights.get(l as usize) {
-                Some(c) => Some(*c),
-                None => bail!(
-                    "the aaf-shadows filter is set to sphere light {l}, but the scene has {} \
-                     sphere light(s)",
-                    frame.scene.sphere_lights.len()
-                ),
-            },
-        };
         Ok(Box::new(AafShadowKernel::new(
             gpu.clone(),
             s,
-            light,
+            &s.lights_of(&frame.scene)?,
             frame.width,
             frame.height,
         )?))

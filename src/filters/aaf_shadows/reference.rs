@@ -47,7 +47,7 @@ pub fn prepare(p: &AafShadowParams, pixels: &[ShadowPixel]) -> (Vec<PassPixel>, 
         .unzip()
 }
 
-/// `aaf_compose`: F − the replaced light + r · visibility (F as is for no receiver).
+/// `aaf_compose` from F: F − the replaced light + r · visibility (F as is for no receiver).
 pub fn compose(
     fv: &[FilterVector],
     terms: &[ShadowTerms],
@@ -57,47 +57,54 @@ pub fn compose(
     width: u32,
     height: u32,
 ) -> RgbImage {
-    let pixels = (0..fv.len())
+    let beauty = RgbImage::beauty(width, height, fv);
+    compose_over(&beauty, terms, pixels, guide, visibility)
+}
+
+/// `aaf_compose` from `base` (F for the first light, `chained` the image of the lights before
+/// it for the others): base − the replaced light + r · visibility (base as is for no
+/// receiver).
+pub fn compose_over(
+    base: &RgbImage,
+    terms: &[ShadowTerms],
+    pixels: &[ShadowPixel],
+    guide: &[PassPixel],
+    visibility: &[[f32; 4]],
+) -> RgbImage {
+    let out = (0..base.pixels.len())
         .into_par_iter()
         .map(|i| {
-            let f = &fv[i];
-            let beauty: [f32; 3] = std::array::from_fn(|c| f.direct[c] + f.indirect[c]);
+            let b = base.pixels[i];
             if guide[i].kind == NONE {
-                return beauty;
+                return b;
             }
             let (t, p) = (&terms[i], &pixels[i]);
-            std::array::from_fn(|c| {
-                (beauty[c] - t.direct[c]) + p.unshadowed[c] / p.samples * visibility[i][0]
-            })
+            std::array::from_fn(|c| (b[c] - t.direct[c]) + p.unshadowed[c] / p.samples * visibility[i][0])
         })
         .collect();
     RgbImage {
-        width,
-        height,
-        pixels,
+        width: base.width,
+        height: base.height,
+        pixels: out,
     }
 }
 
-/// The whole filter on `frame` for the light `light` (centre, radius); None: the beauty.
-pub fn reference(
-    frame: &Frame,
-    s: &AafShadowSettings,
-    light: Option<[f32; 4]>,
-) -> Result<RgbImage> {
+/// The whole filter on `frame`, every filtered light of `s` (their centres and radii from the
+/// frame's scene) a light at a time, in increasing order; without one: the beauty.
+pub fn reference(frame: &Frame, s: &AafShadowSettings) -> Result<RgbImage> {
     s.validate()?;
-    let Some(light) = light else {
-        return frame.beauty();
-    };
-    let own = match s.light_index() {
-        Some(l) => frame.light_plane(l, "the aaf-shadows filter")?,
-        None => None,
-    };
-    let frame = own.as_ref().unwrap_or(frame);
+    let lights = s.lights_of(&frame.info().scene)?;
+    let mut image = frame.beauty()?;
     let (w, h) = (frame.width(), frame.height());
-    let pixels: &[ShadowPixel] = frame.host_slice(BufferId::ShadowPixels)?;
-    let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms)?;
-    let p0 = s.params(light, w, h, 0);
-    let (guide, v0) = prepare(&p0, pixels);
-    let v2 = aaf_pass::both(&s.pass_params(w, h), &guide, &v0);
-    Ok(compose(frame.filter_vectors()?, terms, pixels, &guide, &v2, w, h))
+    for (light, sphere) in lights {
+        let own = frame.light_plane(light, "the aaf-shadows filter")?;
+        let plane = own.as_ref().unwrap_or(frame);
+        let pixels: &[ShadowPixel] = plane.host_slice(BufferId::ShadowPixels)?;
+        let terms: &[ShadowTerms] = plane.host_slice(BufferId::ShadowTerms)?;
+        let p0 = s.params(sphere, w, h, 0);
+        let (guide, v0) = prepare(&p0, pixels);
+        let v2 = aaf_pass::both(&s.pass_params(w, h), &guide, &v0);
+        image = compose_over(&image, terms, pixels, &guide, &v2);
+    }
+    Ok(image)
 }
