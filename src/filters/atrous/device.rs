@@ -8,6 +8,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result, bail};
+use ocl::builders::KernelBuilder;
 use ocl::{Buffer, Kernel, Program};
 
 use super::{ALBEDO_EPSILON, AtrousSettings, Variant};
@@ -209,6 +210,16 @@ impl PreparedFilter for AtrousKernel {
 }
 
 
+/// A kernel of `program` on the device's queue over `size` work-items, its arguments to add.
+fn builder<'b>(gpu: &Gpu, program: &'b Program, name: &str, size: [usize; 2]) -> KernelBuilder<'b> {
+    let mut b = Kernel::builder();
+    b.program(program)
+        .name(name)
+        .queue(gpu.queue.clone())
+        .global_work_size(size);
+    b
+}
+
 /// The scalar variant (kernels/filters/atrous.cl): colour, positions and normals as float4
 /// images, one work-item per pixel.
 fn build_scalar(
@@ -227,11 +238,7 @@ fn build_scalar(
     let position = gpu.zeroed::<Float4>(pixels, "a-trous position")?;
     let normal = gpu.zeroed::<Float4>(pixels, "a-trous normal")?;
     let size = [width as usize, height as usize];
-    let init = Kernel::builder()
-        .program(program)
-        .name("atrous_init")
-        .queue(gpu.queue.clone())
-        .global_work_size(size)
+    let init = builder(gpu, program, "atrous_init", size)
         .arg_named("p", &params[0])
         .arg_named("fv", None::<&Buffer<u8>>)
         .arg(&colour[0])
@@ -241,11 +248,7 @@ fn build_scalar(
         .context("creating the a-trous init kernel")?;
     let passes = (0..iterations as usize)
         .map(|i| {
-            Kernel::builder()
-                .program(program)
-                .name("atrous_pass")
-                .queue(gpu.queue.clone())
-                .global_work_size(size)
+            builder(gpu, program, "atrous_pass", size)
                 .arg(&params[i])
                 .arg(&colour[i % 2])
                 .arg(&position)
@@ -256,11 +259,7 @@ fn build_scalar(
         })
         .collect::<Result<Vec<_>>>()?;
     let result = colour[iterations as usize % 2].clone();
-    let finish = Kernel::builder()
-        .program(program)
-        .name("atrous_finish")
-        .queue(gpu.queue.clone())
-        .global_work_size(size)
+    let finish = builder(gpu, program, "atrous_finish", size)
         .arg_named("p", &params[0])
         .arg_named("fv", None::<&Buffer<u8>>)
         .arg(&result)
@@ -301,11 +300,7 @@ fn build_packed(
     let result = gpu.zeroed::<Float4>(w * h, "a-trous filtered image")?;
     let stride = stride as u32;
     let size = [w, h];
-    let init = Kernel::builder()
-        .program(program)
-        .name("atrous_init_packed")
-        .queue(gpu.queue.clone())
-        .global_work_size(size)
+    let init = builder(gpu, program, "atrous_init_packed", size)
         .arg_named("p", &params[0])
         .arg_named("fv", None::<&Buffer<u8>>)
         .arg(&colour[0])
@@ -316,11 +311,7 @@ fn build_packed(
     let items = round_up(w.div_ceil(pack), PACKED_GROUP);
     let passes = (0..iterations as usize)
         .map(|i| {
-            Kernel::builder()
-                .program(program)
-                .name("atrous_pass_packed")
-                .queue(gpu.queue.clone())
-                .global_work_size([items, h])
+            builder(gpu, program, "atrous_pass_packed", [items, h])
                 .local_work_size([PACKED_GROUP, 1])
                 .arg(&params[i])
                 .arg(&colour[i % 2])
@@ -331,11 +322,7 @@ fn build_packed(
                 .context("creating a packed a-trous pass kernel")
         })
         .collect::<Result<Vec<_>>>()?;
-    let finish = Kernel::builder()
-        .program(program)
-        .name("atrous_finish_packed")
-        .queue(gpu.queue.clone())
-        .global_work_size(size)
+    let finish = builder(gpu, program, "atrous_finish_packed", size)
         .arg_named("p", &params[0])
         .arg_named("fv", None::<&Buffer<u8>>)
         .arg(&colour[iterations as usize % 2])
