@@ -80,6 +80,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/atrous.cl"),
     ),
     (
+        "filters/atrous_packed.cl",
+        include_str!("../kernels/filters/atrous_packed.cl"),
+    ),
+    (
         "filters/bmfr.cl",
         include_str!("../kernels/filters/bmfr.cl"),
     ),

@@ -1,7 +1,8 @@
-//! The edge-avoiding à-trous filter (Dammertz et al. 2010): the OpenCL passes against the plain
-//! Rust reference, and the behaviour the equations promise (constant images, sky, edges, the
-//! limits of the sigmas, no NaN, tiny images), the error on the bundled Cornell diffuse scene
-//! and its independence of the scene's scale.
+//! The edge-avoiding à-trous filter (Dammertz et al. 2010) as `variant = "auto"` runs it (the
+//! packed kernel on PoCL; each kernel against the plain Rust reference: tests/atrous_variants.rs):
+//! the behaviour the equations promise (constant images, sky, edges, the limits of the sigmas,
+//! no NaN, tiny images), the error on the bundled Cornell diffuse scene and its independence of
+//! the scene's scale.
 
 mod common;
 
@@ -11,191 +12,15 @@ use std::sync::{Arc, Mutex};
 use common::*;
 use glam::Vec3;
 use noisefree::filters::Auto;
-use noisefree::filters::atrous::{AtrousKernel, AtrousSettings, B3, pixel_direction, reference};
+use noisefree::filters::atrous::{AtrousKernel, AtrousSettings, B3, pixel_direction};
 use noisefree::imaging::RgbImage;
-use noisefree::layout::outputs::{Output, OutputSet};
-use noisefree::layout::{FilterVector, SKY_DEPTH};
+use noisefree::layout::SKY_DEPTH;
 use noisefree::metrics::mse_luv;
-use noisefree::render::Renderer;
-use noisefree::scene::{CameraBasis, Scene};
+use noisefree::scene::CameraBasis;
 
-fn device(b: &Buffers, cam: &CameraBasis, s: &AtrousSettings) -> RgbImage {
-    let mut f = AtrousKernel::new(gpu(), s, cam, b.width, b.height).unwrap();
-    f.filter(&b.frame()).unwrap().image
-}
-
-/// The plain Rust reference on host buffers.
-fn host(b: &Buffers, cam: &CameraBasis, s: &AtrousSettings) -> RgbImage {
-    reference(&b.frame(), cam, s).unwrap()
-}
-
-/// Settings with every sigma set to `sigma`.
-fn all_sigmas(sigma: f32, demodulate: bool) -> AtrousSettings {
-    AtrousSettings {
-        sigma_color: Auto::Set(sigma),
-        sigma_normal: Auto::Set(sigma),
-        sigma_position: Auto::Set(sigma),
-        demodulate,
-        ..Default::default()
-    }
-}
-
-/// The defaults, or with `demodulate = false` the settings tuned for the beauty.
-fn settings(demodulate: bool) -> AtrousSettings {
-    if demodulate {
-        AtrousSettings::default()
-    } else {
-        AtrousSettings::for_beauty()
-    }
-}
-
-/// Renders `scene` and returns its buffers and camera.
-fn render(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> (Buffers, CameraBasis) {
-    let mut o = options(scene, w, h, seed);
-    o.outputs = OutputSet::of(&[Output::Features]);
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    while r.samples_done() < spp {
-        r.render_samples((spp - r.samples_done()).min(256)).unwrap();
-    }
-    let frame = r.frame();
-    assert_eq!(frame.info().scene.camera, r.arrays.camera());
-    (Buffers::of_frame(&frame), r.arrays.camera())
-}
-
-/// An arbitrary, oblique camera for synthetic buffers.
-fn test_camera() -> CameraBasis {
-    let forward = Vec3::new(0.3, -0.2, -1.0).normalize();
-    let right = forward.cross(Vec3::Y).normalize();
-    CameraBasis {
-        origin: Vec3::new(0.5, 2.0, 7.0),
-        forward,
-        right,
-        up: right.cross(forward),
-        tan_half_fov: 0.4,
-        lens_radius: 0.0,
-        focal_distance: 1.0,
-    }
-}
-
-/// Synthetic buffers: `f(x, y)` gives each pixel's FilterVector; no variance output (the
-/// filter reads none), unlike [`Buffers::from_fn`].
-fn synthetic(w: u32, h: u32, f: impl Fn(u32, u32) -> FilterVector) -> Buffers {
-    Buffers {
-        variances: None,
-        directions: None,
-        ..Buffers::from_fn(w, h, 100.0, f)
-    }
-}
-
-/// Random features: noisy light, a few depth layers, random normals and albedos, some sky.
-fn random_buffers(w: u32, h: u32, seed: u64) -> Buffers {
-    let mut rng = TestRng(seed);
-    let fvs: Vec<FilterVector> = (0..w * h)
-        .map(|_| {
-            if rng.uniform() < 0.1 {
-                return FilterVector {
-                    direct: [rng.range(0.0, 3.0); 3],
-                    indirect: [0.0; 3],
-                    depth: SKY_DEPTH,
-                    ..Default::default()
-                };
-            }
-            let layer = (rng.uniform() * 3.0).floor();
-            let n = if rng.uniform() < 0.5 {
-                rng.unit_vector()
-            } else {
-                Vec3::Z
-            };
-            FilterVector {
-                direct: std::array::from_fn(|_| rng.range(0.0, 1.0)),
-                indirect: std::array::from_fn(|_| rng.range(0.0, 0.5)),
-                depth: 2.0 + 3.0 * layer + rng.range(0.0, 0.05),
-                normal: n.to_array(),
-                albedo: std::array::from_fn(|_| rng.range(0.0, 1.0)),
-                albedo2: [0.5; 3],
-            }
-        })
-        .collect();
-    synthetic(w, h, |x, y| fvs[(y * w + x) as usize])
-}
-
-fn fv(light: [f32; 3], depth: f32, normal: [f32; 3], albedo: [f32; 3]) -> FilterVector {
-    FilterVector {
-        direct: light,
-        indirect: [0.0; 3],
-        depth,
-        normal,
-        albedo,
-        albedo2: albedo,
-    }
-}
-
-fn check_against_reference(b: &Buffers, cam: &CameraBasis, s: &AtrousSettings, what: &str) {
-    let want = host(b, cam, s);
-    assert_finite(&want, what);
-    let got = device(b, cam, s);
-    assert_finite(&got, what);
-    let d = max_rel_diff(&got, &want);
-    // Measured on PoCL: at most 5.9e-7 over every case of this file. The bound, 1e-5, leaves
-    // ~17 x for devices whose exp differs by the few ulp OpenCL allows.
-    assert!(
-        d <= 1e-5,
-        "{what} {s:?}: max relative difference {d:e} between kernel and reference"
-    );
-}
-
-#[test]
-fn kernel_matches_the_rust_reference_on_rendered_buffers() {
-    // 70 x 45: no multiple of any work-group size.
-    let (b, cam) = render(&cornell_with_spheres(), 70, 45, 8, 1);
-    let (d, dcam) = render(&bundled_scene("cornell_diffuse"), 61, 37, 4, 2);
-    for demodulate in [true, false] {
-        for iterations in [0, 1, 5, 7] {
-            let s = AtrousSettings {
-                iterations,
-                demodulate,
-                ..Default::default()
-            };
-            check_against_reference(&b, &cam, &s, "cornell with spheres");
-            check_against_reference(&d, &dcam, &s, "cornell diffuse");
-        }
-        let s = AtrousSettings {
-            sigma_color: Auto::Set(0.1),
-            sigma_normal: Auto::Set(0.05),
-            sigma_position: Auto::Set(0.5),
-            demodulate,
-            ..Default::default()
-        };
-        check_against_reference(&b, &cam, &s, "cornell with spheres, small sigmas");
-    }
-}
-
-#[test]
-fn kernel_matches_the_rust_reference_on_synthetic_buffers_of_many_sizes() {
-    let sizes = [
-        (1, 1),
-        (1, 13),
-        (13, 1),
-        (2, 3),
-        (5, 5),
-        (17, 9),
-        (33, 65),
-        (100, 7),
-    ];
-    for (k, (w, h)) in sizes.into_iter().enumerate() {
-        let b = random_buffers(w, h, 11 + k as u64);
-        for demodulate in [true, false] {
-            for iterations in [1, 5] {
-                let s = AtrousSettings {
-                    iterations,
-                    demodulate,
-                    ..Default::default()
-                };
-                check_against_reference(&b, &test_camera(), &s, &format!("{w}x{h}"));
-            }
-        }
-    }
-}
+#[path = "common/atrous.rs"]
+mod atrous_common;
+use atrous_common::*;
 
 #[test]
 fn constant_image_stays_constant() {

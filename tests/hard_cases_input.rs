@@ -985,6 +985,7 @@ fn typed_values(key: &str) -> &'static [&'static str] {
         "\"vector\"",
         "\"rows\"",
         "\"packed\"",
+        "\"scalar\"",
         "\"auto\"",
         "\"current\"",
         "\"original\"",
@@ -1111,6 +1112,7 @@ fn generated_scene() -> impl Strategy<Value = String> {
                 "sigma_normal",
                 "sigma_position",
                 "demodulate",
+                "variant",
             ],
         ),
         (

@@ -40,6 +40,8 @@
 //                          albedo back at the end, so texture detail is never blurred and the
 //                          colour weight sees lighting, not texture; 0: filter the beauty.
 //   ATROUS_ALBEDO_EPSILON  the clamp, a float literal.
+// The packed variant (filters/atrous_packed.cl, 16 pixels per work-item on float16 lanes)
+// includes this file and adds ATROUS_PACK.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -77,19 +79,13 @@ inline float3 atrous_albedo(__global const FilterVector* f) {
     return fmax((float3)(f->albedo[0], f->albedo[1], f->albedo[2]), (float3)(ATROUS_ALBEDO_EPSILON));
 }
 
-// Pass 0 input: the colour to filter, and the per-pixel guides every pass reads.
-//   colour:   rgb to filter (beauty, or beauty / albedo), w = 0
+// Pass 0's values of pixel (x, y) (written by atrous_init, and into lines by the packed
+// variant's atrous_init_packed, kernels/filters/atrous_packed.cl):
+//   colour:   rgb to filter (beauty, or beauty / albedo)
 //   position: depth * dir (camera-relative position), w = pixel footprint at that depth
 //   normal:   mean shading normal, w = 1 for a surface, 0 for sky
-__kernel void atrous_init(__constant const AtrousParams* p,
-                          __global const FilterVector* fv,
-                          __global float4* colour,
-                          __global float4* position,
-                          __global float4* normal) {
-    int x = get_global_id(0), y = get_global_id(1);
-    if (x >= (int)p->width || y >= (int)p->height) return;
-    uint i = (uint)(y * (int)p->width + x);
-    __global const FilterVector* f = fv + i;
+inline void atrous_init_pixel(__constant const AtrousParams* p, __global const FilterVector* f,
+                              int x, int y, float3* colour, float4* position, float4* normal) {
     float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
                              f->direct[2] + f->indirect[2]);
     float depth = f->depth;
@@ -98,16 +94,33 @@ __kernel void atrous_init(__constant const AtrousParams* p,
 #if ATROUS_DEMODULATE
     if (!sky) c = beauty / atrous_albedo(f);
 #endif
-    colour[i] = (float4)(c, 0.0f);
+    *colour = c;
     if (sky) {
-        position[i] = (float4)(0.0f);
-        normal[i] = (float4)(0.0f);
+        *position = (float4)(0.0f);
+        *normal = (float4)(0.0f);
     } else {
         float3 dir = atrous_pixel_direction(p, x, y);
         float footprint = depth * (2.0f * p->tan_half_fov / (float)p->height);
-        position[i] = (float4)(depth * dir, footprint);
-        normal[i] = (float4)(f->normal[0], f->normal[1], f->normal[2], 1.0f);
+        *position = (float4)(depth * dir, footprint);
+        *normal = (float4)(f->normal[0], f->normal[1], f->normal[2], 1.0f);
     }
+}
+
+// Pass 0 input: the colour to filter (w = 0), and the per-pixel guides every pass reads.
+__kernel void atrous_init(__constant const AtrousParams* p,
+                          __global const FilterVector* fv,
+                          __global float4* colour,
+                          __global float4* position,
+                          __global float4* normal) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)p->width || y >= (int)p->height) return;
+    uint i = (uint)(y * (int)p->width + x);
+    float3 c;
+    float4 pos, nrm;
+    atrous_init_pixel(p, fv + i, x, y, &c, &pos, &nrm);
+    colour[i] = (float4)(c, 0.0f);
+    position[i] = pos;
+    normal[i] = nrm;
 }
 
 // One a-trous pass with tap spacing p->step = 2^p->iteration.

@@ -9,7 +9,9 @@
 //! Everything is measured anew on every run (nothing resumed), so the ceilings and the
 //! kernels come from the same run on the same, equally loaded, device.
 //!
-//! Counted: the data-driven filter's variants (thesis §6.3, kw 21) and à-trous. Not counted:
+//! Counted: the data-driven filter's variants (thesis §6.3, kw 21) and à-trous's (scalar and
+//! packed); `--method NAME` keeps the kernels labelled NAME or NAME-... (e.g. `--method
+//! atrous`: both à-trous kernels), all by default. Not counted:
 //! RPF, bmfr, path-density and the AAF/sheared passes, whose arithmetic depends on the data
 //! (mutual-information buckets, QR of rank-deficient blocks, kNN ring scans); their times are
 //! in the quality study.
@@ -24,7 +26,7 @@ use anyhow::Result;
 use super::plot::{Chart, Series, line_chart};
 use super::table::{ResultTable, num};
 use super::{Context, bar};
-use crate::filters::atrous::{Atrous, AtrousSettings};
+use crate::filters::atrous::{self, Atrous, AtrousSettings};
 use crate::filters::ddf::{Ddf, DdfSettings, DirectionTerm, Variant};
 use crate::filters::{Configured, FilterKind};
 use crate::render::Frame;
@@ -39,10 +41,11 @@ const KERNELS: &[&str] = &[
     "ddf-rows+holes",
     "ddf-packed",
     "ddf-packed+holes",
-    // The fast mode (native_exp in the weights).
+    // The fast mode (a polynomial exp in the weights).
     "ddf-packed-fast",
     "ddf-packed-fast+holes",
-    "atrous",
+    "atrous-scalar",
+    "atrous-packed",
 ];
 
 /// The scenes: a closed room (every pixel a surface) and Outside (a sky the filters skip).
@@ -69,8 +72,16 @@ fn configure(label: &str, frame: &Frame) -> Result<(Configured, Work)> {
     let info = &frame.info().scene;
     let fv = frame.filter_vectors()?;
     let (w, h) = (frame.width(), frame.height());
-    if label == "atrous" {
-        let s = AtrousSettings::default();
+    if let Some(variant) = label.strip_prefix("atrous-") {
+        let s = AtrousSettings {
+            variant: match variant {
+                "packed" => atrous::Variant::Packed,
+                _ => atrous::Variant::Scalar,
+            },
+            ..Default::default()
+        };
+        // The packed kernel does the same counted work: lanes past the image's edge and
+        // masked-out taps are not useful work, so they are not counted.
         let work = models::atrous_work(fv, w, h, s.iterations);
         return Ok((Configured::typed::<Atrous>(s, info)?, work));
     }
@@ -161,7 +172,8 @@ pub fn roofline(ctx: &Context) -> Result<()> {
     } else {
         (SCENES, 512, 5)
     };
-    let pb = bar(ctx, (1 + scenes.len() * KERNELS.len()) as u64, "roofline");
+    let kernels = KERNELS.iter().filter(|l| ctx.wants(l)).count();
+    let pb = bar(ctx, (1 + scenes.len() * kernels) as u64, "roofline");
     pb.set_message("roofline: the device's ceilings");
     let pk = peaks::measure(&ctx.gpu, ctx.quick)?;
     pb.inc(1);
@@ -169,7 +181,7 @@ pub fn roofline(ctx: &Context) -> Result<()> {
     for name in scenes {
         let scene = crate::scene::load_scene(&ctx.scene_file(name)?)?;
         let frame = super::filter_speed::filter_input(ctx, &scene, n, n)?;
-        for label in KERNELS {
+        for label in KERNELS.iter().filter(|l| ctx.wants(l)) {
             pb.set_message(format!("roofline: {name} {label}"));
             let (f, work) = configure(label, &frame)?;
             let time = best_time(ctx, &f, &frame, runs)?;

@@ -115,6 +115,10 @@ pub const ATROUS_INIT_PIXEL_FLOPS: f64 = 50.0;
 pub const ATROUS_FINISH_PIXEL_FLOPS: f64 = 6.0;
 
 /// The à-trous filter's work on `fv` (w x h) over `iterations` passes of 5 x 5 taps 2^i apart.
+/// The same for both kernels: the packed one (kernels/filters/atrous_packed.cl) does each
+/// counted tap's arithmetic on one float16 lane, with the same flops per lane; the lanes it
+/// computes and masks out (sky neighbours, neighbours and lanes past the image's edge) and its
+/// per-tap selects are not useful work, so they are not counted.
 pub fn atrous_work(fv: &[FilterVector], width: u32, height: u32, iterations: u32) -> Work {
     let (w, h) = (width as i64, height as i64);
     let surface: Vec<bool> = fv.iter().map(|f| f.depth < SKY_DEPTH).collect();

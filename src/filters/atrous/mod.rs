@@ -1,7 +1,9 @@
 //! The edge-avoiding à-trous wavelet filter (Dammertz, Sewtz, Hanika, Lensch, "Edge-Avoiding
 //! À-Trous Wavelet Transform for fast Global Illumination Filtering", HPG 2010): settings here,
-//! the OpenCL passes of kernels/filters/atrous.cl in `device.rs` and the plain Rust reference of
-//! the same equations and the same pass structure in `reference.rs`.
+//! the OpenCL passes of kernels/filters/atrous.cl (one pixel per work-item) and
+//! kernels/filters/atrous_packed.cl (ours, for CPUs: 16 pixels per work-item on float16 lanes,
+//! [`Variant`]) in `device.rs`, and the plain Rust reference of the same equations and the same
+//! pass structure in `reference.rs`.
 //!
 //! Every pass convolves with the 5 × 5 B3-spline kernel h = (1/16, 1/4, 3/8, 1/4, 1/16)
 //! (outer product), its taps `2^i` pixels apart in pass i, each tap weighted by
@@ -54,6 +56,7 @@ mod reference;
 use std::sync::Arc;
 
 use anyhow::{Result, bail};
+use serde::{Deserialize, Serialize};
 
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
@@ -61,7 +64,7 @@ use crate::layout::outputs::{Output, OutputSet};
 use crate::layout::{AtrousParams, Float4};
 use crate::render::{FrameInfo, SceneInfo};
 use crate::scene::CameraBasis;
-pub use device::AtrousKernel;
+pub use device::{AtrousKernel, PACK, PACKED_GROUP};
 pub use reference::{pixel_direction, reference};
 
 /// The B3-spline taps, offsets −2..2.
@@ -73,6 +76,36 @@ pub const ALBEDO_EPSILON: f32 = 1.0e-3;
 
 /// More passes than this would space the taps 2^15 = 32768 pixels apart, wider than any image.
 pub const MAX_ITERATIONS: u32 = 15;
+
+/// Which kernel runs the passes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Variant {
+    /// `packed` on CPU devices, `scalar` on the others: on PoCL (CPU) the packed kernel took
+    /// 0.12x the scalar one's time at 512 x 512 on Cornell diffuse (0.19x on Outside, whose
+    /// sky the scalar kernel skips pixel by pixel), within 5.8e-7 (relative) of the reference
+    /// (results/README.md "Roofline", tests/atrous_variants.rs). A GPU's SIMD lanes are its work-items already, and 16
+    /// pixels per work-item would mean 16 times fewer of them; not measured (no GPU was
+    /// available), so GPUs keep the scalar kernel, as the data-driven filter's `auto` does.
+    Auto,
+    /// One work-item per pixel (kernels/filters/atrous.cl `atrous_pass`).
+    Scalar,
+    /// Ours, for CPUs: [`PACK`] adjacent pixels of a row per work-item on float16 lanes,
+    /// read from rows of padded lines (kernels/filters/atrous_packed.cl).
+    Packed,
+}
+
+impl Variant {
+    /// The variant this one stands for on a device of `kind` (`DeviceSummary::kind`: "CPU",
+    /// "GPU", ...): [`Variant::Auto`] chosen, the others as they are.
+    pub fn for_device(self, kind: &str) -> Variant {
+        match self {
+            Variant::Auto if kind == "CPU" => Variant::Packed,
+            Variant::Auto => Variant::Scalar,
+            v => v,
+        }
+    }
+}
 
 crate::filter_settings! {
     /// The à-trous filter's parameters. Defaults, demodulated: 5 passes, σ_colour 0.6
@@ -100,6 +133,9 @@ crate::filter_settings! {
         /// Filter light / albedo and multiply the albedo back; false filters the beauty as the
         /// paper does.
         pub demodulate: bool = true,
+        /// Kernel: "scalar" (one pixel per work-item), "packed" (ours: 16 pixels of a row per
+        /// work-item on float16 lanes) or "auto" (packed on a CPU, scalar on other devices).
+        pub variant: Variant = Variant::Auto,
     }
 }
 
