@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::aaf::{aaf_indirect_filtered, indirect_frame, indirect_renderer};
+use common::aaf::{aaf_indirect_filtered, floor_scene_with, indirect_frame, indirect_renderer};
 use common::*;
 use noisefree::filters::aaf_indirect::{AafIndirectSettings, reference};
 use noisefree::imaging::RgbImage;
@@ -238,34 +238,7 @@ fn open_sky_no_reflector_stays_finite() {
     // pass traces its first bounce (at depth 1 it traces nothing and this would test
     // nothing); the light is far and tiny (a sphere light is a reflector too: a cosine
     // sample meets it with probability ~1e-8 here, against ~1 % for the overhead light).
-    let floor = |light: &str| {
-        scene_from_toml(&format!(
-            r#"
-[render]
-max_depth = 3
-russian_roulette = false
-
-[camera]
-origin = [0, 3, 3]
-target = [0, 0, 0]
-fov = 40
-
-[[material]]
-name = "floor"
-type = "diffuse"
-color = [0.8, 0.8, 0.8]
-
-[[mesh]]
-generator = "quad"
-material = "floor"
-scale = 6
-
-[[light]]
-type = "sphere"
-{light}
-"#
-        ))
-    };
+    let floor = |light: &str| floor_scene_with(3, common::aaf::GREY_DIFFUSE, light);
     let s = small();
     // The pass does trace here: with the overhead light some bounce rays meet it.
     let near = floor(&format!(

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::aaf::{aaf_indirect_filtered, indirect_frame, indirect_renderer};
+use common::aaf::{aaf_indirect_filtered, floor_scene_with, indirect_frame, indirect_renderer};
 use common::*;
 use noisefree::filters::aaf_indirect::{AafIndirectSettings, prepare, reference};
 use noisefree::filters::aaf_pass::{self, NONE};
@@ -332,35 +332,11 @@ fn the_glossy_estimate_is_the_path_tracers_indirect_light() {
 fn a_metal_with_no_reflector_and_z_min_zero_stay_finite() {
     // A lit metal floor with nothing around it: every lobe sample leaves to the sky, so no
     // pixel has a reflector (z undefined) and the glossy indirect light is exactly 0.
-    let scene = scene_from_toml(
-        r#"
-[render]
-max_depth = 3
-russian_roulette = false
-
-[camera]
-origin = [0, 3, 3]
-target = [0, 0, 0]
-fov = 40
-
-[[material]]
-name = "floor"
-type = "metal"
-color = [0.9, 0.8, 0.6]
-exponent = 30
-
-[[mesh]]
-generator = "quad"
-material = "floor"
-scale = 6
-
-# Behind the camera, far from the mirror directions the floor's lobes sample.
-[[light]]
-type = "sphere"
-center = [0, 4, 6]
-radius = 0.3
-emission = [20, 20, 20]
-"#,
+    // The light behind the camera, far from the mirror directions the floor's lobes sample.
+    let scene = floor_scene_with(
+        3,
+        "type = \"metal\"\ncolor = [0.9, 0.8, 0.6]\nexponent = 30",
+        "center = [0, 4, 6]\nradius = 0.3\nemission = [20, 20, 20]",
     );
     let s = small(true);
     let r = indirect_renderer(&scene, 32, 24, 1, s.sampling());

@@ -17,13 +17,27 @@ use super::{gpu, options, scene_from_toml};
 /// A sphere light of radius 0.3 three metres above the floor's centre.
 pub const OVERHEAD: &str = "center = [0, 3, 0]\nradius = 0.3";
 
+/// The floor material of [`floor_scene`]: a grey diffuse.
+pub const GREY_DIFFUSE: &str = "type = \"diffuse\"\ncolor = [0.8, 0.8, 0.8]";
+
 /// A 6 × 6 floor (material "floor") seen from (0, 3, 3) under a sphere light (`light`: its
 /// centre and radius lines), with `extra` appended; direct light only.
 pub fn floor_scene(light: &str, extra: &str) -> Scene {
+    floor_scene_with(
+        1,
+        GREY_DIFFUSE,
+        &format!("{light}\nemission = [20, 20, 20]\n{extra}"),
+    )
+}
+
+/// The same floor with paths of `max_depth` (no Russian roulette), the floor's `material`
+/// lines (type and parameters) and the sphere light's `light` lines (all but its type, then
+/// anything appended).
+pub fn floor_scene_with(max_depth: u32, material: &str, light: &str) -> Scene {
     scene_from_toml(&format!(
         r#"
 [render]
-max_depth = 1
+max_depth = {max_depth}
 russian_roulette = false
 
 [camera]
@@ -33,8 +47,7 @@ fov = 40
 
 [[material]]
 name = "floor"
-type = "diffuse"
-color = [0.8, 0.8, 0.8]
+{material}
 
 [[mesh]]
 generator = "quad"
@@ -44,8 +57,6 @@ scale = 6
 [[light]]
 type = "sphere"
 {light}
-emission = [20, 20, 20]
-{extra}
 "#
     ))
 }
