@@ -371,13 +371,14 @@ fn sky_pixels_pass_through_bit_exactly() {
     }
 }
 
-/// Groups of 16 sky pixels (the packed variant's work-items, which then skip every tap) and a
+/// Groups of 16 sky pixels (the packed variant's work-items, and the rows variant's runs at
+/// work-group 16, which then skip every tap), a group that is sky in some rows only and a
 /// partial group at the right edge: sky keeps its colour, the surface pixels next to it are
 /// filtered as the reference filters them.
 #[test]
 fn whole_groups_of_sky_pass_through() {
     let b = Buffers::from_fn(45, 6, 100.0, |x, y| {
-        if x >= 16 {
+        if x >= if y < 3 { 16 } else { 20 } {
             fv(
                 0.1 + 0.021 * x as f32,
                 0.7 - 0.05 * y as f32,
@@ -391,7 +392,7 @@ fn whole_groups_of_sky_pass_through() {
     let beauty = b.beauty();
     let s = DdfSettings::default();
     let want = reference(&b.frame(), &s).unwrap();
-    for v in VARIANTS {
+    for v in VARIANTS.into_iter().chain([(Variant::Rows, 16)]) {
         let out = device(&b, &s, v);
         for (i, f) in b.filter_vectors.iter().enumerate() {
             if f.depth >= SKY_DEPTH {

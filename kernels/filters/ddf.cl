@@ -253,6 +253,19 @@ __kernel void ddf_filter(__constant const DdfParams* p,
     bool keep = !active;
 #if DDF_SKY
     keep = keep || is_sky(fc);                     // still takes part in the barriers
+    // A run of sky pixels only keeps its colours without loading a row (§6.3.4): the thesis's
+    // time with the sky-box in full view is flat over the kernel width (§7.2, Fig. 7.11),
+    // which loading kw rows per run before the per-pixel test would not be. The flag is the
+    // same for the whole group, so the early return is uniform and skips no barrier.
+    __local int any_filtered;
+    if (lid == 0) any_filtered = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (!keep) atomic_or(&any_filtered, 1);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (any_filtered == 0) {
+        if (active) out[pixel] = (float4)(fc.s012 + fc.s345, 0.0f);
+        return;
+    }
 #endif
     DdfCentre c;
     if (!keep) c = ddf_centre(p, fc, gb, state, pixel);

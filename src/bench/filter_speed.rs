@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::Result;
 use glam::Vec3;
 
-use super::plot::{Chart, Series, line_chart};
+use super::plot::{Chart, Series, panel_chart};
 use super::table::{ResultTable, num};
 use super::{Context, bar};
 use crate::filters::ddf::{DdfKernel, DdfSettings, PACKED_GROUP, Variant};
@@ -187,9 +187,9 @@ fn measure(
     Ok(times)
 }
 
-/// One plot per scene: the upper bound (max) kernel time against the kernel width, a line per
-/// resolution and variant (work-group 64; packed at its fixed group), as the thesis's figures;
-/// the table holds them all.
+/// One figure per scene, a panel per resolution: the upper bound (max) kernel time against the
+/// kernel width, a line per variant (work-group 64; packed at its fixed group), as the thesis's
+/// figures; under it the medians at the largest kernel width. The table holds every cell.
 fn write_report(ctx: &Context, t: &ResultTable) -> Result<()> {
     let recs = t.records();
     let scenes = super::table::distinct(&recs, "scene");
@@ -198,51 +198,127 @@ fn write_report(ctx: &Context, t: &ResultTable) -> Result<()> {
          Input: each scene at 8 spp (`outside_sky`: Outside looking straight up, the sky-box in\n\
          full view, Fig. 7.11). Kernel time from OpenCL profiling events: min (the thesis's lower\n\
          bound), median and max (its upper bound) over repeated runs after one warm-up run. The\n\
-         plots show the upper bound at work-group 64; `naive` is the unoptimised kernel of Figs.\n\
-         7.2-7.6, `rows` and `rows+holes` the optimised ones of Figs. 7.7-7.12; `packed` and\n\
-         `packed+holes` are ours for CPUs (16 pixels per work-item, work-group fixed at 8).\n\n",
+         plots show the upper bound at work-group 64, one panel per resolution; `naive` is the\n\
+         unoptimised kernel of Figs. 7.2-7.6, `rows` and `rows+holes` the optimised ones of Figs.\n\
+         7.7-7.12; `packed` and `packed+holes` are ours for CPUs (16 pixels per work-item,\n\
+         work-group fixed at 8).\n\n",
     );
     for name in &scenes {
-        let mut series: Vec<Series> = Vec::new();
-        for r in recs
+        let shown: Vec<_> = recs
             .iter()
             .filter(|r| r["scene"] == *name)
             .filter(|r| r["work_group"] == "64" || r["variant"].starts_with("packed"))
-        {
-            let label = format!("{} {}x{}", r["variant"], r["width"], r["height"]);
-            let p = (
-                r["kw"].parse::<f64>().unwrap_or(0.0),
-                r["max_ms"].parse::<f64>().unwrap_or(f64::NAN),
-            );
-            match series.iter_mut().find(|s| s.label == label) {
-                Some(s) => s.points.push(p),
-                None => series.push(Series {
-                    label,
-                    points: vec![p],
-                }),
-            }
-        }
-        for s in &mut series {
-            s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
-        }
-        let file = format!("filter-speed-{name}.png");
-        line_chart(
-            &ctx.out.join(&file),
-            &Chart {
-                title: format!("Data-driven filter on {name}: upper-bound kernel time"),
+            .collect();
+        let mut sizes: Vec<(u32, u32)> = shown
+            .iter()
+            .map(|r| {
+                (
+                    r["width"].parse().unwrap_or(0),
+                    r["height"].parse().unwrap_or(0),
+                )
+            })
+            .collect();
+        sizes.sort_by_key(|&(w, h)| (w * h, w));
+        sizes.dedup();
+        let at = |r: &&&std::collections::BTreeMap<&str, &str>, (w, h): (u32, u32)| {
+            r["width"] == w.to_string() && r["height"] == h.to_string()
+        };
+        let mut panels = Vec::new();
+        for &size in &sizes {
+            // Every panel lists the variants in VARIANTS order, so a variant keeps its colour.
+            let series: Vec<Series> = VARIANTS
+                .iter()
+                .map(|v| {
+                    let mut points: Vec<(f64, f64)> = shown
+                        .iter()
+                        .filter(|r| r["variant"] == *v && at(r, size))
+                        .map(|r| {
+                            (
+                                r["kw"].parse::<f64>().unwrap_or(0.0),
+                                r["max_ms"].parse::<f64>().unwrap_or(f64::NAN),
+                            )
+                        })
+                        .collect();
+                    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    Series {
+                        label: v.to_string(),
+                        points,
+                    }
+                })
+                .collect();
+            let chart = Chart {
+                title: format!("{}x{}", size.0, size.1),
                 x_label: "kernel width kw".into(),
-                y_label: "ms".into(),
+                y_label: "upper-bound ms".into(),
                 log_x: false,
                 log_y: true,
-            },
-            &series,
+            };
+            panels.push((chart, series));
+        }
+        let file = format!("filter-speed-{name}.png");
+        panel_chart(
+            &ctx.out.join(&file),
+            &format!("Data-driven filter on {name}: upper-bound kernel time"),
+            2,
+            &panels,
         )?;
         md.push_str(&format!(
             "## {name}\n\n![filter time vs kernel width]({file})\n\n"
         ));
+        md.push_str(&median_summary(&shown, &sizes));
     }
     md.push_str("## All measurements\n\n");
     md.push_str(&t.markdown());
     std::fs::write(ctx.out.join("filter-speed.md"), md)?;
     Ok(())
+}
+
+/// Median ms of each variant at each resolution's largest kernel width, and packed over rows
+/// (the thesis's optimised kernel) at the same cell.
+fn median_summary(
+    shown: &[&std::collections::BTreeMap<&str, &str>],
+    sizes: &[(u32, u32)],
+) -> String {
+    let cell = |v: &str, (w, h): (u32, u32)| {
+        let mut kws: Vec<(u32, f64)> = shown
+            .iter()
+            .filter(|r| {
+                r["variant"] == v && r["width"] == w.to_string() && r["height"] == h.to_string()
+            })
+            .filter_map(|r| Some((r["kw"].parse().ok()?, r["median_ms"].parse().ok()?)))
+            .collect();
+        kws.sort_by_key(|k| k.0);
+        kws.last().copied()
+    };
+    let mut md =
+        String::from("Median ms at the largest kernel width of each resolution:\n\n| variant |");
+    for &(w, h) in sizes {
+        let kw = VARIANTS
+            .iter()
+            .find_map(|v| cell(v, (w, h)))
+            .map_or(0, |c| c.0);
+        md.push_str(&format!(" {w}x{h} kw {kw} |"));
+    }
+    md.push_str("\n|---|");
+    md.push_str(&"---|".repeat(sizes.len()));
+    md.push('\n');
+    for v in VARIANTS {
+        md.push_str(&format!("| {v} |"));
+        for &size in sizes {
+            md.push_str(&match cell(v, size) {
+                Some((_, ms)) => format!(" {} |", num(ms)),
+                None => " |".into(),
+            });
+        }
+        md.push('\n');
+    }
+    md.push_str("| packed / rows |");
+    for &size in sizes {
+        md.push_str(&match (cell("packed", size), cell("rows", size)) {
+            (Some(p), Some(r)) if r.1 > 0.0 => format!(" {:.3} |", p.1 / r.1),
+            _ => " |".into(),
+        });
+    }
+    md.push_str("\n\n");
+    md
 }

@@ -86,84 +86,125 @@ pub fn line_chart(path: &Path, chart: &Chart, series: &[Series]) -> Result<()> {
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-        let xs = range(
-            series.iter().flat_map(|s| s.points.iter().map(|p| p.0)),
-            chart.log_x,
-        );
-        let ys = range(
-            series.iter().flat_map(|s| s.points.iter().map(|p| p.1)),
-            chart.log_y,
-        );
-        let mut builder = ChartBuilder::on(&root);
-        builder
-            .caption(&chart.title, ("sans-serif", 22))
-            .margin(12)
-            .x_label_area_size(45)
-            .y_label_area_size(70);
-        macro_rules! draw {
-            ($ctx:expr) => {{
-                let mut ctx = $ctx;
-                ctx.configure_mesh()
-                    .x_desc(chart.x_label.as_str())
-                    .y_desc(chart.y_label.as_str())
-                    .label_style(("sans-serif", 14))
-                    .draw()
-                    .map_err(|e| anyhow!("{e}"))?;
-                for (i, s) in series.iter().enumerate() {
-                    let color = PALETTE[i % PALETTE.len()];
-                    let pts: Vec<(f64, f64)> = s
-                        .points
-                        .iter()
-                        .copied()
-                        .filter(|p| {
-                            p.0.is_finite()
-                                && p.1.is_finite()
-                                && (!chart.log_x || p.0 > 0.0)
-                                && (!chart.log_y || p.1 > 0.0)
-                        })
-                        .collect();
-                    ctx.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-                        .map_err(|e| anyhow!("{e}"))?
-                        .label(s.label.as_str())
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-                        });
-                    ctx.draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))
-                        .map_err(|e| anyhow!("{e}"))?;
-                }
-                ctx.configure_series_labels()
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK)
-                    .label_font(("sans-serif", 14))
-                    .draw()
-                    .map_err(|e| anyhow!("{e}"))?;
-            }};
-        }
-        match (chart.log_x, chart.log_y) {
-            (true, true) => draw!(
-                builder
-                    .build_cartesian_2d((xs.0..xs.1).log_scale(), (ys.0..ys.1).log_scale())
-                    .map_err(|e| anyhow!("{e}"))?
-            ),
-            (true, false) => draw!(
-                builder
-                    .build_cartesian_2d((xs.0..xs.1).log_scale(), ys.0..ys.1)
-                    .map_err(|e| anyhow!("{e}"))?
-            ),
-            (false, true) => draw!(
-                builder
-                    .build_cartesian_2d(xs.0..xs.1, (ys.0..ys.1).log_scale())
-                    .map_err(|e| anyhow!("{e}"))?
-            ),
-            (false, false) => draw!(
-                builder
-                    .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
-                    .map_err(|e| anyhow!("{e}"))?
-            ),
+        draw_chart(&root, chart, series, 22)?;
+        root.present().map_err(|e| anyhow!("{e}"))?;
+    }
+    save_rgb8(path, &buf, w, h)
+}
+
+/// Several line charts in one figure, `columns` per row under a common title: one panel per
+/// condition (e.g. resolution) when one chart with every condition's lines would repeat the
+/// palette. A series keeps its colour across panels when it keeps its index.
+pub fn panel_chart(
+    path: &Path,
+    title: &str,
+    columns: usize,
+    panels: &[(Chart, Vec<Series>)],
+) -> Result<()> {
+    register_font();
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
+    let (pw, ph, head) = (640u32, 440u32, 40u32);
+    let (w, h) = (pw * columns as u32, ph * rows as u32 + head);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+        let body = root
+            .titled(title, ("sans-serif", 24))
+            .map_err(|e| anyhow!("{e}"))?;
+        let areas = body.split_evenly((rows, columns));
+        for ((chart, series), area) in panels.iter().zip(&areas) {
+            draw_chart(area, chart, series, 18)?;
         }
         root.present().map_err(|e| anyhow!("{e}"))?;
     }
     save_rgb8(path, &buf, w, h)
+}
+
+/// Draws one chart (axes, lines with markers, legend) into `area`.
+fn draw_chart(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    chart: &Chart,
+    series: &[Series],
+    caption_size: u32,
+) -> Result<()> {
+    let xs = range(
+        series.iter().flat_map(|s| s.points.iter().map(|p| p.0)),
+        chart.log_x,
+    );
+    let ys = range(
+        series.iter().flat_map(|s| s.points.iter().map(|p| p.1)),
+        chart.log_y,
+    );
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(&chart.title, ("sans-serif", caption_size))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(70);
+    macro_rules! draw {
+        ($ctx:expr) => {{
+            let mut ctx = $ctx;
+            ctx.configure_mesh()
+                .x_desc(chart.x_label.as_str())
+                .y_desc(chart.y_label.as_str())
+                .label_style(("sans-serif", 14))
+                .draw()
+                .map_err(|e| anyhow!("{e}"))?;
+            for (i, s) in series.iter().enumerate() {
+                let color = PALETTE[i % PALETTE.len()];
+                let pts: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .filter(|p| {
+                        p.0.is_finite()
+                            && p.1.is_finite()
+                            && (!chart.log_x || p.0 > 0.0)
+                            && (!chart.log_y || p.1 > 0.0)
+                    })
+                    .collect();
+                ctx.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                    .map_err(|e| anyhow!("{e}"))?
+                    .label(s.label.as_str())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                    });
+                ctx.draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))
+                    .map_err(|e| anyhow!("{e}"))?;
+            }
+            ctx.configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()
+                .map_err(|e| anyhow!("{e}"))?;
+        }};
+    }
+    match (chart.log_x, chart.log_y) {
+        (true, true) => draw!(
+            builder
+                .build_cartesian_2d((xs.0..xs.1).log_scale(), (ys.0..ys.1).log_scale())
+                .map_err(|e| anyhow!("{e}"))?
+        ),
+        (true, false) => draw!(
+            builder
+                .build_cartesian_2d((xs.0..xs.1).log_scale(), ys.0..ys.1)
+                .map_err(|e| anyhow!("{e}"))?
+        ),
+        (false, true) => draw!(
+            builder
+                .build_cartesian_2d(xs.0..xs.1, (ys.0..ys.1).log_scale())
+                .map_err(|e| anyhow!("{e}"))?
+        ),
+        (false, false) => draw!(
+            builder
+                .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
+                .map_err(|e| anyhow!("{e}"))?
+        ),
+    }
+    Ok(())
 }
 
 /// Images side by side in rows of `columns`, each with a caption under it; tone-mapped at
