@@ -78,7 +78,7 @@ use std::sync::Arc;
 
 use anyhow::{Result, bail};
 
-use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
+use super::shadow_lights::{check_light, light_index, light_needs, specialise_light};
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
