@@ -65,6 +65,7 @@ use crate::layout::{AafShadowParams, Float4};
 use crate::render::shadows::bandlimit::light_sigma;
 use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::AafShadowKernel;
+pub(crate) use device::compose_kernel;
 pub use reference::{compose, compose_over, prepare, reference};
 
 crate::filter_settings! {
