@@ -15,7 +15,7 @@
 //! - **Sheared** (Yan et al. 2015, issue 16): the same 16 path samples, AAF's sparse pass at 1
 //!   sample and the l × l light field (l = 2, 3, 4), filtered by `sheared` with its defaults:
 //!   every sphere light, one at a time, as AAF's rows (two_lights_shadows: both lights);
-//!   `light_spp` is 1 + l² per light over the receivers (Σ over the lights' planes / N²). Two
+//!   `light_spp` is 1 + l² per light and receiver (Σ over the lights' planes / N²). Two
 //!   more rows at l = 3 with η = 0 (no shear) and η of the other sign check the shear's sign
 //!   on a real scene.
 //!
@@ -316,6 +316,8 @@ fn sheared_section(t: &ResultTable, at: (&str, &str)) -> String {
     let aaf_time = curve(t, at, "aaf-adaptive", "seconds");
     let mut md = String::from(
         "\n### Sheared filtering against adaptive AAF at equal quality (Yan et al. 2015)\n\n\
+         Every sphere light filtered, a light at a time, as in AAF's rows; light spp: 1 (the \
+         sparse pass) + l² per light and receiver, Σ / N².\n\n\
          | method | l | light spp | RMS | seconds | AAF light spp at equal MSE | sample ratio | \
          AAF seconds at equal MSE | time ratio | AAF RMS at equal light spp / RMS |\n\
          |---|---|---|---|---|---|---|---|---|---|\n",
