@@ -47,8 +47,9 @@ pub enum Output {
     /// NFOR, Bitterli et al. 2016), whose difference estimates the variance of F's light.
     Halves,
     /// Sheared filtering (Yan et al. 2015 §3.1): l² samples per pixel on a jittered grid (the
-    /// 4-D light field): with the shadow output the shadow light's visibility and its axes on
-    /// the screen; without it (a thin lens) the radiance through the lens, slopes and hit.
+    /// 4-D light field): with the shadow output each shadow light's visibility and its axes
+    /// on the screen (one per light plane); without it (a thin lens) the radiance through the
+    /// lens, slopes and hit.
     LightField,
     /// AAF indirect light (Wang 2013 ch. 4): the sparse + adaptive indirect samples of each
     /// pixel's centre receiver (diffuse, or a metal's glossy lobe), demodulated, with z_min
@@ -593,8 +594,8 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("lightfield.extra.B", LightFieldPixels, L_EXTRA + 2),
             ch("lightfield.extra.W", LightFieldPixels, L_EXTRA + 3),
         ],
-        doc: "sheared filtering: the 4-D light field (l x l samples per pixel) of the shadow light \
-              or, with a thin lens, of the lens",
+        doc: "sheared filtering: the 4-D light field (l x l samples per pixel) of each shadow \
+              light or, with a thin lens, of the lens",
     },
     OutputDecl {
         output: Output::Indirect,
