@@ -13,21 +13,13 @@ use noisefree::filters::{Auto, FilterKind};
 use noisefree::imaging::RgbImage;
 use noisefree::layout::ShadowPixel;
 use noisefree::layout::outputs::BufferId;
-use noisefree::render::{Frame, LightPlanes, Renderer, SceneArrays, SceneInfo};
+use noisefree::render::{Frame, LightPlanes, Renderer, SceneInfo};
 use noisefree::scene::Scene;
 
 /// The settings `render --filter aaf-shadows` uses on `scene` (specialised: auto → every
 /// sphere light).
-fn specialised(scene: &SceneInfo, mut s: AafShadowSettings) -> AafShadowSettings {
-    let notes = AafShadows::specialise(&mut s, scene);
-    eprintln!("{notes:?}");
-    s
-}
-
-fn scene_info(scene: &Scene, w: u32, h: u32) -> SceneInfo {
-    let o = options(scene, w, h, 1);
-    let arrays = SceneArrays::build(scene, &o.frame).unwrap();
-    SceneInfo::new(scene, &arrays)
+fn specialised(scene: &SceneInfo, s: AafShadowSettings) -> AafShadowSettings {
+    common::specialised::<AafShadows>(scene, s)
 }
 
 fn render(scene: &Scene, w: u32, h: u32, spp: u32, s: &AafShadowSettings) -> Renderer {

@@ -58,18 +58,6 @@ fn interior(frame: &Frame) -> Vec<bool> {
         .collect()
 }
 
-/// RMS over the pixels of `mask`.
-fn masked_rms(a: &RgbImage, b: &RgbImage, mask: &[bool]) -> f64 {
-    let (mut sum, mut n) = (0f64, 0usize);
-    for ((p, q), &m) in a.pixels.iter().zip(&b.pixels).zip(mask) {
-        if m {
-            sum += (0..3).map(|c| ((p[c] - q[c]) as f64).powi(2)).sum::<f64>();
-            n += 3;
-        }
-    }
-    (sum / n as f64).sqrt()
-}
-
 #[test]
 fn aaf_beats_monte_carlo_at_equal_light_samples_on_grids() {
     let scene = bundled_scene("grids");

@@ -47,7 +47,7 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
         }
         o.outputs = outputs;
         // The shadow output holds a plane for every sphere light some filter reads
-        // (aaf-shadows and stylized-shadows: all of them; sheared: the first).
+        // (aaf-shadows, stylized-shadows and sheared: all of them).
         let mut lights = 0;
         for c in &configured {
             let mut wants = o.clone();

@@ -10,15 +10,13 @@ use common::aaf::floor_scene;
 use common::*;
 use glam::Vec3;
 use noisefree::filters::Configured;
-use noisefree::filters::aaf_pass::PassPixel;
-use noisefree::filters::aaf_shadows::compose;
 use noisefree::filters::sheared::reference::{
-    ETA, FILTERED, Guide, KIND, SIGMA, brute_force, factored, g_floats, own_mean, p_floats,
-    prepare, step_1a, step_1b, step_2a, step_2b,
+    ETA, FILTERED, Guide, KIND, SIGMA, brute_force, compose, factored, g_floats, own_mean,
+    p_floats, prepare, step_1a, step_1b, step_2a, step_2b,
 };
 use noisefree::filters::sheared::shear::eta_printed;
 use noisefree::filters::sheared::{Sheared, ShearedKernel, ShearedSettings};
-use noisefree::layout::outputs::{BufferId, Output, OutputSet};
+use noisefree::layout::outputs::BufferId;
 use noisefree::layout::{Float4, LightFieldPixel, ShadowPixel, ShadowTerms, ShearedParams};
 use noisefree::render::Renderer;
 use noisefree::scene::Scene;
@@ -313,12 +311,7 @@ fn sheared_settings() -> ShearedSettings {
 }
 
 fn render(scene: &Scene, w: u32, h: u32, spp: u32, s: &ShearedSettings) -> Renderer {
-    let mut o = options(scene, w, h, 5);
-    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
-    o.shadows = s.sampling();
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(spp).unwrap();
-    r
+    common::sheared::sheared_renderer(scene, w, h, spp, 5, s)
 }
 
 fn close(a: &[f32], b: &[f32], what: &str) {
@@ -345,7 +338,7 @@ fn every_device_step_matches_its_rust_reference() {
     let frame = r.frame();
     let info = &frame.info().scene;
     let light = info.sphere_lights[0];
-    let mut k = ShearedKernel::new(gpu(), &s, Some((light, info.scene_centre)), w, h).unwrap();
+    let mut k = ShearedKernel::new(gpu(), &s, &[(0, light)], info.scene_centre, w, h).unwrap();
     let image = k.filter(&frame).unwrap().image;
     let dev = k.intermediates().unwrap().unwrap();
     let p = s.params(light, info.scene_centre, w, h);
@@ -375,24 +368,13 @@ fn every_device_step_matches_its_rust_reference() {
             .all(|v| v.is_finite() && (0.0..=1.0 + 1e-6).contains(v))
     );
     // Compose: AAF's, with the sheared visibility.
-    let aaf_guide: Vec<PassPixel> = dev
-        .guide
-        .iter()
-        .map(|g| PassPixel {
-            kind: g[KIND],
-            ..Default::default()
-        })
-        .collect();
-    let visibility: Vec<[f32; 4]> = dev.visibility.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect();
     let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms).unwrap();
     let reference = compose(
-        frame.filter_vectors().unwrap(),
+        &frame.beauty().unwrap(),
         terms,
         shadow,
-        &aaf_guide,
-        &visibility,
-        w,
-        h,
+        &dev.guide,
+        &dev.visibility,
     );
     close(
         &reference
@@ -457,10 +439,18 @@ fn sizes_that_do_not_fit_are_refused_with_a_clear_message() {
         s.memory_bytes(1024, 1024) as f64 / (1 << 20) as f64
     );
     assert_eq!(per_pixel, 288 + 4 * (136 + 2 * 34) + 36);
+    // A light field per filtered light; the steps' buffers are shared by the lights.
+    let two = ShearedSettings {
+        light_count: 2,
+        ..s.clone()
+    };
+    assert_eq!(two.memory_bytes(1, 1), per_pixel + 288);
+    assert_eq!(two.memory_bytes(4, 3), 12 * (per_pixel + 288));
     let e = ShearedKernel::new(
         gpu(),
         &s,
-        Some(([0.0, 3.0, 0.0, 0.3], [0.0; 3])),
+        &[(0, [0.0, 3.0, 0.0, 0.3])],
+        [0.0; 3],
         200_000,
         200_000,
     )

@@ -100,15 +100,18 @@ __kernel void aaf_compose(__constant const AafShadowParams* p, __global const fl
 }
 
 // The sheared filter's (kernels/filters/sheared.cl): one float4 of guide per pixel with the
-// kind in z, one float of visibility.
+// kind in z, one float of visibility; the light of plane `plane`, from F or (`chained`) from
+// the image of the lights before, as aaf_compose.
 __kernel void aaf_compose_sheared(__constant const AafShadowParams* p, __global const float* fv,
                                   __global const float* terms, __global const float* pixels,
+                                  uint plane, uint planes, uint chained,
                                   __global const float4* guide,
                                   __global const float* visibility, __global float4* image) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= p->width || y >= p->height) return;
     uint i = y * p->width + x;
-    aaf_compose_at(aaf_beauty(fv, i), terms + (size_t)i * SHADOW_TERMS_FLOATS,
-                   pixels + (size_t)i * SHADOW_PIXEL_FLOATS, i, guide[i].z == AAF_NONE,
+    float3 base = chained ? image[i].xyz : aaf_beauty(fv, i);
+    aaf_compose_at(base, AAF_PLANE(terms, i, SHADOW_TERMS_FLOATS),
+                   AAF_PLANE(pixels, i, SHADOW_PIXEL_FLOATS), i, guide[i].z == AAF_NONE,
                    visibility[i], image);
 }

@@ -15,6 +15,11 @@
 //    over weight.
 // Then AAF's aaf_compose_sheared (kernels/filters/aaf_shadows.cl) writes F - replaced +
 // r * visibility.
+//
+// Several sphere lights (§3: "filter each light separately"): the steps run once per light,
+// each reading its light's plane `plane` of `planes` of the shadow output and of the light
+// field (pixel-major, src/layout/outputs.rs Per::Light) with its own parameters (frame, sigma_y,
+// range); the composes chain as AAF's do.
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -25,6 +30,9 @@
 #define SHEARED_FILTERED 2.0f
 #define SHEARED_MIN_SLOPE 1.0e-30f
 #define SHEARED_MAX_ETA 1.0e30f
+
+// Pixel i's element of the light plane `plane` of `planes` in a per-light buffer.
+#define SHEARED_AT(buffer, i, floats) ((buffer) + ((size_t)(i) * planes + plane) * (floats))
 
 // One gather step (the major axis moves one pixel) and the world x per step.
 inline float2 sheared_step(__global const float* lf, int dir_lane, int axis, float* world) {
@@ -47,12 +55,13 @@ inline int sheared_radius(float sigma_x, float world, int max_radius) {
 
 __kernel void sheared_prepare(__constant const ShearedParams* p,
                               __global const float* shadow_pixels,
-                              __global const float* light_field, __global float4* guide) {
+                              __global const float* light_field, uint plane, uint planes,
+                              __global float4* guide) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= p->width || y >= p->height) return;
     uint i = y * p->width + x;
-    __global const float* px = shadow_pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
-    __global const float* lf = light_field + (size_t)i * LIGHT_FIELD_PIXEL_FLOATS;
+    __global const float* px = SHEARED_AT(shadow_pixels, i, SHADOW_PIXEL_FLOATS);
+    __global const float* lf = SHEARED_AT(light_field, i, LIGHT_FIELD_PIXEL_FLOATS);
     if (!(px[SHADOW_PIXEL_WEIGHT] > 0.0f) || !(lf[LIGHT_FIELD_PIXEL_COUNT] > 0.0f)) {
         guide[i] = (float4)(0.0f, 0.0f, SHEARED_NONE, 0.0f);
         return;
@@ -78,12 +87,13 @@ __kernel void sheared_prepare(__constant const ShearedParams* p,
 }
 
 __kernel void sheared_1a(__constant const ShearedParams* p, __global const float* light_field,
-                         __global const float4* guide, __global float* out) {
+                         uint plane, uint planes, __global const float4* guide,
+                         __global float* out) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= p->width || y >= p->height) return;
     uint i = y * p->width + x;
     if (guide[i].z == SHEARED_NONE) return;
-    __global const float* lf = light_field + (size_t)i * LIGHT_FIELD_PIXEL_FLOATS;
+    __global const float* lf = SHEARED_AT(light_field, i, LIGHT_FIELD_PIXEL_FLOATS);
     uint bins = p->bins, l = p->side;
     __global float* o = out + (size_t)i * (2u * bins * 4u);
     float inv = fmin(1.0f / (2.0f * p->sigma_y * p->sigma_y), FLT_MAX);
@@ -128,8 +138,9 @@ inline int sheared_neighbour(__constant const ShearedParams* p, int x, int y, fl
 }
 
 __kernel void sheared_1b(__constant const ShearedParams* p, __global const float* shadow_pixels,
-                         __global const float* light_field, __global const float4* guide,
-                         __global const float* in, __global float* out) {
+                         __global const float* light_field, uint plane, uint planes,
+                         __global const float4* guide, __global const float* in,
+                         __global float* out) {
     int x = (int)get_global_id(0), y = (int)get_global_id(1);
     if (x >= (int)p->width || y >= (int)p->height) return;
     int i = y * (int)p->width + x;
@@ -138,8 +149,8 @@ __kernel void sheared_1b(__constant const ShearedParams* p, __global const float
     for (uint c = 0u; c < 2u * bins; ++c) o[c] = 0.0f;
     float4 g = guide[i];
     if (g.z == SHEARED_NONE) return;
-    __global const float* px = shadow_pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
-    __global const float* lf = light_field + (size_t)i * LIGHT_FIELD_PIXEL_FLOATS;
+    __global const float* px = SHEARED_AT(shadow_pixels, i, SHADOW_PIXEL_FLOATS);
+    __global const float* lf = SHEARED_AT(light_field, i, LIGHT_FIELD_PIXEL_FLOATS);
     float world;
     float2 s = sheared_step(lf, LIGHT_FIELD_PIXEL_DIR1, 0, &world);
     int r = sheared_radius(g.x, world, p->max_radius);
@@ -149,14 +160,15 @@ __kernel void sheared_1b(__constant const ShearedParams* p, __global const float
     for (int k = -r; k <= r; ++k) {
         int j = sheared_neighbour(p, x, y, s, k);
         if (j < 0) continue;
-        __global const float* q = shadow_pixels + (size_t)j * SHADOW_PIXEL_FLOATS;
+        __global const float* q = SHEARED_AT(shadow_pixels, j, SHADOW_PIXEL_FLOATS);
         if (k != 0 && !sheared_accepts(p, px, g, q, guide[j])) continue;
         float dx = dot(sheared_lane3(q, SHADOW_PIXEL_POSITION) - pos, p->axis1.xyz);
         float wx = sheared_gauss(dx, inv_x);
         int c1 = sheared_bin_of(g.y * -dx, bins, p->range);
         if (c1 < 0) continue;
         __global const float* src = in + (size_t)j * stride;
-        float j2 = light_field[(size_t)j * LIGHT_FIELD_PIXEL_FLOATS + LIGHT_FIELD_PIXEL_JITTER + 1];
+        float j2 =
+            SHEARED_AT(light_field, j, LIGHT_FIELD_PIXEL_FLOATS)[LIGHT_FIELD_PIXEL_JITTER + 1];
         for (uint b = 0u; b < l; ++b) {
             int c2 = sheared_bin_of(sheared_grid(b, j2, l, p->light.w), bins, p->range);
             if (c2 < 0) continue;
@@ -198,8 +210,9 @@ __kernel void sheared_2a(__constant const ShearedParams* p, __global const float
 }
 
 __kernel void sheared_2b(__constant const ShearedParams* p, __global const float* shadow_pixels,
-                         __global const float* light_field, __global const float4* guide,
-                         __global const float* in, __global float* visibility) {
+                         __global const float* light_field, uint plane, uint planes,
+                         __global const float4* guide, __global const float* in,
+                         __global float* visibility) {
     int x = (int)get_global_id(0), y = (int)get_global_id(1);
     if (x >= (int)p->width || y >= (int)p->height) return;
     int i = y * (int)p->width + x;
@@ -209,8 +222,8 @@ __kernel void sheared_2b(__constant const ShearedParams* p, __global const float
         return;
     }
     uint bins = p->bins;
-    __global const float* px = shadow_pixels + (size_t)i * SHADOW_PIXEL_FLOATS;
-    __global const float* lf = light_field + (size_t)i * LIGHT_FIELD_PIXEL_FLOATS;
+    __global const float* px = SHEARED_AT(shadow_pixels, i, SHADOW_PIXEL_FLOATS);
+    __global const float* lf = SHEARED_AT(light_field, i, LIGHT_FIELD_PIXEL_FLOATS);
     float world;
     float2 s = sheared_step(lf, LIGHT_FIELD_PIXEL_DIR2, 1, &world);
     int r = sheared_radius(g.x, world, p->max_radius);
@@ -220,7 +233,7 @@ __kernel void sheared_2b(__constant const ShearedParams* p, __global const float
     for (int k = -r; k <= r; ++k) {
         int j = sheared_neighbour(p, x, y, s, k);
         if (j < 0) continue;
-        __global const float* q = shadow_pixels + (size_t)j * SHADOW_PIXEL_FLOATS;
+        __global const float* q = SHEARED_AT(shadow_pixels, j, SHADOW_PIXEL_FLOATS);
         if (k != 0 && !sheared_accepts(p, px, g, q, guide[j])) continue;
         float dx = dot(sheared_lane3(q, SHADOW_PIXEL_POSITION) - pos, p->axis2.xyz);
         float wx = sheared_gauss(dx, inv_x);

@@ -2,10 +2,10 @@
 // §5 "Sampling"): the non-adaptive pass that keeps the 4-D light field of each pixel. Included
 // by kernels/render/shadows.cl inside its OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS guard, after the
 // AAF sparse pass (which gives the receiver, d1, r(x) and the first slopes) and before the
-// slope fill (which then also fills from the slopes found here).
+// slope fill (which then also fills from the slopes found here); once per light plane.
 //
-// - Grid: l x l points on the square [-R, R]^2 of the light's plane, in ONE global frame
-//   (e1, e2) perpendicular to (scene centre -> light centre), shifted by the pixel's jitter
+// - Grid: l x l points on the square [-R, R]^2 of the light's plane, in ONE global frame per
+//   light (e1, e2) perpendicular to (scene centre -> light centre), shifted by the pixel's jitter
 //   j in [0,1)^2 (one jitter per pixel, §3.1): y = R (2 (a + j) / l - 1). Steps 1b and 2b need
 //   one (y1, y2) frame shared by neighbours (digest §3.4): a per-receiver frame (the disk
 //   perpendicular to the receiver-to-centre direction, as AAF uses) would break the shear.
@@ -54,17 +54,26 @@ inline void light_field_axis(__constant const SceneParams* p, float3 pos, float3
     *scale = footprint * dx / len;
 }
 
-// The shadow output's plane 0 (sheared filtering asks for one light: `planes` is 1 in its
-// renders; a render gathering more planes keeps the light field of the first).
+// Element `plane` of pixel `pixel` in the light field's planes (pixel-major, as the shadow
+// output's: src/layout/outputs.rs Per::Light).
+#define LIGHT_FIELD_AT(buffer, pixel, plane, planes) \
+    ((buffer) + ((size_t)(pixel) * (planes) + (plane)) * LIGHT_FIELD_PIXEL_FLOATS)
+
+// Light `light` on plane `plane` of `planes` (every sphere light the sheared filter filters has
+// its plane, Yan et al. §3: "filter each light separately"), in that light's frame (e1, e2):
+// its light field, and its slopes merged into the same plane of the shadow output. The
+// samples' random numbers depend on the pixel alone, so a plane holds the bytes of a render
+// of its light alone.
 __kernel void light_field_sample(SHADOW_SCENE_PARAMS, __global float* shadow_pixels,
-                                 uint planes, __global float* light_field, __global uint* shadow_rays,
-                                 uint light, uint side, float4 frame_u, float4 frame_v) {
+                                 uint plane, uint planes, __global float* light_field,
+                                 __global uint* shadow_rays, uint light, uint side,
+                                 float4 frame_u, float4 frame_v) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
-    __global float* lf = light_field + (size_t)pixel * LIGHT_FIELD_PIXEL_FLOATS;
+    __global float* lf = LIGHT_FIELD_AT(light_field, pixel, plane, planes);
     for (uint i = 0u; i < LIGHT_FIELD_PIXEL_FLOATS; ++i) lf[i] = 0.0f;
-    __global float* px = SHADOW_AT(shadow_pixels, pixel, 0u, planes);
+    __global float* px = SHADOW_AT(shadow_pixels, pixel, plane, planes);
     shadow_rays[pixel] = 0u;
     if (!(px[SHADOW_PIXEL_WEIGHT] > 0.0f) || light >= params->light_count) return;
     SceneRefs s = SHADOW_SCENE_REFS;

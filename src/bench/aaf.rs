@@ -13,9 +13,11 @@
 //!   maximum, the average spent Σn / N² on the x axis.
 //!
 //! - **Sheared** (Yan et al. 2015, issue 16): the same 16 path samples, AAF's sparse pass at 1
-//!   sample and the l × l light field (l = 2, 3, 4), filtered by `sheared`; `light_spp` is
-//!   1 + l² over the receivers (Σ / N²). Two more rows at l = 3 with η = 0 (no shear) and
-//!   η of the other sign check the shear's sign on a real scene.
+//!   sample and the l × l light field (l = 2, 3, 4), filtered by `sheared` with its defaults:
+//!   every sphere light, one at a time, as AAF's rows (two_lights_shadows: both lights);
+//!   `light_spp` is 1 + l² per light and receiver (Σ over the lights' planes / N²). Two
+//!   more rows at l = 3 with η = 0 (no shear) and η of the other sign check the shear's sign
+//!   on a real scene.
 //!
 //! The seed counts only the light samples of AAF (its renders have no path samples); ours keep
 //! 16 path samples per pixel for silhouettes and other light, each with a shadow ray, so the
@@ -29,9 +31,9 @@ use super::plot::{Chart, Series, line_chart};
 use super::study::{STUDY_SEED, StudyScene, reference_image, sizes};
 use super::table::{ResultTable, num};
 use super::{Context, bar};
-use crate::filters::Configured;
 use crate::filters::aaf_shadows::{AafShadowSettings, AafShadows};
 use crate::filters::sheared::{STEPS, Sheared, ShearedKernel, ShearedSettings};
+use crate::filters::{Configured, FilterKind};
 use crate::imaging::write_rgb8_png;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::metrics::mse_rgb;
@@ -255,24 +257,36 @@ fn per_light(
 }
 
 /// sheared-steps-SCENE.md: the kernel time of each step of the sheared filter (l = 3) on `frame`,
-/// filtered once more by its own kernel, and its memory.
+/// filtered once more by its own kernel (every sphere light, as the study's rows: each step's
+/// time summed over the lights), and its memory.
 fn sheared_steps(
     ctx: &Context,
     frame: &crate::render::Frame,
     s: &super::study::Sizes,
     scene: &str,
 ) -> Result<()> {
-    let settings = ShearedSettings::default();
     let info = &frame.info().scene;
-    let light = (info.sphere_lights[0], info.scene_centre);
-    let mut k = ShearedKernel::new(ctx.gpu.clone(), &settings, Some(light), s.width, s.height)?;
+    let mut settings = ShearedSettings::default();
+    Sheared::specialise(&mut settings, info);
+    let lights = settings.lights_of(info)?;
+    let mut k = ShearedKernel::new(
+        ctx.gpu.clone(),
+        &settings,
+        &lights,
+        info.scene_centre,
+        s.width,
+        s.height,
+    )?;
     k.filter(frame)?;
     let times = k.step_times();
     let total: f64 = times.iter().map(|t| t.as_secs_f64()).sum();
     let mut md = format!(
-        "# Sheared filter on {scene}: kernel time per step (l = 3, {} x {}, one run)\n\n\
+        "# Sheared filter on {scene}: kernel time per step (l = 3, {} x {}, {} sphere \
+         light(s), each step summed over them, one run)\n\n\
          | step | ms | share |\n|---|---|---|\n",
-        s.width, s.height
+        s.width,
+        s.height,
+        lights.len()
     );
     for (name, t) in STEPS.iter().zip(times) {
         let ms = t.as_secs_f64() * 1e3;
@@ -283,7 +297,8 @@ fn sheared_steps(
         ));
     }
     md.push_str(&format!(
-        "\nTotal {:.2} ms. Memory of the light field and the filter's buffers: {} B per pixel, \
+        "\nTotal {:.2} ms. Memory of the light fields (one per light) and the filter's \
+         buffers: {} B per pixel, \
          {:.1} MiB here (O(N² l²): `ShearedSettings::memory_bytes`).\n",
         total * 1e3,
         settings.memory_bytes(1, 1),
@@ -301,6 +316,8 @@ fn sheared_section(t: &ResultTable, at: (&str, &str)) -> String {
     let aaf_time = curve(t, at, "aaf-adaptive", "seconds");
     let mut md = String::from(
         "\n### Sheared filtering against adaptive AAF at equal quality (Yan et al. 2015)\n\n\
+         Every sphere light filtered, a light at a time, as in AAF's rows; light spp: 1 (the \
+         sparse pass) + l² per light and receiver, Σ / N².\n\n\
          | method | l | light spp | RMS | seconds | AAF light spp at equal MSE | sample ratio | \
          AAF seconds at equal MSE | time ratio | AAF RMS at equal light spp / RMS |\n\
          |---|---|---|---|---|---|---|---|---|---|\n",

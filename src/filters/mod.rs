@@ -11,6 +11,7 @@ pub mod aaf_pass;
 pub mod placement;
 pub mod registry;
 pub mod settings;
+pub mod shadow_lights;
 
 use std::sync::Arc;
 use std::time::Duration;

@@ -285,6 +285,22 @@ impl Gpu {
         }))
     }
 
+    /// A builder of kernel `name` of `program` on this device's queue over a w × h grid
+    /// (`size`); the caller adds the arguments in the kernel's order.
+    pub fn kernel<'a>(
+        &self,
+        program: &'a Program,
+        name: &str,
+        size: [usize; 2],
+    ) -> ocl::builders::KernelBuilder<'a> {
+        let mut b = ocl::Kernel::builder();
+        b.program(program)
+            .name(name)
+            .queue(self.queue.clone())
+            .global_work_size(size);
+        b
+    }
+
     /// Builds `main` (a file under kernels/) with `defines` as `-D NAME=VALUE` options, or
     /// returns the program already built with the same source and options: from memory in this
     /// run, or from a program binary in the disk cache, keyed by a hash of (source, options,

@@ -47,8 +47,9 @@ pub enum Output {
     /// NFOR, Bitterli et al. 2016), whose difference estimates the variance of F's light.
     Halves,
     /// Sheared filtering (Yan et al. 2015 §3.1): l² samples per pixel on a jittered grid (the
-    /// 4-D light field): with the shadow output the shadow light's visibility and its axes on
-    /// the screen; without it (a thin lens) the radiance through the lens, slopes and hit.
+    /// 4-D light field): with the shadow output each shadow light's visibility and its axes
+    /// on the screen (one per light plane); without it (a thin lens) the radiance through the
+    /// lens, slopes and hit.
     LightField,
     /// AAF indirect light (Wang 2013 ch. 4): the sparse + adaptive indirect samples of each
     /// pixel's centre receiver (diffuse, or a metal's glossy lobe), demodulated, with z_min
@@ -81,7 +82,9 @@ pub enum Per {
     /// One element per pixel for each light plane of the shadow output (the sphere lights a
     /// filter asks for: the render's `ShadowSampling::lights`), pixel-major (index =
     /// pixel · planes + plane): a row of pixels stays contiguous, so splitting and merging by
-    /// rows or by elements works as for [`Per::Pixel`].
+    /// rows or by elements works as for [`Per::Pixel`]. Without the shadow output (0 planes)
+    /// one element per pixel: the light field is per light with it (sheared shadows, one
+    /// light field per filtered light) and per pixel without it (depth of field, GI).
     Light,
 }
 
@@ -356,10 +359,10 @@ pub const BUFFERS: &[BufferDecl] = &[
         name: "light_field",
         element: "LightFieldPixel",
         element_bytes: size_of::<LightFieldPixel>(),
-        per: Per::Pixel,
+        per: Per::Light,
         merge: Merge::Identical,
-        doc: "sheared filtering: l x l light (shadows) or lens (depth of field) samples, jitter, \
-              axes on screen, slopes, per pixel",
+        doc: "sheared filtering: l x l light (shadows, per pixel and light) or lens (depth of \
+              field) samples, jitter, axes on screen, slopes",
     },
     BufferDecl {
         id: IndirectPixels,
@@ -591,8 +594,8 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("lightfield.extra.B", LightFieldPixels, L_EXTRA + 2),
             ch("lightfield.extra.W", LightFieldPixels, L_EXTRA + 3),
         ],
-        doc: "sheared filtering: the 4-D light field (l x l samples per pixel) of the shadow light \
-              or, with a thin lens, of the lens",
+        doc: "sheared filtering: the 4-D light field (l x l samples per pixel) of each shadow \
+              light or, with a thin lens, of the lens",
     },
     OutputDecl {
         output: Output::Indirect,
@@ -747,7 +750,7 @@ impl BufferDecl {
         match self.per {
             Per::Pixel => pixels,
             Per::Sample => pixels * sample_capacity as u64,
-            Per::Light => pixels * planes as u64,
+            Per::Light => pixels * planes.max(1) as u64,
         }
     }
 
@@ -755,8 +758,8 @@ impl BufferDecl {
         self.elements(width, height, sample_capacity, planes) * self.element_bytes as u64
     }
 
-    /// Elements per pixel: 1, `sample_capacity` or `planes` (what a row of pixels holds per
-    /// pixel).
+    /// Elements per pixel: 1, `sample_capacity` or `planes` (at least 1; what a row of
+    /// pixels holds per pixel).
     pub fn per_pixel(&self, sample_capacity: u32, planes: u32) -> usize {
         self.elements(1, 1, sample_capacity, planes) as usize
     }
@@ -867,6 +870,13 @@ mod tests {
         let t = OutputSet::of(&[Output::Shadows]).closed();
         let plane = (size_of::<ShadowTerms>() + size_of::<ShadowPixel>()) as u64;
         assert_eq!(t.bytes(2, 3, 0, 2), 6 * 64 + 6 * 2 * plane);
+        // The light field: one per light plane with the shadow output, one per pixel without.
+        let f = BufferId::LightFieldPixels.decl();
+        assert_eq!(
+            f.bytes(2, 3, 0, 2),
+            6 * 2 * size_of::<LightFieldPixel>() as u64
+        );
+        assert_eq!(f.bytes(2, 3, 0, 0), f.bytes(2, 3, 0, 1));
         let c = &Output::Shadows.decl().channels[0];
         assert_eq!(channel_name(c, Some(3)), "shadow.l3.direct.R");
         assert_eq!(channel_name(c, None), "shadow.direct.R");

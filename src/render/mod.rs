@@ -375,8 +375,8 @@ impl Renderer {
                 &self._scene,
                 &self.debug_counters,
                 self.buffer(BufferId::ShadowPixels),
-                self.light_field_frame()
-                    .map(|frame| (self.buffer(BufferId::LightFieldPixels), frame)),
+                self.light_field_frames()
+                    .map(|frames| (self.buffer(BufferId::LightFieldPixels), frames)),
             )?),
             None => None,
         };
@@ -657,19 +657,21 @@ impl Renderer {
         ))
     }
 
-    /// With the light-field output: e1, e2 of the shadow light's frame
-    /// ([`shadows::light_field::light_frame`]).
-    fn light_field_frame(&self) -> Option<[Float4; 2]> {
-        let light = self.shadow_lights?.first();
+    /// With the light-field output: e1, e2 of the frame of each shadow plane's light
+    /// ([`shadows::light_field::light_frame`]), in plane order.
+    fn light_field_frames(&self) -> Option<Vec<[Float4; 2]>> {
+        let lights = self.shadow_lights?.lights();
         if !self.outputs.contains(Output::LightField) {
             return None;
         }
-        let l = self.scene_info.sphere_lights.get(light as usize)?;
-        let [e1, e2, _] = shadows::light_field::light_frame(
-            glam::Vec3::new(l[0], l[1], l[2]),
-            glam::Vec3::from(self.scene_info.scene_centre),
-        );
-        Some([Float4::from_vec3(e1, 0.0), Float4::from_vec3(e2, 0.0)])
+        lights
+            .into_iter()
+            .map(|light| {
+                let l = self.scene_info.sphere_lights.get(light as usize)?;
+                let [e1, e2] = shadows::light_field::sphere_frame(*l, self.scene_info.scene_centre);
+                Some([Float4::from_vec3(e1, 0.0), Float4::from_vec3(e2, 0.0)])
+            })
+            .collect()
     }
 
     fn buffer(&self, id: BufferId) -> &Buffer<u8> {

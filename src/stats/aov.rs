@@ -250,9 +250,11 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
 }
 
 /// The (plane, light) of each AOV channel of `c`: one per light plane of the shadow output
-/// for its per-light buffers (`shadow.l<light>.*`), else one, (0, None).
+/// for its per-light buffers (`shadow.l<light>.*`, `lightfield.l<light>.*`), else one,
+/// (0, None) (also a per-light buffer without the shadow output: the light field of depth of
+/// field, `lightfield.*`).
 fn planes_of(c: &ChannelDecl, shadow_lights: &[u32]) -> Vec<(usize, Option<u32>)> {
-    if c.buffer.decl().per == Per::Light {
+    if c.buffer.decl().per == Per::Light && !shadow_lights.is_empty() {
         shadow_lights
             .iter()
             .enumerate()

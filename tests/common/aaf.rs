@@ -1,6 +1,5 @@
 //! Helpers of the AAF soft-shadow and indirect-light tests (tests/aaf_*.rs).
 
-use noisefree::filters::Configured;
 use noisefree::filters::aaf_indirect::{AafIndirect, AafIndirectSettings};
 use noisefree::filters::aaf_shadows::{AafShadowSettings, AafShadows};
 use noisefree::imaging::RgbImage;
@@ -80,13 +79,7 @@ pub fn shadow_renderer(
 
 /// The filter as `render --filter aaf-shadows` runs it (configured, specialised, prepared).
 pub fn aaf_filtered(frame: &Frame, settings: &AafShadowSettings) -> RgbImage {
-    Configured::typed::<AafShadows>(settings.clone(), &frame.info().scene)
-        .unwrap()
-        .prepare(frame.info(), &gpu())
-        .unwrap()
-        .run(frame)
-        .unwrap()
-        .image
+    super::filtered::<AafShadows>(frame, settings)
 }
 
 /// A host frame of one spp holding `pixels` as its shadow output, with F and the replaced
@@ -141,13 +134,7 @@ pub fn indirect_renderer(
 
 /// The filter as `render --filter aaf-indirect` runs it (configured, specialised, prepared).
 pub fn aaf_indirect_filtered(frame: &Frame, s: &AafIndirectSettings) -> RgbImage {
-    Configured::typed::<AafIndirect>(s.clone(), &frame.info().scene)
-        .unwrap()
-        .prepare(frame.info(), &gpu())
-        .unwrap()
-        .run(frame)
-        .unwrap()
-        .image
+    super::filtered::<AafIndirect>(frame, s)
 }
 
 /// A host frame holding `pixels` as its indirect output and F = 0.

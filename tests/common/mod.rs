@@ -24,6 +24,67 @@ pub fn generic_defines() -> Vec<(String, String)> {
     noisefree::render::features::generic_defines()
 }
 
+/// The filter `K` with `settings` as `render --filter` runs it on `frame` (configured,
+/// specialised for the frame's scene, prepared, run): its image.
+pub fn filtered<K: noisefree::filters::FilterKind>(
+    frame: &noisefree::render::Frame,
+    settings: &K::Settings,
+) -> RgbImage {
+    noisefree::filters::Configured::typed::<K>(settings.clone(), &frame.info().scene)
+        .unwrap()
+        .prepare(frame.info(), &gpu())
+        .unwrap()
+        .run(frame)
+        .unwrap()
+        .image
+}
+
+/// The settings `render --filter K` uses on `scene` (specialised: what `auto` decides), its
+/// notes printed.
+pub fn specialised<K: noisefree::filters::FilterKind>(
+    scene: &noisefree::render::SceneInfo,
+    mut settings: K::Settings,
+) -> K::Settings {
+    let notes = K::specialise(&mut settings, scene);
+    eprintln!("{notes:?}");
+    settings
+}
+
+/// What the filters see of `scene` at w × h.
+pub fn scene_info(scene: &Scene, w: u32, h: u32) -> noisefree::render::SceneInfo {
+    let o = options(scene, w, h, 1);
+    let arrays = SceneArrays::build(scene, &o.frame).unwrap();
+    noisefree::render::SceneInfo::new(scene, &arrays)
+}
+
+/// RMS of `a` against `b` over the pixels of `mask`.
+pub fn masked_rms(a: &RgbImage, b: &RgbImage, mask: &[bool]) -> f64 {
+    let (mut sum, mut n) = (0f64, 0usize);
+    for ((p, q), &m) in a.pixels.iter().zip(&b.pixels).zip(mask) {
+        if m {
+            sum += (0..3).map(|c| ((p[c] - q[c]) as f64).powi(2)).sum::<f64>();
+            n += 3;
+        }
+    }
+    (sum / n as f64).sqrt()
+}
+
+/// The record of an AOV file of `frame`: its scene, no filter.
+pub fn record_of(frame: &noisefree::render::Frame) -> noisefree::stats::RenderRecord {
+    noisefree::stats::RenderRecord {
+        scene: Some(frame.info().scene.clone()),
+        ..Default::default()
+    }
+}
+
+/// `frame` written to the AOV file `dir`/frame.exr (with [`record_of`]) and read back: the
+/// offline side of online == offline.
+pub fn aov_round_trip(frame: &noisefree::render::Frame, dir: &Path) -> noisefree::render::Frame {
+    let aov = dir.join("frame.exr");
+    noisefree::stats::aov::write_aov_exr(&aov, frame, &record_of(frame)).unwrap();
+    noisefree::stats::aov::read_aov_exr(&aov).unwrap().0
+}
+
 /// A path in the repository (`rel` relative to its root; "" for the root itself).
 pub fn repo_path(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)

@@ -1,5 +1,5 @@
-//! What the sheared filters' tests share (tests/sheared_dof.rs, tests/sheared_gi.rs): the
-//! device-vs-reference step errors and a host frame holding a light field.
+//! What the sheared filters' tests share (tests/sheared_*.rs): the device-vs-reference step
+//! errors, a host frame holding a light field, and renders for the shadows effect.
 
 use noisefree::layout::FilterVector;
 
@@ -70,4 +70,24 @@ pub fn sheared_host_frame(
         ],
     )
     .unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+/// `spp` path samples of `scene` at w × h (seed `seed`) with the shadow output and the light
+/// field sampled as the sheared filter `s` asks (every filtered light a plane).
+pub fn sheared_renderer(
+    scene: &noisefree::scene::Scene,
+    w: u32,
+    h: u32,
+    spp: u32,
+    seed: u32,
+    s: &noisefree::filters::sheared::ShearedSettings,
+) -> noisefree::render::Renderer {
+    use noisefree::layout::outputs::{Output, OutputSet};
+    let mut o = super::options(scene, w, h, seed);
+    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
+    o.shadows = s.sampling();
+    let mut r = noisefree::render::Renderer::new(super::gpu(), scene, &o)
+        .unwrap_or_else(|e| panic!("{e:#}"));
+    r.render_samples(spp).unwrap();
+    r
 }

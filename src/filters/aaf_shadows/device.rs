@@ -159,20 +159,13 @@ impl Passes {
         let passes = DevicePasses::new(gpu, &s.pass_params(width, height))?;
         let image = gpu.zeroed::<Float4>(n, "AAF image")?;
         let size = [width as usize, height as usize];
-        let kernel = |name: &str| {
-            let mut b = Kernel::builder();
-            b.program(&program)
-                .name(name)
-                .queue(gpu.queue.clone())
-                .global_work_size(size);
-            b
-        };
         let none = None::<&Buffer<u8>>;
         let lights = lights
             .iter()
             .map(|&(light, sphere)| -> Result<LightPasses> {
                 let params = gpu.upload(&[s.params(sphere, width, height, 0)])?;
-                let prepare = kernel("aaf_prepare")
+                let prepare = gpu
+                    .kernel(&program, "aaf_prepare", size)
                     .arg_named("p", &params)
                     .arg_named("pixels", none)
                     .arg_named("plane", 0u32)
@@ -181,19 +174,15 @@ impl Passes {
                     .arg(&passes.values[0])
                     .build()
                     .context("creating the AAF prepare kernel")?;
-                let compose = kernel("aaf_compose")
-                    .arg_named("p", &params)
-                    .arg_named("fv", none)
-                    .arg_named("terms", none)
-                    .arg_named("pixels", none)
-                    .arg_named("plane", 0u32)
-                    .arg_named("planes", 1u32)
-                    .arg_named("chained", 0u32)
-                    .arg(&passes.guide)
-                    .arg(&passes.values[0])
-                    .arg(&image)
-                    .build()
-                    .context("creating the AAF compose kernel")?;
+                let compose = compose_kernel(
+                    gpu,
+                    &program,
+                    "aaf_compose",
+                    size,
+                    &params,
+                    [&passes.guide, &image],
+                    &passes.values[0],
+                )?;
                 Ok(LightPasses {
                     light,
                     prepare,
@@ -208,6 +197,35 @@ impl Passes {
             image,
         })
     }
+}
+
+/// A compose kernel of kernels/filters/aaf_shadows.cl (`aaf_compose`, or the sheared
+/// filter's `aaf_compose_sheared`) for one light (`params`), on `program` over a w × h grid:
+/// the frame's buffers, the plane and `chained` are set per run; `guide_image` the guide read
+/// and the image written, `visibility` the filtered visibility.
+pub(crate) fn compose_kernel<V: ocl::OclPrm>(
+    gpu: &Gpu,
+    program: &ocl::Program,
+    name: &str,
+    size: [usize; 2],
+    params: &Buffer<AafShadowParams>,
+    [guide, image]: [&Buffer<Float4>; 2],
+    visibility: &Buffer<V>,
+) -> Result<Kernel> {
+    let none = None::<&Buffer<u8>>;
+    gpu.kernel(program, name, size)
+        .arg_named("p", params)
+        .arg_named("fv", none)
+        .arg_named("terms", none)
+        .arg_named("pixels", none)
+        .arg_named("plane", 0u32)
+        .arg_named("planes", 1u32)
+        .arg_named("chained", 0u32)
+        .arg(guide)
+        .arg(visibility)
+        .arg(image)
+        .build()
+        .with_context(|| format!("creating the {name} kernel"))
 }
 
 impl PreparedFilter for AafShadowKernel {

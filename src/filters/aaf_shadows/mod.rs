@@ -36,7 +36,7 @@
 //!   rendered.
 //! - **Every sphere light, one at a time** (§3.4 filters one light; our scenes have several):
 //!   `light = auto` filters the scene's first `light_count` sphere lights (all of them, at
-//!   most [`MAX_SHADOW_PLANES`]), a number filters that light alone (the others' shadows stay
+//!   most [`crate::layout::outputs::MAX_SHADOW_PLANES`]), a number filters that light alone (the others' shadows stay
 //!   as rendered), -1 none. Each light has its own plane of the shadow output
 //!   (src/render/shadows: its own sparse pass, slope fill, slopes s1/s2 and adaptive pass, so
 //!   n_l(x) is eq. 3.5 for that light's slopes and size, clamped to [sparse_spp, max_spp]
@@ -55,13 +55,17 @@ use std::sync::Arc;
 use anyhow::{Result, bail};
 
 use super::aaf_pass::PassParams;
+use super::shadow_lights::{
+    check_lights, chosen_lights, light_needs, light_planes, lights_of, specialise_lights,
+};
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
-use crate::layout::outputs::{MAX_SHADOW_PLANES, Output, OutputSet};
+use crate::layout::outputs::OutputSet;
 use crate::layout::{AafShadowParams, Float4};
 use crate::render::shadows::bandlimit::light_sigma;
-use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling, LightPlanes};
+use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::AafShadowKernel;
+pub(crate) use device::compose_kernel;
 pub use reference::{compose, compose_over, prepare, reference};
 
 crate::filter_settings! {
@@ -100,14 +104,7 @@ pub const MAX_RADIUS: u32 = 1024;
 
 impl AafShadowSettings {
     pub fn validate(&self) -> Result<()> {
-        check_light(self.light)?;
-        if self.light_count > MAX_SHADOW_PLANES {
-            bail!(
-                "light_count: at most {MAX_SHADOW_PLANES} sphere lights are filtered at once \
-                 (one plane of the shadow output each), got {}",
-                self.light_count
-            );
-        }
+        check_lights(self.light, self.light_count, "filtered")?;
         self.sampling().check()?;
         for (v, name) in [(self.radius, "radius"), (self.fill_radius, "fill_radius")] {
             if v > MAX_RADIUS {
@@ -130,38 +127,20 @@ impl AafShadowSettings {
     /// else the first `light_count` (after specialisation the scene's count; before it, 0
     /// counts as the first light alone).
     pub fn filtered_lights(&self) -> Vec<u32> {
-        match self.light {
-            Auto::Auto => (0..self.light_count.max(1)).collect(),
-            Auto::Set(_) => light_index(self.light).into_iter().collect(),
-        }
+        chosen_lights(self.light, self.light_count)
     }
 
     /// The filtered lights with their centre and radius in `scene`; an error naming the
     /// light when the scene lacks one.
     pub fn lights_of(&self, scene: &SceneInfo) -> Result<Vec<(u32, [f32; 4])>> {
-        self.filtered_lights()
-            .into_iter()
-            .map(|l| match scene.sphere_lights.get(l as usize) {
-                Some(c) => Ok((l, *c)),
-                None => bail!(
-                    "the aaf-shadows filter is set to sphere light {l}, but the scene has {} \
-                     sphere light(s)",
-                    scene.sphere_lights.len()
-                ),
-            })
-            .collect()
+        lights_of(AafShadows::NAME, &self.filtered_lights(), scene)
     }
 
     /// How the renderer samples the shadow output for these settings: a plane per filtered
     /// light, each with its own sparse and adaptive passes.
     pub fn sampling(&self) -> ShadowSampling {
-        let lights = self.filtered_lights();
         ShadowSampling {
-            lights: if lights.is_empty() {
-                LightPlanes::one(0)
-            } else {
-                LightPlanes::of(&lights)
-            },
+            lights: light_planes(&self.filtered_lights()),
             sparse_spp: self.sparse_spp,
             max_spp: self.max_spp,
             fill_radius: self.fill_radius,
@@ -205,61 +184,6 @@ impl AafShadowSettings {
     }
 }
 
-/// A shadow filter's `light` setting (this filter's and stylized-shadows'): a sphere light's
-/// number from 0, -1 for none, or auto.
-pub fn check_light(light: Auto<i32>) -> Result<()> {
-    if let Auto::Set(l) = light
-        && l < -1
-    {
-        bail!("light is a sphere light's number from 0, or -1 for none; got {l}");
-    }
-    Ok(())
-}
-
-/// The sphere light a `light` setting names, if any (`auto` counts as the first).
-pub fn light_index(light: Auto<i32>) -> Option<u32> {
-    let l = light.or(0);
-    (l >= 0).then_some(l as u32)
-}
-
-/// What a shadow filter reads: the shadow output when its `light` names one, else colour.
-pub fn light_needs(light: Auto<i32>) -> OutputSet {
-    match light_index(light) {
-        Some(_) => OutputSet::of(&[Output::Colour, Output::Shadows]),
-        None => OutputSet::colour(),
-    }
-}
-
-/// `light = auto` becomes the first sphere light, or none when the scene has none; one note per
-/// decision, and one naming the light.
-pub fn specialise_light(light: &mut Auto<i32>, scene: &SceneInfo) -> Vec<String> {
-    let count = scene.sphere_lights.len();
-    let mut notes = Vec::new();
-    if light.is_auto() {
-        let l = if count > 0 { 0 } else { -1 };
-        *light = Auto::Set(l);
-        notes.push(if count > 0 {
-            format!("light = 0: the first of {count} sphere light(s)")
-        } else {
-            "light = -1: the scene has no sphere light, nothing to filter (the image \
-             passes through)"
-                .to_string()
-        });
-    }
-    if let Some(l) = light_index(*light) {
-        match scene.sphere_lights.get(l as usize) {
-            Some(c) => notes.push(format!(
-                "filters sphere light {l}: centre ({}, {}, {}), radius {}",
-                c[0], c[1], c[2], c[3]
-            )),
-            None => notes.push(format!(
-                "sphere light {l} does not exist (the scene has {count}): preparing fails"
-            )),
-        }
-    }
-    notes
-}
-
 /// The AAF soft-shadow filter in the registry.
 pub struct AafShadows;
 
@@ -275,31 +199,16 @@ impl FilterKind for AafShadows {
     }
 
     /// `light = auto` becomes the scene's first `light_count` sphere lights (all of them, at
-    /// most [`MAX_SHADOW_PLANES`]), or none when the scene has none; a set `light` is
+    /// most [`crate::layout::outputs::MAX_SHADOW_PLANES`]), or none when the scene has none; a set `light` is
     /// checked against the scene.
     fn specialise(s: &mut AafShadowSettings, scene: &SceneInfo) -> Vec<String> {
-        let count = scene.sphere_lights.len() as u32;
-        if !s.light.is_auto() || count == 0 {
-            return specialise_light(&mut s.light, scene);
-        }
-        let all = if s.light_count == 0 {
-            count
-        } else {
-            s.light_count.min(count)
-        };
-        let n = all.min(MAX_SHADOW_PLANES);
-        s.light_count = n;
-        let mut notes = vec![format!(
-            "light_count = {n}: sphere light(s) 0..{n} of {count} filtered, each with its own \
-             sparse and adaptive passes, slopes and 1-D passes"
-        )];
-        if n < all {
-            notes.push(format!(
-                "the shadow output holds at most {MAX_SHADOW_PLANES} lights: sphere lights \
-                 {n}..{count} keep their shadows as rendered"
-            ));
-        }
-        notes
+        specialise_lights(
+            &mut s.light,
+            &mut s.light_count,
+            scene,
+            "filtered",
+            "each with its own sparse and adaptive passes, slopes and 1-D passes",
+        )
     }
 
     fn applies(s: &AafShadowSettings, _scene: &SceneInfo) -> bool {

@@ -1,6 +1,7 @@
-//! The sheared soft-shadow filter on the device (kernels/filters/sheared.cl): prepare, steps
-//! 1a, 1b, 2a, 2b, then AAF's compose (kernels/filters/aaf_shadows.cl `aaf_compose_sheared`,
-//! which reads the kind from the same guide lane).
+//! The sheared soft-shadow filter on the device (kernels/filters/sheared.cl): per filtered
+//! light, prepare, steps 1a, 1b, 2a, 2b, then AAF's compose (kernels/filters/aaf_shadows.cl
+//! `aaf_compose_sheared`, which reads the kind from the same guide lane; each light's compose
+//! on the image of the lights before it).
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -11,7 +12,7 @@ use ocl::{Buffer, Kernel};
 
 use super::ShearedSettings;
 use super::reference::{g_floats, p_floats};
-use crate::filters::aaf_shadows::AafShadowSettings;
+use crate::filters::aaf_shadows::{AafShadowSettings, compose_kernel};
 use crate::filters::{FilterRun, PreparedFilter};
 use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
 use crate::layout::outputs::{BufferId, Output, OutputSet};
@@ -30,10 +31,20 @@ pub struct Intermediates {
     pub visibility: Vec<f32>,
 }
 
-struct Passes {
+/// One filtered light's launches: its parameters (centre, radius, frame, σ_y, bins' range) in
+/// the six kernels, which read its plane of the shadow output and of the light field.
+struct LightPasses {
+    /// The scene's sphere light (its plane is looked up in each frame).
+    light: u32,
     kernels: [Kernel; 6],
     _params: Buffer<ShearedParams>,
     _compose_params: Buffer<AafShadowParams>,
+}
+
+/// The filter's kernels and buffers for one image size: the steps' buffers, shared by the
+/// lights, which run one after another, each composing onto the image of the ones before.
+struct Passes {
+    lights: Vec<LightPasses>,
     guide: Buffer<Float4>,
     p1a: Buffer<f32>,
     g1b: Buffer<f32>,
@@ -42,12 +53,10 @@ struct Passes {
     image: Buffer<Float4>,
 }
 
-/// The sheared filter, built for an image size and a light (none: the image passes through).
+/// The sheared filter, built for an image size and its lights (none: the image passes
+/// through).
 pub struct ShearedKernel {
     gpu: Arc<Gpu>,
-    /// The sphere light filtered: the frame's shadow plane read (src/layout/outputs.rs
-    /// `Per::Light`; a frame with other planes too gives its copy of this one).
-    light_index: Option<u32>,
     passes: Option<Passes>,
     width: u32,
     height: u32,
@@ -57,11 +66,14 @@ pub struct ShearedKernel {
 }
 
 impl ShearedKernel {
-    /// `light`: the filtered sphere light's centre and radius and the scene's centre, or None.
+    /// `lights`: the filtered sphere lights (number, centre and radius), in increasing order
+    /// (empty: none), in a scene centred at `scene_centre` (each light's frame,
+    /// [`crate::render::shadows::light_field::light_frame`]).
     pub fn new(
         gpu: Arc<Gpu>,
         settings: &ShearedSettings,
-        light: Option<([f32; 4], [f32; 3])>,
+        lights: &[(u32, [f32; 4])],
+        scene_centre: [f32; 3],
         width: u32,
         height: u32,
     ) -> Result<ShearedKernel> {
@@ -69,16 +81,13 @@ impl ShearedKernel {
         if width == 0 || height == 0 {
             bail!("the image must be at least 1x1 pixels, got {width}x{height}");
         }
-        let passes = match light {
-            Some((l, centre)) => {
-                let p = settings.params(l, centre, width, height);
-                Some(Passes::new(&gpu, settings, &p, l)?)
-            }
-            None => None,
+        let passes = if lights.is_empty() {
+            None
+        } else {
+            Some(Passes::new(&gpu, settings, lights, scene_centre, width, height)?)
         };
         Ok(ShearedKernel {
             gpu,
-            light_index: settings.light_index(),
             passes,
             width,
             height,
@@ -87,7 +96,8 @@ impl ShearedKernel {
         })
     }
 
-    /// Kernel time of each launch of the last run, in the order of [`STEPS`].
+    /// Kernel time of each launch of the last run, in the order of [`STEPS`], summed over
+    /// the lights.
     pub fn step_times(&self) -> [Duration; 6] {
         self.step_times
     }
@@ -102,27 +112,9 @@ impl ShearedKernel {
     /// q up to max_radius rows away (a step moves at most one row), 1b reads p and the guide
     /// up to max_radius rows further, so prepare and 1a run on the band widened by twice that,
     /// 1b and 2a by once, and the band's pixels get the bytes of the whole frame's filtering.
-    /// The image's other rows are black.
+    /// The image's other rows are black. Each light runs the six launches on its planes.
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
-        let own = match self.light_index {
-            Some(l) if self.passes.is_some() => {
-                // The light field is sampled for the first plane's light only
-                // (kernels/render/light_field.cl).
-                if let Some(&first) = frame.info().shadow_lights.first()
-                    && first != l
-                {
-                    bail!(
-                        "the sheared filter reads the light field of sphere light {l}, but \
-                         the frame's is of sphere light {first} (its first shadow plane): \
-                         render it for the sheared filter"
-                    );
-                }
-                frame.light_plane(l, "the sheared filter")?
-            }
-            _ => None,
-        };
-        let frame = own.as_ref().unwrap_or(frame);
         let h = self.height;
         let rows = rows.start.min(h)..rows.end.min(h);
         let widen = |r: u32| rows.start.saturating_sub(r)..(rows.end + r).min(h);
@@ -145,36 +137,57 @@ impl ShearedKernel {
             OutputSet::of(&[Output::Colour, Output::Shadows, Output::LightField]),
             "the sheared filter",
         )?;
+        let info = frame.info();
+        let planes = info.shadow_planes();
         let shadow = frame.device(&self.gpu, BufferId::ShadowPixels)?;
         let field = frame.device(&self.gpu, BufferId::LightFieldPixels)?;
-        let [prepare, k1a, k1b, _, k2b, compose] = &p.kernels;
-        for k in [prepare, k1b, k2b] {
-            k.set_arg("shadow_pixels", shadow)?;
-        }
-        for k in [prepare, k1a, k1b, k2b] {
-            k.set_arg("light_field", field)?;
-        }
-        compose.set_arg("pixels", shadow)?;
-        compose.set_arg("fv", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
-        compose.set_arg("terms", frame.device(&self.gpu, BufferId::ShadowTerms)?)?;
-        let mut total = Duration::ZERO;
+        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
+        let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
         let bands = [&wider, &wider, &wide, &wide, &rows, &rows];
-        for (n, k) in p.kernels.iter().enumerate() {
-            // SAFETY: every buffer is owned by self or the frame, both alive until the event
-            // completes (enqueue_rows waits), and sized for width x height pixels.
-            let event =
-                unsafe { enqueue_rows(k, self.width, h, bands[n].clone(), STEPS[n])? };
-            self.step_times[n] = event_duration(&event)?;
-            total += self.step_times[n];
+        self.step_times = [Duration::ZERO; 6];
+        for (chained, l) in p.lights.iter().enumerate() {
+            let Some(plane) = info.shadow_plane(l.light) else {
+                bail!(
+                    "the sheared filter reads the shadows and light field of sphere light {}, \
+                     but the frame's shadow output holds sphere light(s) {:?}: render it with \
+                     the filter asking for that light",
+                    l.light,
+                    info.shadow_lights
+                );
+            };
+            let plane = plane as u32;
+            let [prepare, k1a, k1b, _, k2b, compose] = &l.kernels;
+            for k in [prepare, k1b, k2b] {
+                k.set_arg("shadow_pixels", shadow)?;
+            }
+            for k in [prepare, k1a, k1b, k2b] {
+                k.set_arg("light_field", field)?;
+                k.set_arg("plane", plane)?;
+                k.set_arg("planes", planes)?;
+            }
+            compose.set_arg("pixels", shadow)?;
+            compose.set_arg("fv", fv)?;
+            compose.set_arg("terms", terms)?;
+            compose.set_arg("plane", plane)?;
+            compose.set_arg("planes", planes)?;
+            compose.set_arg("chained", (chained > 0) as u32)?;
+            for (n, k) in l.kernels.iter().enumerate() {
+                // SAFETY: every buffer is owned by self or the frame, both alive until the
+                // event completes (enqueue_rows waits), and sized for width x height pixels
+                // (times the frame's planes for the per-light ones, indexed below planes).
+                let event =
+                    unsafe { enqueue_rows(k, self.width, h, bands[n].clone(), STEPS[n])? };
+                self.step_times[n] += event_duration(&event)?;
+            }
         }
         Ok(FilterRun {
             image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
             wall_time: start.elapsed(),
-            kernel_time: Some(total),
+            kernel_time: Some(self.step_times.iter().sum()),
         })
     }
 
-    /// The last run's intermediate buffers (None without a light).
+    /// The last run's intermediate buffers, of its last light (None without a light).
     pub fn intermediates(&self) -> Result<Option<Intermediates>> {
         let Some(p) = &self.passes else {
             return Ok(None);
@@ -197,21 +210,26 @@ impl ShearedKernel {
 }
 
 impl Passes {
-    fn new(gpu: &Gpu, s: &ShearedSettings, params: &ShearedParams, light: [f32; 4]) -> Result<Passes> {
-        let (w, h) = (params.width, params.height);
+    fn new(
+        gpu: &Gpu,
+        s: &ShearedSettings,
+        lights: &[(u32, [f32; 4])],
+        scene_centre: [f32; 3],
+        w: u32,
+        h: u32,
+    ) -> Result<Passes> {
         let n = w as usize * h as usize;
         let bins = s.bins;
-        let bytes = s.memory_bytes(w, h);
         gpu.check_alloc(
             (n * p_floats(bins) * 4) as u64,
             "sheared filter's step-1a (p per bin and row)",
         )?;
-        gpu.check_total(bytes, "the sheared filter's buffers")?;
+        gpu.check_total(
+            n as u64 * s.shadow_bytes_per_pixel(lights.len() as u32),
+            "the sheared filter's buffers",
+        )?;
         let program = gpu.program("filters/sheared.cl", &[], "")?;
         let aaf = gpu.program("filters/aaf_shadows.cl", &[], "")?;
-        let params_buffer = gpu.upload(std::slice::from_ref(params))?;
-        let compose_params =
-            gpu.upload(&[AafShadowSettings::default().params(light, w, h, 0)])?;
         let guide = gpu.zeroed::<Float4>(n, "sheared guide")?;
         let p1a = gpu.zeroed::<f32>(n * p_floats(bins), "sheared step 1a")?;
         let g1b = gpu.zeroed::<f32>(n * g_floats(bins), "sheared step 1b")?;
@@ -219,74 +237,62 @@ impl Passes {
         let visibility = gpu.zeroed::<f32>(n, "sheared visibility")?;
         let image = gpu.zeroed::<Float4>(n, "sheared image")?;
         let size = [w as usize, h as usize];
-        fn kernel<'a>(
-            gpu: &Gpu,
-            prog: &'a ocl::Program,
-            name: &str,
-            size: [usize; 2],
-        ) -> ocl::builders::KernelBuilder<'a> {
-            let mut b = Kernel::builder();
-            b.program(prog)
-                .name(name)
-                .queue(gpu.queue.clone())
-                .global_work_size(size);
-            b
-        }
-        let none = None::<&Buffer<u8>>;
         let what = "creating a sheared filter kernel";
-        let prepare = kernel(gpu, &program, "sheared_prepare", size)
-            .arg_named("p", &params_buffer)
-            .arg_named("shadow_pixels", none)
-            .arg_named("light_field", none)
-            .arg(&guide)
-            .build()
-            .context(what)?;
-        let k1a = kernel(gpu, &program, "sheared_1a", size)
-            .arg_named("p", &params_buffer)
-            .arg_named("light_field", none)
-            .arg(&guide)
-            .arg(&p1a)
-            .build()
-            .context(what)?;
-        let k1b = kernel(gpu, &program, "sheared_1b", size)
-            .arg_named("p", &params_buffer)
-            .arg_named("shadow_pixels", none)
-            .arg_named("light_field", none)
-            .arg(&guide)
-            .arg(&p1a)
-            .arg(&g1b)
-            .build()
-            .context(what)?;
-        let k2a = kernel(gpu, &program, "sheared_2a", size)
-            .arg_named("p", &params_buffer)
-            .arg(&guide)
-            .arg(&g1b)
-            .arg(&q2a)
-            .build()
-            .context(what)?;
-        let k2b = kernel(gpu, &program, "sheared_2b", size)
-            .arg_named("p", &params_buffer)
-            .arg_named("shadow_pixels", none)
-            .arg_named("light_field", none)
-            .arg(&guide)
-            .arg(&q2a)
-            .arg(&visibility)
-            .build()
-            .context(what)?;
-        let compose = kernel(gpu, &aaf, "aaf_compose_sheared", size)
-            .arg_named("p", &compose_params)
-            .arg_named("fv", none)
-            .arg_named("terms", none)
-            .arg_named("pixels", none)
-            .arg(&guide)
-            .arg(&visibility)
-            .arg(&image)
-            .build()
-            .context(what)?;
+        let lights = lights
+            .iter()
+            .map(|&(light, sphere)| -> Result<LightPasses> {
+                let params = gpu.upload(&[s.params(sphere, scene_centre, w, h)])?;
+                let compose_params =
+                    gpu.upload(&[AafShadowSettings::default().params(sphere, w, h, 0)])?;
+                let step = |name, shadow| reads(gpu, &program, name, size, &params, shadow);
+                let prepare = step("sheared_prepare", true)
+                    .arg(&guide)
+                    .build()
+                    .context(what)?;
+                let k1a = step("sheared_1a", false)
+                    .arg(&guide)
+                    .arg(&p1a)
+                    .build()
+                    .context(what)?;
+                let k1b = step("sheared_1b", true)
+                    .arg(&guide)
+                    .arg(&p1a)
+                    .arg(&g1b)
+                    .build()
+                    .context(what)?;
+                let k2a = gpu
+                    .kernel(&program, "sheared_2a", size)
+                    .arg_named("p", &params)
+                    .arg(&guide)
+                    .arg(&g1b)
+                    .arg(&q2a)
+                    .build()
+                    .context(what)?;
+                let k2b = step("sheared_2b", true)
+                    .arg(&guide)
+                    .arg(&q2a)
+                    .arg(&visibility)
+                    .build()
+                    .context(what)?;
+                let compose = compose_kernel(
+                    gpu,
+                    &aaf,
+                    "aaf_compose_sheared",
+                    size,
+                    &compose_params,
+                    [&guide, &image],
+                    &visibility,
+                )?;
+                Ok(LightPasses {
+                    light,
+                    kernels: [prepare, k1a, k1b, k2a, k2b, compose],
+                    _params: params,
+                    _compose_params: compose_params,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
         Ok(Passes {
-            kernels: [prepare, k1a, k1b, k2a, k2b, compose],
-            _params: params_buffer,
-            _compose_params: compose_params,
+            lights,
             guide,
             p1a,
             g1b,
@@ -295,6 +301,29 @@ impl Passes {
             image,
         })
     }
+}
+
+/// A builder of step `name` (prepare, 1a, 1b or 2b) with the arguments these share, in
+/// their order: the light's parameters, the shadow output (`shadow`: the steps that read it)
+/// and the light field (set per run) and their plane (set per run).
+fn reads<'a>(
+    gpu: &Gpu,
+    program: &'a ocl::Program,
+    name: &str,
+    size: [usize; 2],
+    params: &'a Buffer<ShearedParams>,
+    shadow: bool,
+) -> ocl::builders::KernelBuilder<'a> {
+    let none = None::<&Buffer<u8>>;
+    let mut b = gpu.kernel(program, name, size);
+    b.arg_named("p", params);
+    if shadow {
+        b.arg_named("shadow_pixels", none);
+    }
+    b.arg_named("light_field", none)
+        .arg_named("plane", 0u32)
+        .arg_named("planes", 1u32);
+    b
 }
 
 impl PreparedFilter for ShearedKernel {

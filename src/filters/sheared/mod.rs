@@ -1,14 +1,14 @@
 //! Sheared filtering of soft shadows, depth of field or diffuse indirect light (L.-Q. Yan, S. U. Mehta, R. Ramamoorthi, F. Durand,
 //! "Fast 4D Sheared Filtering for Interactive Rendering of Distribution Effects", ACM TOG 2015;
-//! seed 002, digest /work/shared/notes/seeds-aaf-sheared.md §3; issue 16), for one sphere
-//! light: the eq. 4-5 analysis in `shear.rs`, the OpenCL steps of kernels/filters/sheared.cl
+//! seed 002, digest /work/shared/notes/seeds-aaf-sheared.md §3; issue 16), for each sphere
+//! light in turn: the eq. 4-5 analysis in `shear.rs`, the OpenCL steps of kernels/filters/sheared.cl
 //! in `device.rs`, their plain Rust reference (and eq. 9's brute force) in `reference.rs`. The
 //! sampling side is the renderer's light-field output (src/render/shadows/light_field.rs),
 //! gathered with AAF's shadow output (receiver, d1, r(x), slopes, slope fill).
 //!
 //! **The effect is the scene's** (`effect = auto`): a thin lens (lens_radius > 0) gets depth of
 //! field (`dof.rs`, `dof_device.rs`, kernels/filters/sheared_dof.cl over the lens field of
-//! kernels/render/lens_field.cl); a pinhole camera with a sphere light gets that light's soft
+//! kernels/render/lens_field.cl); a pinhole camera with sphere lights gets their soft
 //! shadows; a pinhole camera without one gets diffuse indirect light (`gi.rs`,
 //! kernels/filters/sheared_gi.cl over the GI field of kernels/render/gi_field.cl; the same
 //! launches as depth of field, `DofKernel::gi`). In a lens scene the sphere lights' shadows
@@ -44,9 +44,20 @@
 //! - **Pixels**: no receiver: F as rendered; a receiver without slopes: its own samples (radius
 //!   0), lent to neighbours; with slopes: filtered. Output = F − the light's part the path
 //!   samples put there + r · filtered visibility (AAF's compose pass, reused).
-//! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 288 B per pixel (its depth-of-field lanes included)
-//!   plus the filter's 2 · bins · 4 floats of step 1a and 2 · 2 · bins of steps 1b/2a;
-//!   refused before allocation when it does not fit the device. Depth of field and GI: the
+//! - **Every sphere light, one at a time** (§3: "filter each light separately"; the digest
+//!   §3): as aaf-shadows, `light = auto` filters the scene's first `light_count` sphere lights
+//!   (all of them, at most 8: the shadow output's planes; src/filters/shadow_lights.rs), a
+//!   number that light alone (the others' shadows stay as rendered), -1 none. Each light has
+//!   its own plane of the shadow output and of the light field: its sparse pass and slope
+//!   fill, its l × l grid in its own frame (perpendicular to scene centre → its centre), its
+//!   slopes, so its own σ_x, η and σ_y = R_l/2; the steps run once per light on its planes,
+//!   sharing the steps' buffers, and the composes chain in increasing light order:
+//!   F − Σ_l direct_l + Σ_l r_l · filtered v_l. A light's samples depend on the pixel alone,
+//!   so with one light (or `light = N`) the output is the one-light filter's, byte for byte.
+//! - **Memory** O(N² l²) ([`ShearedSettings::memory_bytes`]): the light field 288 B per pixel
+//!   and filtered light (its depth-of-field lanes included) plus the filter's 2 · bins · 4
+//!   floats of step 1a and 2 · 2 · bins of steps 1b/2a, shared by the lights; refused before
+//!   allocation when it does not fit the device. Depth of field and GI: the
 //!   light field plus steps 1a-2a of `dof_device.rs`, 1952 B per pixel at 17 bins.
 
 //!
@@ -78,13 +89,16 @@ use std::sync::Arc;
 
 use anyhow::{Result, bail};
 
-use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
+use super::shadow_lights::{
+    check_lights, chosen_lights, light_index, light_needs, light_planes, lights_of,
+    specialise_lights,
+};
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::layout::{Float4, LightFieldPixel, ShearedParams};
-use crate::render::shadows::light_field::{MAX_SIDE, light_frame};
-use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling, LightPlanes};
+use crate::render::shadows::light_field::{MAX_SIDE, sphere_frame};
+use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
 pub use device::{Intermediates, STEPS, ShearedKernel};
 pub use dof_device::{DOF_STEPS, DofIntermediates, DofKernel};
 
@@ -92,7 +106,8 @@ pub use dof_device::{DOF_STEPS, DofIntermediates, DofKernel};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Effect {
-    /// One sphere light's soft shadows (the light field over the light).
+    /// The sphere lights' soft shadows (a light field over each light, filtered one light at
+    /// a time).
     Shadows,
     /// Depth of field through a thin lens (the lens field).
     Dof,
@@ -103,9 +118,13 @@ pub enum Effect {
 crate::filter_settings! {
     /// The sheared soft-shadow filter's settings: the light-field grid and the filter.
     pub struct ShearedSettings, flags "sheared-" {
-        /// The sphere light whose shadows are filtered, counting from 0; auto: the first, or
+        /// The sphere light whose shadows are filtered, counting from 0 in the scene's order;
+        /// auto: every sphere light (the first `light_count`), each filtered on its own, or
         /// none when the scene has none (the image passes through); -1: none.
         pub light: Auto<i32> = Auto::Auto,
+        /// With light = auto: how many sphere lights are filtered, the scene's first ones
+        /// (0: all of them; at most 8, the shadow output's planes).
+        pub light_count: u32 = 0,
         /// Side l of the light-field grid (l² samples per pixel, l <= 4).
         pub side: u32 = 3,
         /// Samples per pixel of AAF's sparse pass (a square): receiver, d1, r(x), slopes.
@@ -124,7 +143,7 @@ crate::filter_settings! {
         pub depth_tolerance: f32 = 2.0,
         /// Factor on eq. 5's shear eta (1: as settled; 0: axis-aligned; -1: the other sign).
         pub shear: f32 = 1.0,
-        /// What is filtered: "shadows" (one sphere light's), "dof" (depth of field, needs a
+        /// What is filtered: "shadows" (the sphere lights'), "dof" (depth of field, needs a
         /// thin lens) or "gi" (diffuse indirect light, a pinhole camera); auto: "dof" with a
         /// thin lens (lens_radius > 0), else "shadows" with a sphere light, else "gi".
         pub effect: Auto<Effect> = Auto::Auto,
@@ -133,7 +152,7 @@ crate::filter_settings! {
 
 impl ShearedSettings {
     pub fn validate(&self) -> Result<()> {
-        check_light(self.light)?;
+        check_lights(self.light, self.light_count, "filtered")?;
         if self.side == 0 || self.side > MAX_SIDE {
             bail!(
                 "side is the light-field grid's l, 1..={MAX_SIDE} (Yan et al. 2015: l <= 4), \
@@ -158,10 +177,10 @@ impl ShearedSettings {
         if !self.shear.is_finite() {
             bail!("shear must be finite, got {}", self.shear);
         }
-        let chosen_light = self.light_index().is_some() && !self.light.is_auto();
+        let chosen_light = light_index(self.light).is_some() && !self.light.is_auto();
         if self.effect == Auto::Set(Effect::Dof) && chosen_light {
             bail!(
-                "the sheared filter does depth of field or one sphere light's soft shadows, not \
+                "the sheared filter does depth of field or sphere lights' soft shadows, not \
                  both at once (Yan et al.'s appendix, eqs. 16-17, is not built): with effect = \
                  \"dof\" set light = -1 (the shadows stay as path traced), or effect = \"shadows\""
             );
@@ -176,15 +195,24 @@ impl ShearedSettings {
         self.sampling().check()
     }
 
-    /// The sphere light filtered, if any (`auto` counts as the first).
-    pub fn light_index(&self) -> Option<u32> {
-        light_index(self.light)
+    /// The sphere lights filtered, in increasing order: `light` alone when set (none for -1),
+    /// else the first `light_count` (after specialisation the scene's count; before it, the
+    /// first light alone); src/filters/shadow_lights.rs.
+    pub fn filtered_lights(&self) -> Vec<u32> {
+        chosen_lights(self.light, self.light_count)
     }
 
-    /// How the renderer samples: AAF's sparse pass and fill, no adaptive pass, the grid.
+    /// The filtered lights with their centre and radius in `scene`; an error naming the
+    /// light when the scene lacks one.
+    pub fn lights_of(&self, scene: &SceneInfo) -> Result<Vec<(u32, [f32; 4])>> {
+        lights_of(Sheared::NAME, &self.filtered_lights(), scene)
+    }
+
+    /// How the renderer samples: per filtered light (a plane each), AAF's sparse pass and
+    /// fill, no adaptive pass, the grid.
     pub fn sampling(&self) -> ShadowSampling {
         ShadowSampling {
-            lights: LightPlanes::one(self.light_index().unwrap_or(0)),
+            lights: light_planes(&self.filtered_lights()),
             sparse_spp: self.sparse_spp,
             max_spp: self.sparse_spp,
             fill_radius: self.fill_radius,
@@ -231,10 +259,7 @@ impl ShearedSettings {
         width: u32,
         height: u32,
     ) -> ShearedParams {
-        let [e1, e2, _] = light_frame(
-            glam::Vec3::new(light[0], light[1], light[2]),
-            glam::Vec3::from(scene_centre),
-        );
+        let [e1, e2] = sphere_frame(light, scene_centre);
         let normal_cos = if self.normal_angle >= 180.0 {
             -2.0
         } else {
@@ -259,19 +284,25 @@ impl ShearedSettings {
         }
     }
 
-    /// Device bytes of the light field and the filter's buffers for a w × h image: O(N² l²)
-    /// (the light field's lanes are fixed at 16 samples; steps 1a-2a grow with the bins).
+    /// Device bytes of the light fields and the filter's buffers for a w × h image: O(N² l²)
+    /// (the light field's lanes are fixed at 16 samples; steps 1a-2a grow with the bins), a
+    /// light field per filtered light.
     pub fn memory_bytes(&self, width: u32, height: u32) -> u64 {
         let n = width as u64 * height as u64;
         if self.is_dof() || self.is_gi() {
             return n * dof_device::bytes_per_pixel(self.bins);
         }
-        let per_pixel = std::mem::size_of::<LightFieldPixel>() as u64
+        n * self.shadow_bytes_per_pixel(self.filtered_lights().len().max(1) as u32)
+    }
+
+    /// Soft shadows of `lights` sphere lights: bytes per pixel of their light fields (one per
+    /// light) and of the steps' buffers, which the lights share (they run one after another).
+    pub fn shadow_bytes_per_pixel(&self, lights: u32) -> u64 {
+        lights as u64 * std::mem::size_of::<LightFieldPixel>() as u64
             + 4 * (reference::p_floats(self.bins) + 2 * reference::g_floats(self.bins)) as u64
             + 16 // guide
             + 4 // visibility
-            + 16; // image
-        n * per_pixel
+            + 16 // image
     }
 }
 
@@ -281,9 +312,9 @@ pub struct Sheared;
 impl FilterKind for Sheared {
     type Settings = ShearedSettings;
     const NAME: &'static str = "sheared";
-    const SUMMARY: &'static str = "4-D sheared filtering of one sphere light's soft shadows, of depth of field with a thin lens, \
-         or of diffuse indirect light, from l x l light, lens or v-plane samples per pixel \
-         (Yan et al. 2015; on the device)";
+    const SUMMARY: &'static str = "4-D sheared filtering of every sphere light's soft shadows \
+         (a light at a time), of depth of field with a thin lens, or of diffuse indirect light, \
+         from l x l light, lens or v-plane samples per pixel (Yan et al. 2015; on the device)";
 
     fn check(s: &ShearedSettings) -> Result<()> {
         s.validate()
@@ -294,7 +325,9 @@ impl FilterKind for Sheared {
         if s.effect.is_auto() {
             s.effect = Auto::Set(if lens > 0.0 {
                 Effect::Dof
-            } else if !scene.sphere_lights.is_empty() || s.light_index().is_some() && !s.light.is_auto() {
+            } else if !scene.sphere_lights.is_empty()
+                || light_index(s.light).is_some() && !s.light.is_auto()
+            {
                 Effect::Shadows
             } else {
                 Effect::Gi
@@ -318,7 +351,14 @@ impl FilterKind for Sheared {
             return notes;
         }
         if !s.is_dof() {
-            return specialise_light(&mut s.light, scene);
+            return specialise_lights(
+                &mut s.light,
+                &mut s.light_count,
+                scene,
+                "filtered",
+                "each with its own light field (l x l samples in its own frame), sigma_y, \
+                 shear, steps 1a-2b and compose",
+            );
         }
         let mut notes = vec![format!(
             "depth of field through the thin lens (radius {lens}, focal distance {}): l x l \
@@ -338,10 +378,10 @@ impl FilterKind for Sheared {
         notes
     }
 
-    /// Depth of field wherever the camera has a lens, the shadows of a sphere light, or
+    /// Depth of field wherever the camera has a lens, the shadows of sphere lights, or
     /// diffuse indirect light where paths go past their first surface.
     fn applies(s: &ShearedSettings, scene: &SceneInfo) -> bool {
-        s.is_dof() || (s.is_gi() && scene.indirect) || s.light_index().is_some()
+        s.is_dof() || (s.is_gi() && scene.indirect) || !s.filtered_lights().is_empty()
     }
 
     fn needs(s: &ShearedSettings) -> OutputSet {
@@ -349,7 +389,7 @@ impl FilterKind for Sheared {
             return OutputSet::of(&[Output::Colour, Output::LightField]);
         }
         let outputs = light_needs(s.light);
-        match s.light_index() {
+        match light_index(s.light) {
             Some(_) => outputs.with(Output::LightField),
             None => outputs,
         }
@@ -388,21 +428,11 @@ impl FilterKind for Sheared {
             let p = s.dof_params(lens, frame.width, frame.height);
             return Ok(Box::new(DofKernel::new(gpu.clone(), p)?));
         }
-        let light = match s.light_index() {
-            None => None,
-            Some(l) => match frame.scene.sphere_lights.get(l as usize) {
-                Some(c) => Some((*c, frame.scene.scene_centre)),
-                None => bail!(
-                    "the sheared filter is set to sphere light {l}, but the scene has {} \
-                     sphere light(s)",
-                    frame.scene.sphere_lights.len()
-                ),
-            },
-        };
         Ok(Box::new(ShearedKernel::new(
             gpu.clone(),
             s,
-            light,
+            &s.lights_of(&frame.scene)?,
+            frame.scene.scene_centre,
             frame.width,
             frame.height,
         )?))

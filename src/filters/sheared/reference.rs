@@ -1,12 +1,20 @@
 //! The plain Rust reference of kernels/filters/sheared.cl: the same float operations in the
 //! same order, step by step (prepare, 1a, 1b, 2a, 2b, compose), and the 4-D brute force of
-//! eq. 9 that the factored steps approximate. src/filters/sheared/mod.rs says why.
+//! eq. 9 that the factored steps approximate, and the whole shadows filter over several lights
+//! ([`image`]). src/filters/sheared/mod.rs says why.
 
+use anyhow::Result;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use super::ShearedSettings;
 use super::shear::{bin_centre, bin_of, cap_sigma_x, eta, gauss, radius, sigma_x};
-use crate::layout::{LightFieldPixel, ShadowPixel, ShearedParams};
+use crate::filters::aaf_pass::PassPixel;
+use crate::filters::aaf_shadows::compose_over;
+use crate::imaging::RgbImage;
+use crate::layout::outputs::BufferId;
+use crate::layout::{LightFieldPixel, ShadowPixel, ShadowTerms, ShearedParams};
+use crate::render::Frame;
 use crate::render::shadows::light_field::grid_coordinate;
 
 /// What a pixel is to the filter (kernels/filters/sheared.cl `SHEARED_*`).
@@ -350,4 +358,49 @@ pub fn factored(
     let b = step_1b(p, shadow, field, guide, &a);
     let c = step_2a(p, guide, &b);
     step_2b(p, shadow, field, guide, &c)
+}
+
+/// The whole shadows filter on `frame` (which holds the shadow output and the light field of
+/// every light of `s`), in the kernels' order: per filtered light (their centres and radii from
+/// the frame's scene), in increasing order, prepare and the four steps on that light's planes
+/// with its parameters, then AAF's compose onto the image of the lights before (F for the
+/// first); without a light, the beauty.
+pub fn image(frame: &Frame, s: &ShearedSettings) -> Result<RgbImage> {
+    s.validate()?;
+    let scene = &frame.info().scene;
+    let (w, h) = (frame.width(), frame.height());
+    let mut image = frame.beauty()?;
+    for (light, sphere) in s.lights_of(scene)? {
+        let own = frame.light_plane(light, "the sheared filter")?;
+        let plane = own.as_ref().unwrap_or(frame);
+        let shadow: &[ShadowPixel] = plane.host_slice(BufferId::ShadowPixels)?;
+        let field: &[LightFieldPixel] = plane.host_slice(BufferId::LightFieldPixels)?;
+        let terms: &[ShadowTerms] = plane.host_slice(BufferId::ShadowTerms)?;
+        let p = s.params(sphere, scene.scene_centre, w, h);
+        let guide = prepare(&p, shadow, field);
+        let visibility = factored(&p, shadow, field, &guide);
+        image = compose(&image, terms, shadow, &guide, &visibility);
+    }
+    Ok(image)
+}
+
+/// `aaf_compose_sheared`: AAF's compose with this filter's guide (the kind) and visibility,
+/// onto `base`: base − the light's replaced term + r · visibility (base as is for no
+/// receiver).
+pub fn compose(
+    base: &RgbImage,
+    terms: &[ShadowTerms],
+    shadow: &[ShadowPixel],
+    guide: &[Guide],
+    visibility: &[f32],
+) -> RgbImage {
+    let kinds: Vec<PassPixel> = guide
+        .iter()
+        .map(|g| PassPixel {
+            kind: g[KIND],
+            ..Default::default()
+        })
+        .collect();
+    let visibility: Vec<[f32; 4]> = visibility.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect();
+    compose_over(base, terms, shadow, &kinds, &visibility)
 }

@@ -91,9 +91,9 @@ use std::sync::Arc;
 
 use anyhow::{Result, bail};
 
-use super::aaf_shadows::{check_light, light_index, light_needs, specialise_light};
-use crate::layout::outputs::MAX_SHADOW_PLANES;
-use crate::render::LightPlanes;
+use super::shadow_lights::{
+    check_lights, chosen_lights, light_needs, light_planes, lights_of, specialise_lights,
+};
 use super::{Auto, FilterKind, PreparedFilter, Purpose};
 use crate::gpu::Gpu;
 use crate::imaging::RgbImage;
@@ -156,14 +156,7 @@ pub const DISTANCE_SEED: u32 = 0x5717_12ed;
 
 impl StylizedSettings {
     pub fn validate(&self) -> Result<()> {
-        check_light(self.light)?;
-        if self.light_count > MAX_SHADOW_PLANES {
-            bail!(
-                "light_count: at most {MAX_SHADOW_PLANES} sphere lights are stylized at once \
-                 (one plane of the shadow output each), got {}",
-                self.light_count
-            );
-        }
+        check_lights(self.light, self.light_count, "stylized")?;
         lights::check(&self.lights)?;
         let k = (self.unshadowed_spp as f64).sqrt().round() as u32;
         if self.unshadowed_spp == 0 || k * k != self.unshadowed_spp || k > 64 {
@@ -235,11 +228,8 @@ impl StylizedSettings {
     /// (after specialisation the scene's count; before it, 0 counts as the first light);
     /// less those whose table says `stylize = false`.
     pub fn stylized_lights(&self) -> Vec<u32> {
-        let set: Vec<u32> = match self.light {
-            Auto::Auto => (0..self.light_count.max(1)).collect(),
-            Auto::Set(_) => light_index(self.light).into_iter().collect(),
-        };
-        set.into_iter()
+        chosen_lights(self.light, self.light_count)
+            .into_iter()
             .filter(|&l| lights::stylized(&self.lights, l))
             .collect()
     }
@@ -247,13 +237,8 @@ impl StylizedSettings {
     /// The shadow output this filter needs: a plane per stylized light, `unshadowed_spp`
     /// light samples for r and no adaptive pass (the centre ray gives V).
     pub fn sampling(&self) -> ShadowSampling {
-        let lights = self.stylized_lights();
         ShadowSampling {
-            lights: if lights.is_empty() {
-                LightPlanes::one(0)
-            } else {
-                LightPlanes::of(&lights)
-            },
+            lights: light_planes(&self.stylized_lights()),
             sparse_spp: self.unshadowed_spp,
             max_spp: self.unshadowed_spp,
             fill_radius: 0,
@@ -277,26 +262,17 @@ impl FilterKind for StylizedShadows {
         s.validate()
     }
 
-    /// `light = auto` becomes the scene's first `lights` sphere lights (all by default), or
-    /// none when the scene has none; a set `light` is checked against the scene.
+    /// `light = auto` becomes the scene's first `light_count` sphere lights (all by default,
+    /// at most the shadow output's 8 planes), or none when the scene has none; a set `light`
+    /// is checked against the scene (src/filters/shadow_lights.rs).
     fn specialise(s: &mut StylizedSettings, scene: &SceneInfo) -> Vec<String> {
-        let count = scene.sphere_lights.len() as u32;
-        if !s.light.is_auto() {
-            return specialise_light(&mut s.light, scene);
-        }
-        if count == 0 {
-            return specialise_light(&mut s.light, scene);
-        }
-        let n = if s.light_count == 0 {
-            count
-        } else {
-            s.light_count.min(count)
-        };
-        s.light_count = n;
-        vec![format!(
-            "light_count = {n}: sphere light(s) 0..{n} of {count} stylized (less any with \
-             stylize = false), each with its own contour, distance and blur"
-        )]
+        specialise_lights(
+            &mut s.light,
+            &mut s.light_count,
+            scene,
+            "stylized (less any with stylize = false)",
+            "each with its own contour, distance and blur",
+        )
     }
 
     fn needs(s: &StylizedSettings) -> OutputSet {
@@ -317,16 +293,7 @@ impl FilterKind for StylizedShadows {
         gpu: &Arc<Gpu>,
     ) -> Result<Box<dyn PreparedFilter>> {
         let lights = s.stylized_lights();
-        if let Some(l) = lights
-            .iter()
-            .find(|&&l| l as usize >= frame.scene.sphere_lights.len())
-        {
-            bail!(
-                "the stylized-shadows filter is set to sphere light {l}, but the scene has {} \
-                 sphere light(s)",
-                frame.scene.sphere_lights.len()
-            );
-        }
+        lights_of(StylizedShadows::NAME, &lights, &frame.scene)?;
         Ok(Box::new(StylizedKernel::new(
             gpu.clone(),
             s,

@@ -1,6 +1,7 @@
 //! kernels/render/light_field.cl in Rust: the light-field pass of sheared soft shadows (Yan et
 //! al. 2015 §3.1; src/render/shadows/light_field.rs), with the same float operations in the
-//! same order, and the shadow passes in the order the renderer runs them with it.
+//! same order, and the shadow passes in the order the renderer runs them with it, per light
+//! plane.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -148,34 +149,35 @@ pub fn light_field(
 }
 
 /// The shadow passes with the light-field pass, in the renderer's order (sparse, light field,
-/// slope fill, adaptive): the shadow pixels, the light fields and the rays.
+/// slope fill, adaptive), for each plane of `sampling.lights` with its light's frame
+/// (`frames`, in plane order): per plane the shadow pixels and the light fields, and the rays
+/// of them all.
+#[allow(clippy::type_complexity)]
 pub fn passes(
     s: &SceneArrays,
     sampling: &ShadowSampling,
-    frame: [Vec3; 2],
-) -> (Vec<ShadowPixel>, Vec<LightFieldPixel>, u64) {
-    let (mut pixels, mut rays) =
-        sparse(s, sampling.lights.first(), isqrt_floor(sampling.sparse_spp));
-    let (fields, more) = light_field(
-        s,
-        &mut pixels,
-        sampling.lights.first(),
-        sampling.light_field,
-        frame,
-    );
-    rays += more;
-    fill(
-        &mut pixels,
-        s.params.image_width,
-        s.params.image_height,
-        sampling.fill_radius,
-    );
-    rays += adaptive(
-        s,
-        &mut pixels,
-        sampling.lights.first(),
-        sampling.sparse_spp,
-        sampling.max_spp,
-    );
-    (pixels, fields, rays)
+    frames: &[[Vec3; 2]],
+) -> (Vec<(Vec<ShadowPixel>, Vec<LightFieldPixel>)>, u64) {
+    let mut rays = 0;
+    let planes = sampling
+        .lights
+        .lights()
+        .into_iter()
+        .zip(frames)
+        .map(|(light, &frame)| {
+            let (mut pixels, sparse_rays) = sparse(s, light, isqrt_floor(sampling.sparse_spp));
+            let (fields, more) = light_field(s, &mut pixels, light, sampling.light_field, frame);
+            fill(
+                &mut pixels,
+                s.params.image_width,
+                s.params.image_height,
+                sampling.fill_radius,
+            );
+            rays += sparse_rays
+                + more
+                + adaptive(s, &mut pixels, light, sampling.sparse_spp, sampling.max_spp);
+            (pixels, fields)
+        })
+        .collect();
+    (planes, rays)
 }

@@ -1,6 +1,6 @@
 //! The light-field pass of sheared soft shadows (Yan et al. 2015 §3.1, issue 16): l × l
-//! visibility samples per pixel on a jittered grid over the filtered sphere light's square
-//! [−R, R]², in one global frame ([`light_frame`]), kept per pixel
+//! visibility samples per pixel on a jittered grid over each filtered sphere light's square
+//! [−R, R]², in one global frame per light ([`light_frame`]), kept per pixel and light
 //! ([`crate::layout::LightFieldPixel`], the output [`crate::layout::outputs::Output::LightField`]).
 //! The kernel is kernels/render/light_field.cl, run by [`super::ShadowPasses`] between the AAF
 //! sparse pass (receiver, d1, r(x), first slopes) and the slope fill.
@@ -27,6 +27,16 @@ pub fn light_frame(light_centre: Vec3, scene_centre: Vec3) -> [Vec3; 3] {
     let e2 = e3.cross(a).normalize();
     let e1 = e2.cross(e3);
     [e1, e2, e3]
+}
+
+/// [`light_frame`] of a sphere light (centre xyz, radius) in a scene centred at
+/// `scene_centre`: e1 and e2, as the light-field pass and the sheared filter take them.
+pub fn sphere_frame(sphere: [f32; 4], scene_centre: [f32; 3]) -> [Vec3; 2] {
+    let [e1, e2, _] = light_frame(
+        Vec3::new(sphere[0], sphere[1], sphere[2]),
+        Vec3::from(scene_centre),
+    );
+    [e1, e2]
 }
 
 /// The light coordinate of grid point `a` of a side-`side` grid with jitter `j`, for a light

@@ -48,8 +48,8 @@ use crate::layout::{Float4, ShadowPixel};
 /// The sphere lights of the shadow output, one plane each, by their place among the scene's
 /// sphere lights (which lead the light list, so it is also their light index): a set, held as
 /// a bit mask, whose planes are in increasing light order (plane p holds the p-th light of the
-/// set). Simulate only what the scene calls for: aaf-shadows and sheared filtering ask for
-/// one light, stylized shadows for the lights it stylizes.
+/// set). Simulate only what the scene calls for: each shadow filter asks for the lights it
+/// filters (src/filters/shadow_lights.rs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LightPlanes(pub u32);
 
@@ -73,7 +73,7 @@ impl LightPlanes {
         self.0.count_ones()
     }
 
-    /// The first plane's light (aaf-shadows and sheared filtering read their one plane).
+    /// The first plane's light.
     pub fn first(self) -> u32 {
         self.0.trailing_zeros().min(31)
     }
@@ -215,15 +215,17 @@ pub(super) struct ShadowPasses {
     sampling: ShadowSampling,
     /// Per plane: the sparse pass, the two slope fills, the adaptive pass.
     planes: Vec<[Kernel; 4]>,
-    /// The light-field pass (sheared filtering, on plane 0), when its output is gathered.
-    light_field: Option<Kernel>,
+    /// Per plane, the light-field pass (sheared filtering, each light in its own frame), when
+    /// its output is gathered; else empty.
+    light_fields: Vec<Kernel>,
     rays: Buffer<u32>,
     _fill_buffer: Buffer<Float4>,
 }
 
 impl ShadowPasses {
     /// The passes over the renderer's scene buffers and its shadow-pixel buffer `pixels`;
-    /// with `light_field` (its buffer, and the frame's e1, e2), the light-field pass too.
+    /// with `light_field` (its buffer, and each plane's light's frame e1, e2), the light-field
+    /// pass of every plane too.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         gpu: &Arc<Gpu>,
@@ -233,7 +235,7 @@ impl ShadowPasses {
         scene: &DeviceScene,
         debug_counters: &Buffer<u32>,
         pixels: &Buffer<u8>,
-        light_field: Option<(&Buffer<u8>, [Float4; 2])>,
+        light_field: Option<(&Buffer<u8>, Vec<[Float4; 2]>)>,
     ) -> Result<ShadowPasses> {
         sampling.check()?;
         let n = size[0] * size[1];
@@ -291,28 +293,36 @@ impl ShadowPasses {
                 Ok([sparse, f0?, f1?, adaptive])
             })
             .collect::<Result<Vec<_>>>()?;
-        let light_field = match light_field {
-            Some((buffer, [e1, e2])) if sampling.light_field > 0 => {
-                let mut b = build("light_field_sample", true)?;
-                b.arg_named("planes", count)
-                    .arg_named("light_field", buffer)
-                    .arg_named("shadow_rays", &rays)
-                    .arg_named("light", sampling.lights.first())
-                    .arg_named("side", sampling.light_field)
-                    .arg_named("frame_u", e1)
-                    .arg_named("frame_v", e2);
-                Some(b.build().context("creating the light-field kernel")?)
-            }
-            Some(_) => bail!(
+        let light_fields = match light_field {
+            Some(_) if sampling.light_field == 0 => bail!(
                 "the light-field output needs its grid side (1..={}), got 0",
                 light_field::MAX_SIDE
             ),
-            None => None,
+            Some((buffer, frames)) => sampling
+                .lights
+                .lights()
+                .into_iter()
+                .zip(frames)
+                .enumerate()
+                .map(|(plane, (light, [e1, e2]))| -> Result<Kernel> {
+                    let mut b = build("light_field_sample", true)?;
+                    b.arg_named("plane", plane as u32)
+                        .arg_named("planes", count)
+                        .arg_named("light_field", buffer)
+                        .arg_named("shadow_rays", &rays)
+                        .arg_named("light", light)
+                        .arg_named("side", sampling.light_field)
+                        .arg_named("frame_u", e1)
+                        .arg_named("frame_v", e2);
+                    b.build().context("creating the light-field kernel")
+                })
+                .collect::<Result<Vec<_>>>()?,
+            None => Vec::new(),
         };
         Ok(ShadowPasses {
             sampling,
             planes,
-            light_field,
+            light_fields,
             rays,
             _fill_buffer: fill_buffer,
         })
@@ -322,17 +332,16 @@ impl ShadowPasses {
         self.sampling
     }
 
-    /// Runs, per plane, the sparse pass, the light-field pass (if any, plane 0), the slope
-    /// fill and the adaptive pass; returns their rays and kernel time.
+    /// Runs, per plane, the sparse pass, the light-field pass (if any), the slope fill and the
+    /// adaptive pass; returns their rays and kernel time.
     pub(super) fn run(&self) -> Result<(u64, Duration)> {
         let mut rays = 0u64;
         let mut time = Duration::ZERO;
         let mut counts = vec![0u32; self.rays.len()];
         for (plane, [sparse, f0, f1, adaptive]) in self.planes.iter().enumerate() {
             let light_field = self
-                .light_field
-                .as_ref()
-                .filter(|_| plane == 0)
+                .light_fields
+                .get(plane)
                 .map(|k| (k, "the light-field pass", true));
             for (k, what, traces) in [(sparse, "the sparse shadow pass", true)]
                 .into_iter()
