@@ -152,3 +152,41 @@ fn the_aov_file_holds_every_lights_light_field() {
     assert!(file.outputs().contains(Output::LightField));
     assert_eq!(bytes(&filtered(&frame, &s)), bytes(&filtered(&file, &s)));
 }
+
+/// A frame rendered for the shadows (its light-field output holds a field per sphere light)
+/// is refused by the depth-of-field and GI filters with a message, instead of being read as
+/// a lens or v-plane field (depth of field on the scene seen through a thin lens, GI through
+/// its pinhole: each effect's own camera).
+#[test]
+fn the_lens_and_gi_filters_refuse_a_shadow_light_field() {
+    use noisefree::filters::sheared::Effect;
+    for (effect, lens_radius) in [(Effect::Dof, 0.05), (Effect::Gi, 0.0)] {
+        let mut scene = bundled_scene("two_lights_shadows");
+        scene.camera.lens_radius = lens_radius;
+        let info = scene_info(&scene, W, H);
+        let s = specialised(
+            &info,
+            ShearedSettings {
+                effect: Auto::Set(Effect::Shadows),
+                ..Default::default()
+            },
+        );
+        let frame = render(&scene, W, H, 1, &s);
+        let outputs = frame.outputs();
+        assert!(outputs.contains(Output::Shadows) && outputs.contains(Output::LightField));
+        let other = ShearedSettings {
+            effect: Auto::Set(effect),
+            light: Auto::Set(-1),
+            ..Default::default()
+        };
+        let err = noisefree::filters::Configured::typed::<Sheared>(other, &frame.info().scene)
+            .unwrap()
+            .prepare(frame.info(), &gpu())
+            .unwrap_or_else(|e| panic!("{effect:?}: {e:#}"))
+            .run(&frame)
+            .err()
+            .unwrap_or_else(|| panic!("{effect:?} filtered a shadow light field"));
+        let msg = format!("{err:#}");
+        assert!(msg.contains("shadow fields"), "{effect:?}: {msg}");
+    }
+}

@@ -170,6 +170,19 @@ impl DofKernel {
             OutputSet::of(&[Output::Colour, Output::LightField]),
             &format!("the sheared filter ({})", self.effect),
         )?;
+        // A render with the shadow output keeps a light field per sphere light there (the
+        // shadows' light field, src/render/shadows), not the lens or v-plane field this
+        // effect reads: refuse rather than filter the wrong samples.
+        if frame.outputs().contains(Output::Shadows) {
+            bail!(
+                "the sheared filter ({}) reads the lens or v-plane field, but this frame's \
+                 light-field output holds its sphere lights' shadow fields (it was rendered \
+                 with the shadow output); render it for the sheared {} filter alone, \
+                 without a shadow filter",
+                self.effect,
+                self.effect
+            );
+        }
         let rows = rows.start.min(h)..rows.end.min(h);
         let wide = rows.start.saturating_sub(self.max_radius)..(rows.end + self.max_radius).min(h);
         let field = frame.device(&self.gpu, BufferId::LightFieldPixels)?;
