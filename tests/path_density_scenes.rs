@@ -115,6 +115,29 @@ fn chains_run_the_next_filter_on_the_cleaned_colour() {
     .unwrap());
     assert!(atrous.pixels.iter().flatten().all(|v| v.is_finite()));
     assert_ne!(atrous, clean);
+    // path-density → bmfr is bmfr (defaults, specialised) on the cleaned frame, bit for bit
+    // (a frame with bmfr's outputs: halves and positions).
+    let by =
+        |then| Configured::typed::<path_density::PathDensity>(chain(then), &info_scene).unwrap();
+    let mut ob = o.clone();
+    ob.outputs = by(Then::Bmfr).needs();
+    let bmfr_frame = render_frame(&scene, &ob, 8);
+    let run_on = |c: &Configured, f: &noisefree::render::Frame| {
+        c.prepare(f.info(), &gpu()).unwrap().run(f).unwrap().image
+    };
+    let plain_bmfr = registry
+        .configure(
+            registry.get("bmfr").unwrap(),
+            &Default::default(),
+            &info_scene,
+        )
+        .unwrap();
+    let clean_b = run_on(&by(Then::None), &bmfr_frame);
+    let cleaned_b = path_density::with_colour(&bmfr_frame, &clean_b, plain_bmfr.needs()).unwrap();
+    let via_chain = run_on(&by(Then::Bmfr), &bmfr_frame);
+    assert_eq!(via_chain, run_on(&plain_bmfr, &cleaned_b));
+    assert!(via_chain.pixels.iter().flatten().all(|v| v.is_finite()));
+    assert_ne!(via_chain, clean_b);
 }
 
 #[test]

@@ -157,22 +157,26 @@ impl StudyScene {
 
     /// The path-density filter's chains (DeCoro 2009 ch. 5: outlier removal first, then a
     /// filter of the inter-pixel variance), as extra cells of the quality and accuracy-time
-    /// studies: path-density → ddf and → atrous. (label, filter).
+    /// studies: path-density → ddf, → atrous and → bmfr. (label, filter).
     pub fn chains(&self) -> Result<Vec<(String, Configured)>> {
         use crate::filters::path_density::{PathDensity, PathDensitySettings, Then};
-        [(Then::Ddf, "ddf"), (Then::Atrous, "atrous")]
-            .into_iter()
-            .map(|(then, name)| {
-                let settings = PathDensitySettings {
-                    then,
-                    ..Default::default()
-                };
-                Ok((
-                    format!("path-density->{name}"),
-                    Configured::typed::<PathDensity>(settings, &self.info)?,
-                ))
-            })
-            .collect()
+        [
+            (Then::Ddf, "ddf"),
+            (Then::Atrous, "atrous"),
+            (Then::Bmfr, "bmfr"),
+        ]
+        .into_iter()
+        .map(|(then, name)| {
+            let settings = PathDensitySettings {
+                then,
+                ..Default::default()
+            };
+            Ok((
+                format!("path-density->{name}"),
+                Configured::typed::<PathDensity>(settings, &self.info)?,
+            ))
+        })
+        .collect()
     }
 
     /// The filters compared: every registered denoiser with its defaults (Table 7.2 for the

@@ -71,7 +71,7 @@
 //!
 //! # Chains
 //!
-//! `then = "ddf"` or `"atrous"` runs that filter on the cleaned image (the seed: outlier
+//! `then = "ddf"`, `"atrous"` or `"bmfr"` runs that filter on the cleaned image (the seed: outlier
 //! removal first "make[s] the task of smoothing inter-pixel variance amenable to existing
 //! filtering methods"). The registry runs one filter per render, so a chain is a setting of
 //! this filter rather than a registry feature: the chained filter runs with its defaults,
@@ -130,6 +130,10 @@ pub enum Then {
     None,
     Ddf,
     Atrous,
+    /// The regression filter (bmfr): its fit reads the cleaned colour; its per-pixel selection
+    /// reads the two half buffers as rendered (the outlier filter cleans the whole pixel, not
+    /// its halves), so fireflies still raise its noise estimate there.
+    Bmfr,
 }
 
 crate::filter_settings! {
@@ -276,6 +280,11 @@ impl FilterKind for PathDensity {
     fn needs(s: &PathDensitySettings) -> OutputSet {
         let samples = OutputSet::of(&[Output::Samples]);
         match chained(s.then, &SceneInfo::unknown()) {
+            // bmfr's albedo prefilter (on with a thin lens) reads the variances; which camera
+            // the frame has is known only when the filter is prepared, so they are gathered.
+            Some(c) if s.then == Then::Bmfr => samples
+                .union(c.needs())
+                .union(OutputSet::of(&[Output::Variance])),
             Some(c) => samples.union(c.needs()),
             None => samples,
         }
@@ -306,11 +315,13 @@ impl FilterKind for PathDensity {
 /// The chained filter with its defaults, specialised to `scene`.
 fn chained(then: Then, scene: &SceneInfo) -> Option<Configured> {
     use super::atrous::{Atrous, AtrousSettings};
+    use super::bmfr::{Bmfr, BmfrSettings};
     use super::ddf::{Ddf, DdfSettings};
     let c = match then {
         Then::None => return None,
         Then::Ddf => Configured::typed::<Ddf>(DdfSettings::default(), scene),
         Then::Atrous => Configured::typed::<Atrous>(AtrousSettings::default(), scene),
+        Then::Bmfr => Configured::typed::<Bmfr>(BmfrSettings::default(), scene),
     };
     Some(c.expect("the defaults of the chained filters are valid"))
 }
