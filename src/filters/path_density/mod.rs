@@ -159,7 +159,7 @@ crate::filter_settings! {
         pub mode: DensityMode = DensityMode::Accumulated,
         /// Samples per frame in the per-frame mode.
         pub frame_spp: u32 = 1,
-        /// A filter run on the cleaned image: "none", "ddf" or "atrous".
+        /// A filter run on the cleaned image: "none", "ddf", "atrous" or "bmfr".
         pub then: Then = Then::None,
     }
 }
