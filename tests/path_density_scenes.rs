@@ -90,13 +90,16 @@ fn chains_run_the_next_filter_on_the_cleaned_colour() {
     }
     // path-density → ddf is ddf (defaults, specialised) on the cleaned frame, bit for bit.
     let registry = Registry::builtin();
-    let plain_ddf = registry
-        .configure(
-            registry.get("ddf").unwrap(),
-            &Default::default(),
-            &info_scene,
-        )
-        .unwrap();
+    let plain = |name: &str| {
+        registry
+            .configure(
+                registry.get(name).unwrap(),
+                &Default::default(),
+                &info_scene,
+            )
+            .unwrap()
+    };
+    let plain_ddf = plain("ddf");
     let chained =
         run(
             &Configured::typed::<path_density::PathDensity>(chain(Then::Ddf), &info_scene).unwrap(),
@@ -125,13 +128,7 @@ fn chains_run_the_next_filter_on_the_cleaned_colour() {
     let run_on = |c: &Configured, f: &noisefree::render::Frame| {
         c.prepare(f.info(), &gpu()).unwrap().run(f).unwrap().image
     };
-    let plain_bmfr = registry
-        .configure(
-            registry.get("bmfr").unwrap(),
-            &Default::default(),
-            &info_scene,
-        )
-        .unwrap();
+    let plain_bmfr = plain("bmfr");
     let clean_b = run_on(&by(Then::None), &bmfr_frame);
     let cleaned_b = path_density::with_colour(&bmfr_frame, &clean_b, plain_bmfr.needs()).unwrap();
     let via_chain = run_on(&by(Then::Bmfr), &bmfr_frame);
