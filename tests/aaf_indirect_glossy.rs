@@ -85,11 +85,7 @@ fn sampling_passes_match_the_rust_reference() {
     let (cpu, cpu_rays) = passes(&arrays, ro, &sampling);
     let (mut close, mut glossy, mut glossy_close, mut worst) = (0, 0, 0, 0f32);
     for (d, c) in device.iter().zip(&cpu) {
-        let diff = lanes(d)
-            .iter()
-            .zip(lanes(c))
-            .map(|(a, b)| (a - b).abs() / a.abs().max(b.abs()).max(1.0))
-            .fold(0f32, f32::max);
+        let diff = max_lane_diff(&lanes(d), &lanes(c));
         let ok = diff <= 1e-5;
         if ok {
             close += 1;

@@ -64,11 +64,7 @@ fn shadow_passes_and_terms_match_the_rust_reference() {
     let (cpu, cpu_rays) = passes(&arrays, &sampling);
     let (mut close, mut worst) = (0, 0f32);
     for (d, c) in device.iter().zip(&cpu) {
-        let diff = lanes(d)
-            .iter()
-            .zip(lanes(c))
-            .map(|(a, b)| (a - b).abs() / a.abs().max(b.abs()).max(1.0))
-            .fold(0f32, f32::max);
+        let diff = max_lane_diff(&lanes(d), &lanes(c));
         if diff <= 1e-5 {
             close += 1;
             worst = worst.max(diff);

@@ -212,9 +212,7 @@ fn render_field(scene: &noisefree::scene::Scene, w: u32, h: u32, seed: u32, side
     let mut o = options(scene, w, h, seed);
     o.outputs = OutputSet::of(&[Output::Colour, Output::LightField]);
     o.shadows = dof_settings(side).sampling();
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(1).unwrap();
-    r
+    rendered(scene, &o, 1)
 }
 
 fn field_of(r: &Renderer) -> Vec<LightFieldPixel> {

@@ -40,9 +40,7 @@ fn render_gi(
     let mut o = options(scene, w, h, seed);
     o.outputs = OutputSet::of(&[Output::Colour, Output::LightField]);
     o.shadows = gi_settings(side).sampling();
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(spp).unwrap();
-    r
+    rendered(scene, &o, spp)
 }
 
 fn field_of(frame: &Frame) -> Vec<LightFieldPixel> {

@@ -28,9 +28,7 @@ fn render(scene: &Scene, w: u32, h: u32, s: ShadowSampling) -> Renderer {
     let mut o = options(scene, w, h, 5);
     o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
     o.shadows = s;
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(1).unwrap();
-    r
+    rendered(scene, &o, 1)
 }
 
 fn lanes(p: &LightFieldPixel, q: &ShadowPixel) -> Vec<f32> {
@@ -83,11 +81,7 @@ fn compare_planes(
                     lanes(&device[k], &shadow[k]),
                     lanes(&cpu_field[k], &cpu_shadow[k]),
                 );
-                let diff = a
-                    .iter()
-                    .zip(&b)
-                    .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1.0))
-                    .fold(0f32, f32::max);
+                let diff = max_lane_diff(&a, &b);
                 if diff <= 1e-5 {
                     close += 1;
                     worst = worst.max(diff);

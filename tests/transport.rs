@@ -305,11 +305,7 @@ material = "metal"
     let mut apart = [0f64; 3];
     for (f, r) in film.iter().zip(&means) {
         let d = lanes(f);
-        let diff = d
-            .iter()
-            .zip(r)
-            .map(|(a, b)| (a - b).abs() / a.abs().max(b.abs()).max(1.0))
-            .fold(0f32, f32::max);
+        let diff = max_lane_diff(&d, r);
         if diff <= 1e-5 {
             close += 1;
             worst = worst.max(diff);

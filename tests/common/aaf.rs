@@ -11,7 +11,7 @@ use noisefree::render::{
 };
 use noisefree::scene::Scene;
 
-use super::{gpu, options, scene_from_toml};
+use super::{options, rendered, scene_from_toml};
 
 /// A sphere light of radius 0.3 three metres above the floor's centre.
 pub const OVERHEAD: &str = "center = [0, 3, 0]\nradius = 0.3";
@@ -72,9 +72,7 @@ pub fn shadow_renderer(
     let mut o = options(scene, w, h, seed);
     o.outputs = OutputSet::of(&[Output::Shadows]);
     o.shadows = sampling;
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(spp).unwrap();
-    r
+    rendered(scene, &o, spp)
 }
 
 /// The filter as `render --filter aaf-shadows` runs it (configured, specialised, prepared).
@@ -127,9 +125,7 @@ pub fn indirect_renderer(
     let mut o = options(scene, w, h, 5);
     o.outputs = OutputSet::of(&[Output::Indirect]);
     o.indirect = sampling;
-    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{e:#}"));
-    r.render_samples(spp).unwrap();
-    r
+    rendered(scene, &o, spp)
 }
 
 /// The filter as `render --filter aaf-indirect` runs it (configured, specialised, prepared).

@@ -607,11 +607,25 @@ impl Buffers {
     }
 }
 
-/// Renders `spp` samples of `scene` with `outputs` in one launch and returns the frame.
-pub fn render_frame(scene: &Scene, options: &RenderOptions, spp: u32) -> noisefree::render::Frame {
+/// The largest difference between two lane arrays, each relative to the larger magnitude
+/// (absolute below 1): how the kernel-vs-reference tests compare per-pixel records.
+pub fn max_lane_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1.0))
+        .fold(0f32, f32::max)
+}
+
+/// A renderer of `scene` with `options` that has rendered `spp` samples in one launch.
+pub fn rendered(scene: &Scene, options: &RenderOptions, spp: u32) -> Renderer {
     let mut r = Renderer::new(gpu(), scene, options).unwrap_or_else(|e| panic!("{e:#}"));
     r.render_samples(spp).unwrap();
-    r.frame()
+    r
+}
+
+/// Renders `spp` samples of `scene` with `outputs` in one launch and returns the frame.
+pub fn render_frame(scene: &Scene, options: &RenderOptions, spp: u32) -> noisefree::render::Frame {
+    rendered(scene, options, spp).frame()
 }
 
 /// A fresh, empty temporary folder for one test (named after it and the process).
