@@ -21,15 +21,28 @@ inline float3 safe_inverse(float3 d) {
     return 1.0f / s;
 }
 
+// Minimum and maximum by one comparison, for operands that are never NaN: OpenCL's fmin and
+// fmax must return the other operand when one is NaN, which costs x86 a compare, a mask and a
+// blend per call on top of the min/max instruction (issue 14: a quarter of the box test).
+inline float3 min3_nonan(float3 a, float3 b) { return select(b, a, a < b); }
+inline float3 max3_nonan(float3 a, float3 b) { return select(b, a, a > b); }
+inline float min_nonan(float a, float b) { return a < b ? a : b; }
+inline float max_nonan(float a, float b) { return a > b ? a : b; }
+
 // Algorithm 2 (Williams et al. 2005), with the inverse direction precomputed per ray.
+// No slab distance is NaN for a finite ray: safe_inverse keeps 1/D finite (|1/D| <= 1e30), so
+// each product is finite or infinite, never 0 * inf; the plain min/max then give the values
+// fmin/fmax give, up to the sign of a zero, which the final comparison ignores. A ray with a
+// NaN or infinite origin or direction hits no triangle or sphere whichever boxes it enters
+// (every intersection distance is NaN), so the answer of a query never depends on this choice.
 inline bool ray_aabb(float3 o, float3 inv_d, float t_near_plane, float t_far_plane,
                      float3 bmin, float3 bmax) {
     float3 l1 = (bmin - o) * inv_d;
     float3 l2 = (bmax - o) * inv_d;
-    float3 t_near = fmin(l1, l2);
-    float3 t_far = fmax(l1, l2);
-    float t0 = fmax(fmax(t_near.x, t_near.y), fmax(t_near.z, t_near_plane));
-    float t1 = fmin(fmin(t_far.x, t_far.y), fmin(t_far.z, t_far_plane));
+    float3 t_near = min3_nonan(l1, l2);
+    float3 t_far = max3_nonan(l1, l2);
+    float t0 = max_nonan(max_nonan(t_near.x, t_near.y), max_nonan(t_near.z, t_near_plane));
+    float t1 = min_nonan(min_nonan(t_far.x, t_far.y), min_nonan(t_far.z, t_far_plane));
     // Alg. 2 returns t1 > t0; >= keeps rays that exactly touch a box edge or face.
     return t1 * ROBUST_FAR_SCALE >= t0;
 }

@@ -1,4 +1,6 @@
-// Direction and point sampling.
+// Direction and point sampling. Sine and cosine of one angle come from one sincos call
+// (issue 14: one argument reduction instead of two); on the test device its bits are those of
+// sin and cos for every angle rng_uniform can give (tests/determinism.rs, exhaustively).
 #ifndef NOISEFREE_SAMPLING_CL
 #define NOISEFREE_SAMPLING_CL
 
@@ -21,7 +23,8 @@ inline float3 sample_diffuse(float r1, float r2, float3 normal) {
     float3 u, v;
     tangent_frame(normal, &u, &v);
     float s = sqrt(deflection);
-    return normalize(u * (cos(azimuthal) * s) + v * (sin(azimuthal) * s)
+    float c_az, s_az = sincos(azimuthal, &c_az);
+    return normalize(u * (c_az * s) + v * (s_az * s)
                      + normal * sqrt(1.0f - deflection));
 }
 
@@ -33,14 +36,15 @@ inline float3 sample_phong_lobe(float r1, float r2, float3 axis, float exponent)
     float phi = TWO_PI_F * r1;
     float3 u, v;
     tangent_frame(axis, &u, &v);
-    return normalize(u * (cos(phi) * sin_t) + v * (sin(phi) * sin_t) + axis * cos_t);
+    float c_phi, s_phi = sincos(phi, &c_phi);
+    return normalize(u * (c_phi * sin_t) + v * (s_phi * sin_t) + axis * cos_t);
 }
 
 // A point on the unit disk, polar mapping (Fig. 2.7b): r = sqrt(u1), phi = 2 pi u2.
 inline float2 sample_disk(float r1, float r2) {
     float r = sqrt(r1);
-    float phi = TWO_PI_F * r2;
-    return (float2)(r * cos(phi), r * sin(phi));
+    float c_phi, s_phi = sincos(TWO_PI_F * r2, &c_phi);
+    return (float2)(r * c_phi, r * s_phi);
 }
 
 // A direction uniformly inside the cone around `axis` whose half-angle has
@@ -53,7 +57,8 @@ inline float3 sample_cone(float r1, float r2, float3 axis, float one_minus_cos_m
     float phi = TWO_PI_F * r2;
     float3 u, v;
     tangent_frame(axis, &u, &v);
-    return normalize(u * (cos(phi) * sin_t) + v * (sin(phi) * sin_t) + axis * cos_t);
+    float c_phi, s_phi = sincos(phi, &c_phi);
+    return normalize(u * (c_phi * sin_t) + v * (s_phi * sin_t) + axis * cos_t);
 }
 
 // Barycentric coordinates of a uniformly distributed point on a triangle.

@@ -82,3 +82,13 @@ __kernel void probe_film(__global const float* stream, uint stream_len, uint fir
 #ifdef LAYOUT_PROBE_KERNEL
 LAYOUT_PROBE_KERNEL
 #endif
+
+// The samplers (kernels/render/sampling.cl) take sine and cosine of angles 2 pi r with
+// r = k 2^-24 (rng_uniform's values) from one sincos call. Each work-item checks one k against
+// separate sin and cos and counts the angles where any bit differs.
+__kernel void probe_sincos(__global uint* mismatches) {
+    uint k = get_global_id(0);
+    float a = TWO_PI_F * ((float)k * 0x1.0p-24f);
+    float c, sn = sincos(a, &c);
+    if (as_uint(sn) != as_uint(sin(a)) || as_uint(c) != as_uint(cos(a))) atomic_inc(mismatches);
+}
