@@ -103,7 +103,7 @@ typedef struct __attribute__((aligned(8))) {
     uint offset;
     uint width;
     uint height;
-    uint pad;
+    uint format; // TEXTURE_LINEAR or TEXTURE_SRGB8 (src/arrays/texels.rs).
     float2 uv_scale;
     float2 uv_shift;
 } TextureInfo;

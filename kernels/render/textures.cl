@@ -5,11 +5,32 @@
 #include "arrays/trace.cl"
 #include "render/sampling.cl"
 
+// TextureInfo.format (src/arrays/texels.rs): a linear float4 per texel, or an 8-bit texture's
+// four codes per texel (r | g << 8 | b << 16 | a << 24), decoded by the 256-entry colour and
+// alpha tables at the start of the texel buffer, which hold exactly the floats the loader
+// makes of each code. Codes take a quarter of the memory, so the bundled textures stay in
+// cache (issue 14); a lookup gives the same floats in either format.
+#define TEXTURE_LINEAR 0u
+#define TEXTURE_SRGB8 1u
+
 inline float4 texel_fetch(const SceneRefs* s, __global const TextureInfo* t, int x, int y) {
     int w = (int)t->width, h = (int)t->height;
-    x %= w; if (x < 0) x += w;
-    y %= h; if (y < 0) y += h;
-    return s->texels[t->offset + (uint)(y * w + x)];
+    // The bilinear taps lie in [-1, size]: a compare each instead of the integer division
+    // of %, which the lookups waited on (issue 14); % only for anything else.
+    if (x < 0) x += w; else if (x >= w) x -= w;
+    if (y < 0) y += h; else if (y >= h) y -= h;
+    if ((uint)x >= (uint)w || (uint)y >= (uint)h) {
+        x %= w; if (x < 0) x += w;
+        y %= h; if (y < 0) y += h;
+    }
+    uint i = (uint)(y * w + x);
+    if (t->format == TEXTURE_SRGB8) {
+        uint code = ((__global const uint*)(s->texels + t->offset))[i];
+        __global const float* table = (__global const float*)s->texels;
+        return (float4)(table[code & 0xffu], table[(code >> 8) & 0xffu],
+                        table[(code >> 16) & 0xffu], table[256u + (code >> 24)]);
+    }
+    return s->texels[t->offset + i];
 }
 
 // uv (0,0) is the bottom-left of the image (OBJ convention); rows are stored top-down.

@@ -2,6 +2,7 @@
 //! the device, and what the CPU mirror of the kernels (src/render/cpu) reads, so both trace the
 //! same data; and the ray queries over them ([`trace`], the mirror of kernels/arrays/trace.cl).
 
+pub mod texels;
 pub mod trace;
 
 use anyhow::{Result, bail};
@@ -150,17 +151,7 @@ impl SceneArrays {
             a.materials.push(d);
         }
 
-        for t in &scene.textures {
-            a.textures.push(TextureInfo {
-                offset: a.texels.len() as u32,
-                width: t.width,
-                height: t.height,
-                pad: 0,
-                uv_scale: Float2::from_vec2(t.uv_scale),
-                uv_shift: Float2::from_vec2(t.uv_shift),
-            });
-            a.texels.extend(t.texels.iter().map(|c| Float4(*c)));
-        }
+        (a.texels, a.textures) = texels::pack(&scene.textures);
         if a.texels.len() > u32::MAX as usize {
             bail!("the scene's textures hold more than 2^32 texels");
         }

@@ -280,7 +280,8 @@ device_structs! {
         pub offset: u32,
         pub width: u32,
         pub height: u32,
-        pub pad: u32,
+        /// TEXTURE_LINEAR or TEXTURE_SRGB8 (src/arrays/texels.rs).
+        pub format: u32,
         pub uv_scale: Float2,
         pub uv_shift: Float2,
     }

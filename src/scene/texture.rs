@@ -19,6 +19,20 @@ pub struct Texture {
     pub uv_shift: Vec2,
 }
 
+/// The floats [`load_image`] makes of each 8-bit code: colour channels decoded from sRGB,
+/// alpha as is, by the same conversion (src/arrays/texels.rs stores 8-bit textures as codes and
+/// the kernels decode them with these tables).
+pub fn srgb8_tables() -> ([f32; 256], [f32; 256]) {
+    let codes = image::RgbaImage::from_fn(256, 1, |x, _| image::Rgba([x as u8; 4]));
+    let floats = image::DynamicImage::ImageRgba8(codes).to_rgba32f();
+    let (mut rgb, mut alpha) = ([0.0; 256], [0.0; 256]);
+    for (c, p) in floats.pixels().enumerate() {
+        rgb[c] = srgb_to_linear(p[0]);
+        alpha[c] = p[3];
+    }
+    (rgb, alpha)
+}
+
 /// Loads an image file as linear RGBA. `what` names the file's role in messages.
 pub fn load_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), SceneError> {
     let meta = std::fs::metadata(path)

@@ -24,7 +24,11 @@ fn texel_fetch(s: &SceneArrays, t: &TextureInfo, x: i32, y: i32) -> Vec4 {
     let (w, h) = (t.width as i32, t.height as i32);
     let x = x.rem_euclid(w);
     let y = y.rem_euclid(h);
-    Vec4::from_array(s.texels[(t.offset + (y * w + x) as u32) as usize].0)
+    Vec4::from_array(crate::arrays::texels::texel(
+        &s.texels,
+        t,
+        (y * w + x) as u32,
+    ))
 }
 
 pub fn texture_bilinear(s: &SceneArrays, index: u32, uv: Vec2) -> Vec4 {
