@@ -813,14 +813,16 @@ impl OutputSet {
         fits.then(|| self.with_field(kind))
     }
 
-    /// Every output of `other` is in this set, and where `other` says what its light field
-    /// holds, this set's holds the same.
+    /// Every output of `other` is in this set, and where both say what their light field
+    /// holds, it is the same field (one that does not say, from a file written before it was
+    /// recorded, is taken as it is, as `Frame::require` takes it).
     pub fn covers(self, other: OutputSet) -> bool {
         let outputs = other.0 & !FIELD_MASK;
-        self.0 & outputs == outputs
-            && other
-                .light_field()
-                .is_none_or(|k| self.light_field() == Some(k))
+        let field = match (self.light_field(), other.light_field()) {
+            (Some(have), Some(want)) => have == want,
+            _ => true,
+        };
+        self.0 & outputs == outputs && field
     }
 
     /// The outputs in table order.
@@ -915,6 +917,52 @@ mod tests {
                 o.name
             );
         }
+    }
+
+    #[test]
+    fn a_set_records_what_its_light_field_holds() {
+        use FieldKind::*;
+        let plain = OutputSet::of(&[Output::Colour, Output::LightField]);
+        assert_eq!(plain.light_field(), None, "not recorded");
+        assert_eq!(OutputSet::colour().light_field(), None);
+        let lens = OutputSet::colour().with_field(Lens);
+        let gi = lens.with_field(Gi);
+        assert_eq!(
+            (lens.light_field(), gi.light_field()),
+            (Some(Lens), Some(Gi))
+        );
+        assert_eq!(lens.names(), gi.names());
+        // With the shadow output the field is the shadows', whatever was recorded.
+        let shadows = gi.with(Output::Shadows);
+        assert_eq!(shadows.light_field(), Some(Shadows));
+        assert_eq!(
+            OutputSet::colour().with_field(Shadows),
+            shadows.with_field(Shadows)
+        );
+        // Closing, uniting and covering keep the kind; another recorded kind does not cover.
+        assert_eq!(gi.closed().light_field(), Some(Gi));
+        let features = OutputSet::of(&[Output::Features]);
+        assert_eq!(features.union(gi).light_field(), Some(Gi));
+        assert_eq!(gi.union(lens).light_field(), Some(Gi));
+        assert!(gi.union(features).covers(gi) && !gi.covers(lens) && !lens.covers(gi));
+        assert!(!shadows.covers(lens) && !gi.covers(shadows));
+        assert!(
+            plain.covers(gi) && gi.covers(plain),
+            "unrecorded: taken as it is"
+        );
+        // As files name them.
+        for k in FieldKind::ALL {
+            assert_eq!(FieldKind::parse(k.name()), Some(k));
+        }
+        assert_eq!(plain.with_field_named("gi"), Some(gi));
+        assert_eq!(
+            shadows.with_field_named("shadows"),
+            Some(shadows.with_field(Shadows))
+        );
+        assert_eq!(plain.with_field_named("shadows"), None);
+        assert_eq!(shadows.with_field_named("lens"), None);
+        assert_eq!(OutputSet::colour().with_field_named("lens"), None);
+        assert_eq!(plain.with_field_named("glow"), None);
     }
 
     #[test]
