@@ -185,6 +185,9 @@ fn filter_on_bands(
     let configured = registry.configure(filter, &req, &info).unwrap();
     let mut o = base.clone();
     o.outputs = OutputSet::colour().union(configured.needs());
+    // Sampled as the filter asks, as `render --filter` does (the sheared filter's GI field:
+    // without it the renderer gathers the lens field, which the GI filter refuses).
+    configured.adjust_render(&mut o);
     o.sample_capacity = 4;
     let mut single = SplitRenderer::single(
         Renderer::with_arrays(fast.clone(), &scene, arrays.clone(), &o).unwrap(),

@@ -48,13 +48,18 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
         o.outputs = outputs;
         // The shadow output holds a plane for every sphere light some filter reads
         // (aaf-shadows, stylized-shadows and sheared: all of them).
-        let mut lights = 0;
+        // Without the shadow output, the light field is the one the sheared filter samples
+        // (the lens or, with GI, the v-plane), and the frame records which.
+        let (mut lights, mut gi) = (0, false);
         for c in &configured {
             let mut wants = o.clone();
             c.adjust_render(&mut wants);
             lights |= wants.shadows.lights.0;
+            gi |= wants.shadows.light_field_gi;
         }
         o.shadows.lights = LightPlanes(lights.max(1));
+        o.shadows.light_field_gi = gi;
+        o.outputs = o.recorded_outputs();
         o.sample_capacity = spp;
         let mut r = Renderer::with_arrays(gpu(), &scene, arrays, &o).unwrap();
         assert_eq!(r.scene_info, info);

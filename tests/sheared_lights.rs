@@ -4,18 +4,21 @@
 //! light's shadows filtered (no longer at Monte Carlo noise), and one-light scenes keeping the
 //! one-light filter's bytes. A light chosen alone from a frame of several planes:
 //! tests/stylized_lights.rs `sheared_reads_the_planes_of_its_light`; the light-field planes
-//! against their reference: tests/sheared_sampling.rs.
+//! against their reference: tests/sheared_sampling.rs. Which field a frame's light-field output
+//! holds (shadows, lens, GI) is recorded, and a filter reading another one refuses it.
 
 mod common;
 
 use common::*;
-use noisefree::filters::Auto;
-use noisefree::filters::sheared::{Sheared, ShearedSettings, reference};
+use noisefree::filters::sheared::{Effect, Sheared, ShearedSettings, reference};
+use noisefree::filters::{Auto, Configured};
 use noisefree::imaging::RgbImage;
 use noisefree::layout::ShadowPixel;
-use noisefree::layout::outputs::{BufferId, Output};
+use noisefree::layout::outputs::{BufferId, FieldKind, Output, OutputSet};
 use noisefree::render::{Frame, LightPlanes, SceneInfo};
 use noisefree::scene::Scene;
+use noisefree::stats::RenderRecord;
+use noisefree::stats::aov::{read_aov_exr, write_aov_exr};
 
 const W: u32 = 48;
 const H: u32 = 40;
@@ -159,7 +162,6 @@ fn the_aov_file_holds_every_lights_light_field() {
 /// its pinhole: each effect's own camera).
 #[test]
 fn the_lens_and_gi_filters_refuse_a_shadow_light_field() {
-    use noisefree::filters::sheared::Effect;
     for (effect, lens_radius) in [(Effect::Dof, 0.05), (Effect::Gi, 0.0)] {
         let mut scene = bundled_scene("two_lights_shadows");
         scene.camera.lens_radius = lens_radius;
@@ -188,5 +190,110 @@ fn the_lens_and_gi_filters_refuse_a_shadow_light_field() {
             .unwrap_or_else(|| panic!("{effect:?} filtered a shadow light field"));
         let msg = format!("{err:#}");
         assert!(msg.contains("shadow fields"), "{effect:?}: {msg}");
+    }
+}
+
+/// The field a frame of the sheared filter's `effect` holds.
+fn field_kind(effect: Effect) -> FieldKind {
+    match effect {
+        Effect::Shadows => FieldKind::Shadows,
+        Effect::Dof => FieldKind::Lens,
+        Effect::Gi => FieldKind::Gi,
+    }
+}
+
+/// The sheared filter with `effect` alone (no sphere light's shadows).
+fn effect_alone(effect: Effect) -> ShearedSettings {
+    ShearedSettings {
+        effect: Auto::Set(effect),
+        light: Auto::Set(-1),
+        ..Default::default()
+    }
+}
+
+#[test]
+fn the_lens_and_gi_filters_refuse_each_others_field_and_aov_files_say_which_they_hold() {
+    // A frame records what its light-field output holds: the lens field (a thin lens) or the
+    // v-plane field (GI), as `render --filter sheared` gathers them. Each effect's filter
+    // refuses the other's field, by name, through an AOV file too; a file that does not
+    // record it (written before it was) is filtered as it is.
+    let dir = tempdir("sheared-field-kind");
+    for (name, have, other) in [
+        ("cornell_diffuse_dof", Effect::Dof, Effect::Gi),
+        ("cornell_diffuse", Effect::Gi, Effect::Dof),
+    ] {
+        let scene = bundled_scene(name);
+        let info = scene_info(&scene, W, H);
+        let c = Configured::typed::<Sheared>(effect_alone(have), &info).unwrap();
+        let mut o = options(&scene, W, H, 7);
+        o.outputs = c.needs();
+        c.adjust_render(&mut o);
+        assert_eq!(o.light_field(), Some(field_kind(have)), "{name}");
+        o.outputs = o.recorded_outputs();
+        let frame = rendered(&scene, &o, 1).frame();
+        assert_eq!(
+            frame.outputs().light_field(),
+            Some(field_kind(have)),
+            "{name}"
+        );
+        // Without the sampling the effect asks for, the renderer gathers the lens field and
+        // the frame says so, whatever the filter's outputs claimed.
+        let mut plain = options(&scene, W, H, 7);
+        plain.outputs = c.needs();
+        assert_eq!(
+            plain.recorded_outputs().light_field(),
+            Some(FieldKind::Lens)
+        );
+        let aov = dir.join(format!("{name}.exr"));
+        let record = RenderRecord {
+            scene: Some(frame.info().scene.clone()),
+            ..Default::default()
+        };
+        write_aov_exr(&aov, &frame, &record).unwrap();
+        let (file_frame, file_record) = read_aov_exr(&aov).unwrap();
+        assert_eq!(
+            file_record, record,
+            "{name}: the kind is not part of the record"
+        );
+        assert_eq!(file_frame.outputs(), frame.outputs(), "{name}");
+        let online = bytes(&filtered(&frame, &effect_alone(have)));
+        assert_eq!(online, bytes(&filtered(&file_frame, &effect_alone(have))));
+        for f in [&frame, &file_frame] {
+            // The other effect's filter, prepared for a camera it accepts, run on this field.
+            let mut as_other = f.info().clone();
+            as_other.scene.camera.lens_radius = if other == Effect::Dof { 0.05 } else { 0.0 };
+            let err = Configured::typed::<Sheared>(effect_alone(other), &as_other.scene)
+                .unwrap()
+                .prepare(&as_other, &gpu())
+                .unwrap_or_else(|e| panic!("{name}: {e:#}"))
+                .run(f)
+                .err()
+                .unwrap_or_else(|| panic!("{name}: {other:?} filtered the {have:?} field"));
+            let msg = format!("{err:#}");
+            assert!(
+                msg.contains(field_kind(have).describe())
+                    && msg.contains(field_kind(other).describe()),
+                "{name}: {msg}"
+            );
+        }
+        // A file whose header does not say which field it holds reads as not recorded, and
+        // its own filter gives the same bytes.
+        let unrecorded = OutputSet::of(&[Output::Colour, Output::LightField]);
+        let buffers = unrecorded
+            .buffers()
+            .map(|b| (b.id, file_frame.host(b.id).unwrap().clone()))
+            .collect();
+        let old = Frame::on_host(
+            file_frame.info().clone(),
+            unrecorded,
+            file_frame.variance_form(),
+            buffers,
+        )
+        .unwrap();
+        let old_aov = dir.join(format!("{name}-old.exr"));
+        write_aov_exr(&old_aov, &old, &record).unwrap();
+        let (old_frame, _) = read_aov_exr(&old_aov).unwrap();
+        assert_eq!(old_frame.outputs().light_field(), None, "{name}");
+        assert_eq!(online, bytes(&filtered(&old_frame, &effect_alone(have))));
     }
 }

@@ -246,3 +246,97 @@ fn without_a_display_the_viewer_says_what_to_do() {
         &["bad.txt", "line 2", "no key named \"Whoops\""],
     );
 }
+
+#[test]
+fn a_focus_click_on_a_shadow_film_gathers_the_lens_field_for_sheared_depth_of_field() {
+    // Sheared filtering of a scene's sphere lights gathers their shadow fields (as the filter
+    // samples them: every light of two_lights_shadows, a plane each). A click focuses there
+    // and gives the pinhole camera a lens, so the filter specialises to depth of field, which
+    // reads the lens field: the viewer gathers it (before, it kept the shadow film, and the
+    // filter's refusal ended the viewer on Grids; on two_lights_shadows it ended at once, the
+    // film holding light 0 alone). What it shows after 4 spp is what `render` of the saved
+    // scene gives.
+    let x = Xvfb::start();
+    for name in ["grids", "two_lights_shadows"] {
+        let dir = tempdir(&format!("view-field-kind-{name}"));
+        let scene = bundled_scene_path(name);
+        let events = script(&dir, "events.txt", "2 click 32 30\n");
+        let (shot, saved) = (dir.join("focused.png"), dir.join("focused.toml"));
+        let out = x.view(
+            &scene,
+            &[
+                "--filter",
+                "sheared",
+                "--script",
+                events.to_str().unwrap(),
+                "--frames",
+                "7",
+                "--screenshot",
+                shot.to_str().unwrap(),
+                "--save-scene",
+                saved.to_str().unwrap(),
+            ],
+        );
+        assert_eq!(
+            spp_at_end(&out),
+            4,
+            "{name}: the film restarts at the focus"
+        );
+        let text = std::fs::read_to_string(&saved).unwrap();
+        assert!(text.contains("lens_radius"), "{name}: {text}");
+        let got = render(&saved, &dir.join("saved-render.png"), &[]);
+        assert!(
+            images(&shot) == got,
+            "{name}: render of the saved scene differs from the screenshot"
+        );
+    }
+}
+
+#[test]
+fn the_film_is_gathered_again_when_the_filter_reads_another_light_field() {
+    use noisefree::filters::sheared::{Effect, Sheared, ShearedSettings};
+    use noisefree::filters::{Auto, Configured};
+    use noisefree::layout::outputs::{FieldKind, Output, OutputSet};
+    use noisefree::view::session::film_must_change;
+    let scene = bundled_scene("two_lights_shadows");
+    let info = scene_info(&scene, 16, 16);
+    // The options of a film gathered for the sheared filter with `effect` (the viewer adds
+    // the features and variances for its AOV pictures).
+    let film_for = |effect: Option<Effect>| {
+        let mut o = options(&scene, 16, 16, 1);
+        o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
+        if let Some(effect) = effect {
+            let s = ShearedSettings {
+                effect: Auto::Set(effect),
+                light: Auto::Set(if effect == Effect::Shadows { 0 } else { -1 }),
+                ..Default::default()
+            };
+            let c = Configured::typed::<Sheared>(s, &info).unwrap();
+            o.outputs = o.outputs.union(c.needs());
+            c.adjust_render(&mut o);
+        }
+        o
+    };
+    let [none, shadows, dof, gi] = [
+        None,
+        Some(Effect::Shadows),
+        Some(Effect::Dof),
+        Some(Effect::Gi),
+    ]
+    .map(film_for);
+    // The same film serves the same filter, and one without a light field serves none.
+    for o in [&none, &shadows, &dof, &gi] {
+        assert!(!film_must_change(o, o));
+        assert!(!film_must_change(o, &none));
+    }
+    // A film with every output but another field: gathered again, each way round.
+    for (a, b) in [(&shadows, &dof), (&dof, &gi), (&gi, &dof), (&shadows, &gi)] {
+        assert!(film_must_change(a, b));
+        assert!(film_must_change(b, a));
+    }
+    // The lens and v-plane films gather the same outputs; what they record differs.
+    assert_eq!(dof.outputs.names(), gi.outputs.names());
+    assert_eq!(dof.recorded_outputs().light_field(), Some(FieldKind::Lens));
+    assert_eq!(gi.recorded_outputs().light_field(), Some(FieldKind::Gi));
+    assert!(film_must_change(&none, &dof));
+}

@@ -36,4 +36,51 @@ inline float sheared_rgb_lane(__global const float* lf, int k, int ch) {
     return lf[base + k];
 }
 
+// The lens and v-plane filters' steps (kernels/filters/sheared_dof.cl, sheared_gi.cl; their
+// Rust reference src/filters/sheared/dof.rs `bin_rows`, `gather_rows`, `neighbours`):
+
+// Zeroes n floats of a pixel's step output (pixels without a field write zero bins).
+inline void sheared_zero(__global float* o, uint n) {
+    for (uint c = 0u; c < n; ++c) o[c] = 0.0f;
+}
+
+// Step 1a (eq. 12) for bin c of pixel field lf: each row b gets sum_a f(a, b) wy[a], rgb and
+// the weight, wy[a] being grid point a's weight against the bin centre.
+inline void sheared_bin_rows(__global const float* lf, uint l, const float* wy, uint c,
+                             __global float* o) {
+    for (uint b = 0u; b < l; ++b) {
+        float4 v = (float4)(0.0f);
+        for (uint a = 0u; a < l; ++a) {
+            int k = (int)(b * l + a);
+            v.x += sheared_rgb_lane(lf, k, 0) * wy[a];
+            v.y += sheared_rgb_lane(lf, k, 1) * wy[a];
+            v.z += sheared_rgb_lane(lf, k, 2) * wy[a];
+            v.w += wy[a];
+        }
+        vstore4(v, c * 4u + b, o);
+    }
+}
+
+// Steps 1b and 2b walk k = -r..r steps from pixel (x, y) along axis 0 (its row) or 1 (its
+// column): the neighbour's index in *j, false beyond the image.
+inline bool sheared_walk(__constant const ShearedParams* p, int x, int y, int k, int axis,
+                         int* j) {
+    int qx = axis == 0 ? x + k : x, qy = axis == 0 ? y : y + k;
+    if (qx < 0 || qy < 0 || qx >= (int)p->width || qy >= (int)p->height) return false;
+    *j = qy * (int)p->width + qx;
+    return true;
+}
+
+// Step 1b (eq. 13): neighbour j's step-1a rows of its bin c1 (src), weighted wx, added to the
+// bins c2[row] of their own second coordinate (-1: beyond the bins, skipped).
+inline void sheared_splat_rows(__global const float* src, int c1, const int* c2, uint l, float wx,
+                               __global float* o) {
+    for (uint row = 0u; row < l; ++row) {
+        if (c2[row] < 0) continue;
+        float4 v = vload4((uint)c1 * 4u + row, src);
+        float4 acc = vload4((uint)c2[row], o);
+        vstore4(acc + wx * v, (uint)c2[row], o);
+    }
+}
+
 #endif

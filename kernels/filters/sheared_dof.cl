@@ -72,17 +72,7 @@ __kernel void dof_1a(__constant const ShearedParams* p, __global const float* li
         float yc = -p->range + (float)c * (2.0f * p->range / (float)(bins - 1u));
         float wy[4];
         for (uint a = 0u; a < l; ++a) wy[a] = sheared_gauss(sheared_grid(a, j1, l, p->light.w) - yc, inv);
-        for (uint b = 0u; b < l; ++b) {
-            float4 v = (float4)(0.0f);
-            for (uint a = 0u; a < l; ++a) {
-                int k = (int)(b * l + a);
-                v.x += sheared_rgb_lane(lf, k, 0) * wy[a];
-                v.y += sheared_rgb_lane(lf, k, 1) * wy[a];
-                v.z += sheared_rgb_lane(lf, k, 2) * wy[a];
-                v.w += wy[a];
-            }
-            vstore4(v, c * 4u + b, o);
-        }
+        sheared_bin_rows(lf, l, wy, c, o);
     }
 }
 
@@ -104,6 +94,17 @@ inline int dof_radius(float sigma_x, int max_radius) {
     return r < (float)max_radius ? (int)r : max_radius;
 }
 
+// Neighbour lj, k steps from pixel li along the walk of 1b or 2b: the bin of eta (x - x') it
+// lends from, w_x in *wx; -1 when it does not lend (rejected, or beyond the bins).
+inline int dof_lend(__constant const ShearedParams* p, __global const float* li,
+                    __global const float* lj, float kind_j, int k, float4 g, float inv_x,
+                    float* wx) {
+    if (k != 0 && !dof_accepts(p, li, lj, kind_j)) return -1;
+    float dx = (float)k;
+    *wx = sheared_gauss(dx, inv_x);
+    return sheared_bin_of(g.y * -dx, p->bins, p->range);
+}
+
 __kernel void dof_1b(__constant const ShearedParams* p, __global const float* light_field,
                      __global const float4* guide, __global const float* in,
                      __global float* out) {
@@ -112,31 +113,24 @@ __kernel void dof_1b(__constant const ShearedParams* p, __global const float* li
     int i = y * (int)p->width + x;
     uint bins = p->bins, l = p->side;
     __global float* o = out + (size_t)i * (bins * 4u);
-    for (uint c = 0u; c < bins * 4u; ++c) o[c] = 0.0f;
+    sheared_zero(o, bins * 4u);
     float4 g = guide[i];
     if (g.z != DOF_FILTERED) return;
     __global const float* li = light_field + (size_t)i * LIGHT_FIELD_PIXEL_FLOATS;
     int r = dof_radius(g.x, p->max_radius);
     float inv_x = fmin(1.0f / (2.0f * g.x * g.x), FLT_MAX);
     for (int k = -r; k <= r; ++k) {
-        int qx = x + k;
-        if (qx < 0 || qx >= (int)p->width) continue;
-        int j = y * (int)p->width + qx;
+        int j;
+        if (!sheared_walk(p, x, y, k, 0, &j)) continue;
         __global const float* lj = light_field + (size_t)j * LIGHT_FIELD_PIXEL_FLOATS;
-        if (k != 0 && !dof_accepts(p, li, lj, guide[j].z)) continue;
-        float dx = (float)k;
-        float wx = sheared_gauss(dx, inv_x);
-        int c1 = sheared_bin_of(g.y * -dx, bins, p->range);
+        float wx;
+        int c1 = dof_lend(p, li, lj, guide[j].z, k, g, inv_x, &wx);
         if (c1 < 0) continue;
         __global const float* src = in + (size_t)j * (bins * 16u);
         float j2 = lj[LIGHT_FIELD_PIXEL_JITTER + 1];
-        for (uint b = 0u; b < l; ++b) {
-            int c2 = sheared_bin_of(sheared_grid(b, j2, l, p->light.w), bins, p->range);
-            if (c2 < 0) continue;
-            float4 v = vload4((uint)c1 * 4u + b, src);
-            float4 acc = vload4((uint)c2, o);
-            vstore4(acc + wx * v, (uint)c2, o);
-        }
+        int c2[4];
+        for (uint b = 0u; b < l; ++b) c2[b] = sheared_bin_of(sheared_grid(b, j2, l, p->light.w), bins, p->range);
+        sheared_splat_rows(src, c1, c2, l, wx, o);
     }
 }
 
@@ -148,7 +142,7 @@ __kernel void dof_2a(__constant const ShearedParams* p, __global const float4* g
     uint bins = p->bins;
     __global float* o = out + (size_t)i * (bins * 4u);
     if (guide[i].z == DOF_NONE) {
-        for (uint c = 0u; c < bins * 4u; ++c) o[c] = 0.0f;
+        sheared_zero(o, bins * 4u);
         return;
     }
     __global const float* src = in + (size_t)i * (bins * 4u);
@@ -206,14 +200,11 @@ __kernel void dof_2b(__constant const ShearedParams* p, __global const float* li
     float inv_x = fmin(1.0f / (2.0f * g.x * g.x), FLT_MAX);
     float4 v = (float4)(0.0f);
     for (int k = -r; k <= r; ++k) {
-        int qy = y + k;
-        if (qy < 0 || qy >= (int)p->height) continue;
-        int j = qy * (int)p->width + x;
+        int j;
+        if (!sheared_walk(p, x, y, k, 1, &j)) continue;
         __global const float* lj = light_field + (size_t)j * LIGHT_FIELD_PIXEL_FLOATS;
-        if (k != 0 && !dof_accepts(p, li, lj, guide[j].z)) continue;
-        float dx = (float)k;
-        float wx = sheared_gauss(dx, inv_x);
-        int c = sheared_bin_of(g.y * -dx, bins, p->range);
+        float wx;
+        int c = dof_lend(p, li, lj, guide[j].z, k, g, inv_x, &wx);
         if (c < 0) continue;
         v += wx * vload4((uint)c, in + (size_t)j * (bins * 4u));
     }

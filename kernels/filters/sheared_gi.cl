@@ -74,17 +74,7 @@ __kernel void gi_1a(__constant const ShearedParams* p, __global const float* lig
         float vc = -p->range + (float)c * (2.0f * p->range / (float)(bins - 1u));
         float wy[4];
         for (uint a = 0u; a < l; ++a) wy[a] = gi_box(gi_grid_v(a, j1, l) - vc, p->range);
-        for (uint b = 0u; b < l; ++b) {
-            float4 v = (float4)(0.0f);
-            for (uint a = 0u; a < l; ++a) {
-                int k = (int)(b * l + a);
-                v.x += sheared_rgb_lane(lf, k, 0) * wy[a];
-                v.y += sheared_rgb_lane(lf, k, 1) * wy[a];
-                v.z += sheared_rgb_lane(lf, k, 2) * wy[a];
-                v.w += wy[a];
-            }
-            vstore4(v, c * 4u + b, o);
-        }
+        sheared_bin_rows(lf, l, wy, c, o);
     }
 }
 
@@ -107,13 +97,17 @@ inline int gi_steps(__constant const ShearedParams* p, float4 g) {
     return r < (float)p->max_radius ? (int)r : p->max_radius;
 }
 
-// One gather step from pixel i (position pi, normal n, shear axis e) to j: w_x and the bin.
-inline int gi_step(float4 g, float inv_x, float3 pi, float3 n, float3 e, uint bins,
-                   float range, __global const float* lj, float* wx) {
+// Neighbour lj, k steps from pixel li (position pi, normal n, shear axis e) along the walk of
+// 1b or 2b: the bin of eta (x - x').e it lends from, w_x in *wx; -1 when it does not lend
+// (rejected, or beyond the bins).
+inline int gi_lend(__constant const ShearedParams* p, __global const float* li,
+                   __global const float* lj, float kind_j, int k, float4 g, float inv_x,
+                   float3 pi, float3 n, float3 e, float* wx) {
+    if (k != 0 && !gi_accepts(p, li, lj, g, kind_j)) return -1;
     float3 delta = vload3(0, lj + LIGHT_FIELD_PIXEL_POSITION) - pi;
     float3 tangential = delta - n * dot(delta, n);
     *wx = sheared_gauss(length(tangential), inv_x);
-    return sheared_bin_of(g.y * -dot(delta, e), bins, range);
+    return sheared_bin_of(g.y * -dot(delta, e), p->bins, p->range);
 }
 
 __kernel void gi_1b(__constant const ShearedParams* p, __global const float* light_field,
@@ -124,7 +118,7 @@ __kernel void gi_1b(__constant const ShearedParams* p, __global const float* lig
     int i = y * (int)p->width + x;
     uint bins = p->bins, l = p->side;
     __global float* o = out + (size_t)i * (bins * 4u);
-    for (uint c = 0u; c < bins * 4u; ++c) o[c] = 0.0f;
+    sheared_zero(o, bins * 4u);
     float4 g = guide[i];
     if (g.z == GI_NONE) return;
     __global const float* li = light_field + (size_t)i * LIGHT_FIELD_PIXEL_FLOATS;
@@ -134,23 +128,17 @@ __kernel void gi_1b(__constant const ShearedParams* p, __global const float* lig
     int r = gi_steps(p, g);
     float inv_x = fmin(1.0f / (2.0f * g.x * g.x), FLT_MAX);
     for (int k = -r; k <= r; ++k) {
-        int qx = x + k;
-        if (qx < 0 || qx >= (int)p->width) continue;
-        int j = y * (int)p->width + qx;
+        int j;
+        if (!sheared_walk(p, x, y, k, 0, &j)) continue;
         __global const float* lj = light_field + (size_t)j * LIGHT_FIELD_PIXEL_FLOATS;
-        if (k != 0 && !gi_accepts(p, li, lj, g, guide[j].z)) continue;
         float wx;
-        int c1 = gi_step(g, inv_x, pi, n, t, bins, p->range, lj, &wx);
+        int c1 = gi_lend(p, li, lj, guide[j].z, k, g, inv_x, pi, n, t, &wx);
         if (c1 < 0) continue;
         __global const float* src = in + (size_t)j * (bins * 16u);
         float j2 = lj[LIGHT_FIELD_PIXEL_JITTER + 1];
-        for (uint row = 0u; row < l; ++row) {
-            int c2 = sheared_bin_of(gi_grid_v(row, j2, l), bins, p->range);
-            if (c2 < 0) continue;
-            float4 v = vload4((uint)c1 * 4u + row, src);
-            float4 acc = vload4((uint)c2, o);
-            vstore4(acc + wx * v, (uint)c2, o);
-        }
+        int c2[4];
+        for (uint row = 0u; row < l; ++row) c2[row] = sheared_bin_of(gi_grid_v(row, j2, l), bins, p->range);
+        sheared_splat_rows(src, c1, c2, l, wx, o);
     }
 }
 
@@ -162,7 +150,7 @@ __kernel void gi_2a(__constant const ShearedParams* p, __global const float4* gu
     uint bins = p->bins, reach = (bins - 1u) / 2u;
     __global float* o = out + (size_t)i * (bins * 4u);
     if (guide[i].z == GI_NONE) {
-        for (uint c = 0u; c < bins * 4u; ++c) o[c] = 0.0f;
+        sheared_zero(o, bins * 4u);
         return;
     }
     __global const float* src = in + (size_t)i * (bins * 4u);
@@ -205,13 +193,11 @@ __kernel void gi_2b(__constant const ShearedParams* p, __global const float* lig
         int r = gi_steps(p, g);
         float inv_x = fmin(1.0f / (2.0f * g.x * g.x), FLT_MAX);
         for (int k = -r; k <= r; ++k) {
-            int qy = y + k;
-            if (qy < 0 || qy >= (int)p->height) continue;
-            int j = qy * (int)p->width + x;
+            int j;
+            if (!sheared_walk(p, x, y, k, 1, &j)) continue;
             __global const float* lj = light_field + (size_t)j * LIGHT_FIELD_PIXEL_FLOATS;
-            if (k != 0 && !gi_accepts(p, li, lj, g, guide[j].z)) continue;
             float wx;
-            int c = gi_step(g, inv_x, pi, n, b, bins, p->range, lj, &wx);
+            int c = gi_lend(p, li, lj, guide[j].z, k, g, inv_x, pi, n, b, &wx);
             if (c < 0) continue;
             v += wx * vload4((uint)c, in + (size_t)j * (bins * 4u));
         }

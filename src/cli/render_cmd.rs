@@ -375,6 +375,8 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     }
     outputs = outputs.union(OutputSet::of(&args.gather));
     options.outputs = outputs;
+    // What the light-field output will hold, recorded in the partial files' identity.
+    let outputs = options.recorded_outputs();
     let count = range.end - range.start;
     if outputs.contains(Output::Samples) {
         options.sample_capacity = count;

@@ -667,7 +667,66 @@ impl BufferId {
     }
 }
 
-/// A set of outputs.
+/// What the light-field output holds (Yan et al. 2015 §3.1: one output, three integrands).
+/// The renderer decides it, not the filter that reads it: with the shadow output beside it,
+/// one shadow field per sphere light plane (src/render/shadows/light_field.rs); without it,
+/// the GI field over the v-plane when its sampling asks for it
+/// (`ShadowSampling::light_field_gi`, src/render/gi_field.rs), else the lens field
+/// (src/render/lens_field.rs). An [`OutputSet`] records it, so that a frame, an AOV file and
+/// a film say which field they hold and a filter that reads another one is refused (or the
+/// viewer gathers again) instead of filtering the wrong samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FieldKind {
+    /// Visibility of each filtered sphere light (sheared soft shadows).
+    Shadows,
+    /// Radiance through the thin lens (sheared depth of field).
+    Lens,
+    /// Indirect radiance over the v-plane (sheared diffuse indirect light).
+    Gi,
+}
+
+impl FieldKind {
+    pub const ALL: [FieldKind; 3] = [FieldKind::Shadows, FieldKind::Lens, FieldKind::Gi];
+
+    /// The name AOV and partial files record (`light_field = "gi"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            FieldKind::Shadows => "shadows",
+            FieldKind::Lens => "lens",
+            FieldKind::Gi => "gi",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<FieldKind> {
+        FieldKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// What the field is, for messages.
+    pub fn describe(self) -> &'static str {
+        match self {
+            FieldKind::Shadows => {
+                "its sphere lights' shadow fields (the shadow output was gathered)"
+            }
+            FieldKind::Lens => "the lens field (depth of field)",
+            FieldKind::Gi => "the v-plane field (diffuse indirect light)",
+        }
+    }
+
+    /// The bits of [`OutputSet`] that record a kind the shadow output does not imply.
+    fn bits(self) -> u32 {
+        match self {
+            FieldKind::Shadows => 0,
+            FieldKind::Lens => 1 << FIELD_SHIFT,
+            FieldKind::Gi => 2 << FIELD_SHIFT,
+        }
+    }
+}
+
+/// Where [`OutputSet`] keeps the recorded [`FieldKind`] (above every output's bit).
+const FIELD_SHIFT: u32 = 24;
+const FIELD_MASK: u32 = 3 << FIELD_SHIFT;
+
+/// A set of outputs, and what its light-field output holds ([`OutputSet::light_field`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct OutputSet(u32);
 
@@ -704,17 +763,66 @@ impl OutputSet {
         }
     }
 
+    /// Both sets; the light field's recorded kind is this set's, else `other`'s.
     pub fn union(self, other: OutputSet) -> OutputSet {
-        OutputSet(self.0 | other.0)
+        let kind = if self.0 & FIELD_MASK != 0 {
+            self.0
+        } else {
+            other.0
+        } & FIELD_MASK;
+        OutputSet((self.0 | other.0) & !FIELD_MASK | kind)
     }
 
     pub fn contains(self, o: Output) -> bool {
         self.0 & o.bit() != 0
     }
 
-    /// Every output of `other` is in this set.
+    /// This set with the light-field output holding `kind` (with [`FieldKind::Shadows`], the
+    /// shadow output too: the renderer puts shadow fields there exactly when it gathers it).
+    pub fn with_field(self, kind: FieldKind) -> OutputSet {
+        let s = OutputSet(self.0 & !FIELD_MASK | kind.bits()).with(Output::LightField);
+        match kind {
+            FieldKind::Shadows => s.with(Output::Shadows),
+            _ => s,
+        }
+    }
+
+    /// What the light-field output holds: None without it, or when the set does not record it
+    /// (AOV and partial files written before the kind was recorded; sets built without
+    /// [`OutputSet::with_field`]). With the shadow output it is always the shadow fields.
+    pub fn light_field(self) -> Option<FieldKind> {
+        if !self.contains(Output::LightField) {
+            return None;
+        }
+        if self.contains(Output::Shadows) {
+            return Some(FieldKind::Shadows);
+        }
+        FieldKind::ALL
+            .into_iter()
+            .find(|k| *k != FieldKind::Shadows && self.0 & FIELD_MASK == k.bits())
+    }
+
+    /// This set with its light field recorded as holding the field named `name`
+    /// ([`FieldKind::name`], as AOV and partial files record it); None when the name is
+    /// unknown or does not fit the set (no light-field output; the shadow fields without the
+    /// shadow output, or another field with it).
+    pub fn with_field_named(self, name: &str) -> Option<OutputSet> {
+        let kind = FieldKind::parse(name)?;
+        let fits = self.contains(Output::LightField)
+            && (kind == FieldKind::Shadows) == self.contains(Output::Shadows);
+        fits.then(|| self.with_field(kind))
+    }
+
+    /// Every output of `other` is in this set, and where both say what their light field
+    /// holds, it is the same field (one that does not say, from a file written before it was
+    /// recorded, is taken as it is, as `Frame::require` takes it).
     pub fn covers(self, other: OutputSet) -> bool {
-        self.0 & other.0 == other.0
+        let outputs = other.0 & !FIELD_MASK;
+        let field = match (self.light_field(), other.light_field()) {
+            (Some(have), Some(want)) => have == want,
+            _ => true,
+        };
+        self.0 & outputs == outputs && field
     }
 
     /// The outputs in table order.
@@ -809,6 +917,52 @@ mod tests {
                 o.name
             );
         }
+    }
+
+    #[test]
+    fn a_set_records_what_its_light_field_holds() {
+        use FieldKind::*;
+        let plain = OutputSet::of(&[Output::Colour, Output::LightField]);
+        assert_eq!(plain.light_field(), None, "not recorded");
+        assert_eq!(OutputSet::colour().light_field(), None);
+        let lens = OutputSet::colour().with_field(Lens);
+        let gi = lens.with_field(Gi);
+        assert_eq!(
+            (lens.light_field(), gi.light_field()),
+            (Some(Lens), Some(Gi))
+        );
+        assert_eq!(lens.names(), gi.names());
+        // With the shadow output the field is the shadows', whatever was recorded.
+        let shadows = gi.with(Output::Shadows);
+        assert_eq!(shadows.light_field(), Some(Shadows));
+        assert_eq!(
+            OutputSet::colour().with_field(Shadows),
+            shadows.with_field(Shadows)
+        );
+        // Closing, uniting and covering keep the kind; another recorded kind does not cover.
+        assert_eq!(gi.closed().light_field(), Some(Gi));
+        let features = OutputSet::of(&[Output::Features]);
+        assert_eq!(features.union(gi).light_field(), Some(Gi));
+        assert_eq!(gi.union(lens).light_field(), Some(Gi));
+        assert!(gi.union(features).covers(gi) && !gi.covers(lens) && !lens.covers(gi));
+        assert!(!shadows.covers(lens) && !gi.covers(shadows));
+        assert!(
+            plain.covers(gi) && gi.covers(plain),
+            "unrecorded: taken as it is"
+        );
+        // As files name them.
+        for k in FieldKind::ALL {
+            assert_eq!(FieldKind::parse(k.name()), Some(k));
+        }
+        assert_eq!(plain.with_field_named("gi"), Some(gi));
+        assert_eq!(
+            shadows.with_field_named("shadows"),
+            Some(shadows.with_field(Shadows))
+        );
+        assert_eq!(plain.with_field_named("shadows"), None);
+        assert_eq!(shadows.with_field_named("lens"), None);
+        assert_eq!(OutputSet::colour().with_field_named("lens"), None);
+        assert_eq!(plain.with_field_named("glow"), None);
     }
 
     #[test]

@@ -427,7 +427,10 @@ impl Frame {
         Ok(())
     }
 
-    /// Fails with a message naming what is missing when the frame lacks one of `needs`.
+    /// Fails with a message naming what is missing when the frame lacks one of `needs`, or
+    /// when its light-field output holds another field than `needs` says
+    /// ([`OutputSet::light_field`]; a frame that does not record it, from a file written
+    /// before it was recorded, is taken as it is).
     pub fn require(&self, needs: OutputSet, who: &str) -> Result<()> {
         let missing: Vec<&str> = needs
             .iter()
@@ -439,6 +442,17 @@ impl Frame {
                 "{who} needs the {} output(s), which this frame does not hold (have: {})",
                 missing.join(", "),
                 self.outputs.names().join(", ")
+            );
+        }
+        if let (Some(want), Some(have)) = (needs.light_field(), self.outputs.light_field())
+            && want != have
+        {
+            bail!(
+                "{who} reads {}, but this frame's light-field output holds {}: a render \
+                 gathers one kind of light field, the one its filter's sampling asks for; \
+                 render the scene again for {who} alone",
+                want.describe(),
+                have.describe()
             );
         }
         Ok(())

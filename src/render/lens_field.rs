@@ -15,6 +15,7 @@ use ocl::{Buffer, Kernel, Program};
 
 use super::shadows::light_field::MAX_SIDE;
 use crate::gpu::{Gpu, enqueue, event_duration};
+use crate::layout::outputs::{FieldKind, Output, OutputSet};
 
 /// Samples the fallback adds where s_min · s_max < 0 (Yan et al. §3.1: "a fixed 36 more").
 pub const EXTRA_SAMPLES: u32 = 36;
@@ -84,5 +85,36 @@ impl LensPass {
         let mut counts = vec![0u32; self.rays.len()];
         self.rays.read(&mut counts).enq()?;
         Ok((counts.iter().map(|&c| c as u64).sum(), time))
+    }
+}
+
+impl super::RenderOptions {
+    /// The light field a renderer built with these options gathers, by the renderer's own
+    /// rule (src/render/mod.rs `with_arrays` and `build_kernels`): the shadow fields with the
+    /// shadow output, else the GI field when `shadows.light_field_gi` asks for it, else the
+    /// lens field; None without the light-field output.
+    pub fn light_field(&self) -> Option<FieldKind> {
+        let outputs = self.outputs.closed();
+        if !outputs.contains(Output::LightField) {
+            None
+        } else if outputs.contains(Output::Shadows) {
+            Some(FieldKind::Shadows)
+        } else if self.shadows.light_field_gi {
+            Some(FieldKind::Gi)
+        } else {
+            Some(FieldKind::Lens)
+        }
+    }
+
+    /// The outputs the renderer gathers (closed under their requirements), recording the
+    /// light field [`Self::light_field`] says it gathers, whatever `outputs` claimed: what a
+    /// film, its frames and their files say they hold. [`super::SplitRenderer::new`] builds
+    /// its renderers with it.
+    pub fn recorded_outputs(&self) -> OutputSet {
+        let outputs = self.outputs.closed();
+        match self.light_field() {
+            Some(kind) => outputs.with_field(kind),
+            None => outputs,
+        }
     }
 }

@@ -7,7 +7,8 @@
 //! render gathered are written, and reading takes whichever complete outputs a file holds, so a
 //! file without an optional output (variances, positions) still loads, and a filter that needs
 //! it says so. Variances are stored as variances (S_n / (n − 1)), the form tools expect; the
-//! header holds the [`RenderRecord`] (scene information, filter settings).
+//! header holds the [`RenderRecord`] (scene information, filter settings) and what the
+//! light-field output holds ([`LIGHT_FIELD_KEY`]).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -24,6 +25,11 @@ use crate::render::{Frame, FrameInfo, HostBuffer, SceneInfo, VarianceForm};
 
 /// The header attribute that holds the render record.
 pub const RECORD_ATTRIBUTE: &str = "noisefree.record";
+
+/// The key of the record's table that says what the light-field output holds
+/// ([`crate::layout::outputs::FieldKind::name`]); files written before it was recorded lack it,
+/// and their light field is taken as it is.
+pub const LIGHT_FIELD_KEY: &str = "light_field";
 
 /// Writes the frame's per-pixel outputs as one OpenEXR layer with named channels, plus the
 /// beauty (`R`, `G`, `B`) for viewers and a constant `spp` channel; `record` goes into the
@@ -79,7 +85,11 @@ pub fn write_aov_exr(path: &Path, frame: &Frame, record: &RenderRecord) -> Resul
         FlatSamples::F32(vec![info.spp as f32; n]),
     ));
     let mut attributes = LayerAttributes::named("noisefree");
-    let table = toml::to_string(&record.to_attributes()).expect("text attributes serialise");
+    let mut text = record.to_attributes();
+    if let Some(kind) = frame.outputs().light_field() {
+        text.insert(LIGHT_FIELD_KEY.into(), kind.name().into());
+    }
+    let table = toml::to_string(&text).expect("text attributes serialise");
     attributes.other.insert(
         Text::from(RECORD_ATTRIBUTE),
         AttributeValue::Text(Text::from(table.as_str())),
@@ -234,6 +244,16 @@ pub fn read_aov_exr(path: &Path) -> Result<(Frame, RenderRecord)> {
         } else if let Some(key) = k.strip_prefix("noisefree.") {
             attributes.insert(key.to_string(), t.to_string());
         }
+    }
+    if let Some(name) = attributes.remove(LIGHT_FIELD_KEY) {
+        outputs = outputs.with_field_named(&name).ok_or_else(|| {
+            anyhow!(
+                "{}: the header says the light-field output holds {name:?}, which the file's \
+                 outputs ({}) cannot hold",
+                path.display(),
+                outputs.names().join(", ")
+            )
+        })?;
     }
     let record = RenderRecord::from_attributes(&attributes)
         .map_err(|e| anyhow!("{}: the render record in the header: {e:#}", path.display()))?;

@@ -150,37 +150,40 @@ impl<'r> Viewer<'r> {
     }
 
     /// Configures and prepares the chosen filter for the current camera (rebuilding the film
-    /// when the filter needs outputs it lacks) and empties the film.
+    /// when the filter needs outputs it lacks or another light field: [`film_must_change`])
+    /// and empties the film.
     fn configure(&mut self) -> Result<()> {
         let info = SceneInfo::new(&self.scene, &self.film.primary().arrays);
         self.configured = match self.chosen() {
             Some(f) => Some(self.registry.configure(f, &self.request, &info)?),
             None => None,
         };
-        // The AOV pictures read the features and their variances.
-        let mut outputs =
+        // The AOV pictures read the features and their variances; the filter samples as it
+        // asks, from the defaults, as `render --filter` does.
+        let mut wanted = self.options.clone();
+        wanted.outputs =
             OutputSet::colour().union(OutputSet::of(&[Output::Features, Output::Variance]));
+        (wanted.shadows, wanted.indirect) = Default::default();
         if let Some(c) = &self.configured {
-            outputs = outputs.union(c.needs());
+            wanted.outputs = wanted.outputs.union(c.needs());
+            c.adjust_render(&mut wanted);
         }
-        if outputs.union(self.film.outputs()) != self.film.outputs() {
-            self.options.outputs = outputs;
-            if outputs.contains(Output::Samples) {
+        if film_must_change(&self.options, &wanted) {
+            if wanted.outputs.contains(Output::Samples) {
                 // A film of every sample holds a fixed number of them.
                 let cap = self.max_spp.unwrap_or(16);
-                self.options.sample_capacity = cap;
+                wanted.sample_capacity = cap;
                 self.max_spp = Some(cap);
                 crate::stats::samples::check_memory(
-                    self.options.frame.width,
-                    self.options.frame.height,
+                    wanted.frame.width,
+                    wanted.frame.height,
                     cap,
                     crate::memory::available_memory_bytes().unwrap_or(u64::MAX),
                 )?;
             }
             let arrays = self.film.primary().arrays.clone();
-            self.film = self
-                .multi
-                .film(&self.gpus, &self.scene, arrays, &self.options)?;
+            self.film = self.multi.film(&self.gpus, &self.scene, arrays, &wanted)?;
+            self.options = wanted;
         }
         self.filter = match &self.configured {
             Some(c) => Some(DeviceFilter::prepare(
@@ -408,6 +411,20 @@ impl<'r> Viewer<'r> {
             }
         }
     }
+}
+
+/// Whether a film gathered with `film` must be built again to serve a filter that asks for
+/// `wanted` (its outputs, and how the renderer samples them: [`Configured::adjust_render`]):
+/// it lacks an output, its light-field output holds another field than the filter reads
+/// ([`RenderOptions::recorded_outputs`]: the shadow fields where depth of field reads the lens
+/// field, say, after a click gave the camera a lens), or an output the filter reads is sampled
+/// otherwise than it asks. Outputs the film has and the filter does not read stay.
+pub fn film_must_change(film: &RenderOptions, wanted: &RenderOptions) -> bool {
+    let (have, want) = (film.recorded_outputs(), wanted.recorded_outputs());
+    let shadows = want.contains(Output::Shadows) || want.contains(Output::LightField);
+    !have.covers(want)
+        || (shadows && film.shadows != wanted.shadows)
+        || (want.contains(Output::Indirect) && film.indirect != wanted.indirect)
 }
 
 /// A false-colour picture, shown as it is; its linear values for the EXR.

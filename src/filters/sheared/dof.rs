@@ -104,7 +104,8 @@ pub fn prepare(p: &ShearedParams, field: &[LightFieldPixel]) -> Vec<Guide> {
         .collect()
 }
 
-fn rgb(lf: &LightFieldPixel, k: usize) -> [f32; 3] {
+/// Sample k's rgb (`sheared_rgb_lane`; depth of field and GI).
+pub(super) fn rgb(lf: &LightFieldPixel, k: usize) -> [f32; 3] {
     [lf.samples[k], lf.green[k], lf.blue[k]]
 }
 
@@ -186,17 +187,10 @@ fn gather(
     mut visit: impl FnMut(usize, f32, u32),
 ) {
     let g = guide[i];
-    let (w, h) = (p.width as i32, p.height as i32);
-    let (x, y) = (i as i32 % w, i as i32 / w);
     // One-pixel steps: the shadow case's radius with one unit of x per step.
     let r = radius(g[0], 1.0, p.max_radius);
     let inv_x = (1.0 / (2.0 * g[0] * g[0])).min(f32::MAX);
-    for k in -r..=r {
-        let (qx, qy) = if axis == 0 { (x + k, y) } else { (x, y + k) };
-        if qx < 0 || qy < 0 || qx >= w || qy >= h {
-            continue;
-        }
-        let j = (qy * w + qx) as usize;
+    for (k, j) in neighbours(p, i, axis, r) {
         if k != 0 && !accepts(p, &field[i], &field[j], guide[j][2]) {
             continue;
         }
@@ -206,6 +200,55 @@ fn gather(
             visit(j, wx, c);
         }
     }
+}
+
+/// Steps 1b and 2b of the lens and v-plane filters walk k = −r..=r steps from pixel `i` along
+/// `axis` (0: its row, 1: its column): (k, neighbour) inside the image, in walk order
+/// (`sheared_walk`).
+pub(super) fn neighbours(
+    p: &ShearedParams,
+    i: usize,
+    axis: usize,
+    r: i32,
+) -> impl Iterator<Item = (i32, usize)> {
+    let (w, h) = (p.width as i32, p.height as i32);
+    let (x, y) = (i as i32 % w, i as i32 / w);
+    (-r..=r).filter_map(move |k| {
+        let (qx, qy) = if axis == 0 { (x + k, y) } else { (x, y + k) };
+        (qx >= 0 && qy >= 0 && qx < w && qy < h).then_some((k, (qy * w + qx) as usize))
+    })
+}
+
+/// Step 2b (eq. 15) for the lens and the v-plane: for each FILTERED pixel, Σ w_x × the step-2a
+/// bin over the neighbours `walk` visits along its column (j, w_x, bin), over its weight;
+/// `finish` makes every pixel with a field from that (None: no weight, or not FILTERED: the
+/// fallback and OWN pixels keep their own samples); `beauty` (F) where it has no field.
+pub(super) fn gather_columns(
+    p: &ShearedParams,
+    guide: &[Guide],
+    beauty: &[[f32; 3]],
+    q2a: &[f32],
+    walk: impl Fn(usize, &mut dyn FnMut(usize, f32, u32)) + Sync,
+    finish: impl Fn(usize, Option<[f32; 3]>) -> [f32; 3] + Sync,
+) -> Vec<[f32; 3]> {
+    let bins = p.bins as usize;
+    (0..guide.len())
+        .into_par_iter()
+        .map(|i| {
+            if guide[i][2] == NONE {
+                return beauty[i];
+            }
+            let mut v = [0f32; 4];
+            if guide[i][2] == FILTERED {
+                walk(i, &mut |j, wx, c| {
+                    for ch in 0..4 {
+                        v[ch] += wx * q2a[j * bins * 4 + c as usize * 4 + ch];
+                    }
+                });
+            }
+            finish(i, (v[3] > 0.0).then(|| [v[0] / v[3], v[1] / v[3], v[2] / v[3]]))
+        })
+        .collect()
 }
 
 /// `dof_1b` (eq. 13).
@@ -332,30 +375,10 @@ pub fn step_2b(
     guide: &[Guide],
     q2a: &[f32],
 ) -> Vec<[f32; 3]> {
-    let bins = p.bins as usize;
-    (0..guide.len())
-        .into_par_iter()
-        .map(|i| {
-            let kind = guide[i][2];
-            if kind == NONE {
-                return beauty[i];
-            }
-            if kind == FALLBACK {
-                return own(p, &field[i]);
-            }
-            let mut v = [0f32; 4];
-            gather(p, field, guide, i, 1, |j, wx, c| {
-                for ch in 0..4 {
-                    v[ch] += wx * q2a[j * bins * 4 + c as usize * 4 + ch];
-                }
-            });
-            if v[3] > 0.0 {
-                [v[0] / v[3], v[1] / v[3], v[2] / v[3]]
-            } else {
-                own(p, &field[i])
-            }
-        })
-        .collect()
+    let walk = |i, visit: &mut dyn FnMut(usize, f32, u32)| gather(p, field, guide, i, 1, visit);
+    gather_columns(p, guide, beauty, q2a, walk, |i, filtered| {
+        filtered.unwrap_or_else(|| own(p, &field[i]))
+    })
 }
 
 /// The whole filter: prepare and the four steps.

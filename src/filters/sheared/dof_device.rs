@@ -13,7 +13,7 @@ use ocl::{Buffer, Kernel};
 use super::dof::{g_floats, p_floats};
 use crate::filters::FilterRun;
 use crate::gpu::{Gpu, enqueue_rows, event_duration, read_rgb_rows};
-use crate::layout::outputs::{BufferId, Output, OutputSet};
+use crate::layout::outputs::{BufferId, FieldKind, OutputSet};
 use crate::layout::{Float4, LightFieldPixel, ShearedParams};
 use crate::render::Frame;
 
@@ -44,6 +44,8 @@ pub struct DofKernel {
     max_radius: u32,
     step_times: [Duration; 5],
     effect: &'static str,
+    /// The light field the effect reads.
+    field: FieldKind,
 }
 
 /// Device bytes per pixel: the light field, steps 1a-2a, the guide and the image.
@@ -54,12 +56,13 @@ pub fn bytes_per_pixel(bins: u32) -> u64 {
 
 impl DofKernel {
     pub fn new(gpu: Arc<Gpu>, params: ShearedParams) -> Result<DofKernel> {
-        DofKernel::build(gpu, params, "filters/sheared_dof.cl", "dof", "depth-of-field")
+        let file = "filters/sheared_dof.cl";
+        DofKernel::build(gpu, params, file, "dof", "depth-of-field", FieldKind::Lens)
     }
 
     /// The GI filter (kernels/filters/sheared_gi.cl) over the GI field.
     pub fn gi(gpu: Arc<Gpu>, params: ShearedParams) -> Result<DofKernel> {
-        DofKernel::build(gpu, params, "filters/sheared_gi.cl", "gi", "GI")
+        DofKernel::build(gpu, params, "filters/sheared_gi.cl", "gi", "GI", FieldKind::Gi)
     }
 
     fn build(
@@ -68,6 +71,7 @@ impl DofKernel {
         file: &str,
         prefix: &str,
         effect: &'static str,
+        field: FieldKind,
     ) -> Result<DofKernel> {
         let (w, h) = (params.width, params.height);
         if w == 0 || h == 0 {
@@ -147,6 +151,7 @@ impl DofKernel {
             max_radius: params.max_radius.max(0) as u32,
             step_times: [Duration::ZERO; 5],
             effect,
+            field,
         })
     }
 
@@ -166,23 +171,13 @@ impl DofKernel {
         let start = Instant::now();
         let h = self.height;
         frame.check_size(self.width, h, "the sheared filter")?;
+        // The frame records which field its light-field output holds (the shadow fields of
+        // a render with the shadow output, the lens field or the GI field): another one than
+        // this effect reads is refused rather than filtered as the wrong samples.
         frame.require(
-            OutputSet::of(&[Output::Colour, Output::LightField]),
+            OutputSet::colour().with_field(self.field),
             &format!("the sheared filter ({})", self.effect),
         )?;
-        // A render with the shadow output keeps a light field per sphere light there (the
-        // shadows' light field, src/render/shadows), not the lens or v-plane field this
-        // effect reads: refuse rather than filter the wrong samples.
-        if frame.outputs().contains(Output::Shadows) {
-            bail!(
-                "the sheared filter ({}) reads the lens or v-plane field, but this frame's \
-                 light-field output holds its sphere lights' shadow fields (it was rendered \
-                 with the shadow output); render it for the sheared {} filter alone, \
-                 without a shadow filter",
-                self.effect,
-                self.effect
-            );
-        }
         let rows = rows.start.min(h)..rows.end.min(h);
         let wide = rows.start.saturating_sub(self.max_radius)..(rows.end + self.max_radius).min(h);
         let field = frame.device(&self.gpu, BufferId::LightFieldPixels)?;

@@ -58,7 +58,7 @@ pub const OMEGA_V_MAX: f32 = 2.8;
 pub type Guide = [f32; 4];
 
 pub use super::dof::{g_floats, p_floats};
-use super::dof::{bin_rows, gather_rows, sum_bins};
+use super::dof::{bin_rows, gather_columns, gather_rows, neighbours, rgb, sum_bins};
 
 /// `gi_prepare`.
 pub fn prepare(p: &ShearedParams, field: &[LightFieldPixel]) -> Vec<Guide> {
@@ -78,10 +78,6 @@ pub fn prepare(p: &ShearedParams, field: &[LightFieldPixel]) -> Vec<Guide> {
             [sx, shear_eta(a, b, p.shear), FILTERED, d]
         })
         .collect()
-}
-
-fn rgb(lf: &LightFieldPixel, k: usize) -> [f32; 3] {
-    [lf.samples[k], lf.green[k], lf.blue[k]]
 }
 
 /// The box of steps 1a and 2a: 1 within half width `range` (= V).
@@ -129,20 +125,13 @@ fn gather(
     mut visit: impl FnMut(usize, f32, u32),
 ) {
     let g = guide[i];
-    let (w, h) = (p.width as i32, p.height as i32);
-    let (x, y) = (i as i32 % w, i as i32 / w);
     let r = steps(p, g);
     let inv_x = (1.0 / (2.0 * g[0] * g[0])).min(f32::MAX);
     let n = Vec3::from(field[i].normal);
     let (t, b) = tangent_frame(n);
     let e = if axis == 0 { t } else { b };
     let pi = Vec3::from(field[i].position);
-    for k in -r..=r {
-        let (qx, qy) = if axis == 0 { (x + k, y) } else { (x, y + k) };
-        if qx < 0 || qy < 0 || qx >= w || qy >= h {
-            continue;
-        }
-        let j = (qy * w + qx) as usize;
+    for (k, j) in neighbours(p, i, axis, r) {
         if k != 0 && !accepts(p, &field[i], &field[j], g, guide[j][2]) {
             continue;
         }
@@ -200,31 +189,12 @@ pub fn step_2b(
     guide: &[Guide],
     q2a: &[f32],
 ) -> Vec<[f32; 3]> {
-    let bins = p.bins as usize;
-    (0..guide.len())
-        .into_par_iter()
-        .map(|i| {
-            let kind = guide[i][2];
-            if kind == NONE {
-                return beauty[i];
-            }
-            let mut v = [0f32; 4];
-            if kind == FILTERED {
-                gather(p, field, guide, i, 1, |j, wx, c| {
-                    for ch in 0..4 {
-                        v[ch] += wx * q2a[j * bins * 4 + c as usize * 4 + ch];
-                    }
-                });
-            }
-            let l = if v[3] > 0.0 {
-                [v[0] / v[3], v[1] / v[3], v[2] / v[3]]
-            } else {
-                own(p, &field[i])
-            };
-            let a = field[i].extra;
-            std::array::from_fn(|ch| direct[i][ch] + a[ch] * l[ch])
-        })
-        .collect()
+    let walk = |i, visit: &mut dyn FnMut(usize, f32, u32)| gather(p, field, guide, i, 1, visit);
+    gather_columns(p, guide, beauty, q2a, walk, |i, filtered| {
+        let l = filtered.unwrap_or_else(|| own(p, &field[i]));
+        let a = field[i].extra;
+        std::array::from_fn(|ch| direct[i][ch] + a[ch] * l[ch])
+    })
 }
 
 /// The whole filter: prepare and the four steps.

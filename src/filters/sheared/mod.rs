@@ -95,7 +95,7 @@ use super::shadow_lights::{
 };
 use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
-use crate::layout::outputs::{Output, OutputSet};
+use crate::layout::outputs::{FieldKind, Output, OutputSet};
 use crate::layout::{Float4, LightFieldPixel, ShearedParams};
 use crate::render::shadows::light_field::{MAX_SIDE, sphere_frame};
 use crate::render::{FrameInfo, RenderOptions, SceneInfo, ShadowSampling};
@@ -385,8 +385,13 @@ impl FilterKind for Sheared {
     }
 
     fn needs(s: &ShearedSettings) -> OutputSet {
-        if s.is_dof() || s.is_gi() {
-            return OutputSet::of(&[Output::Colour, Output::LightField]);
+        // The field each effect reads, recorded so that a frame holding another is refused
+        // and the viewer gathers again (src/view/session.rs).
+        if s.is_dof() {
+            return OutputSet::colour().with_field(FieldKind::Lens);
+        }
+        if s.is_gi() {
+            return OutputSet::colour().with_field(FieldKind::Gi);
         }
         let outputs = light_needs(s.light);
         match light_index(s.light) {

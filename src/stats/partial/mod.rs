@@ -32,6 +32,7 @@
 //! | `seed` | the render's seed |
 //! | `spp` | samples per pixel of the whole render (the ranges of all parts make 0..spp) |
 //! | `outputs` | the outputs gathered, by name (`colour`, `features`, `variance`, `position`, `samples`) |
+//! | `light_field` | with the light-field output: the field it holds, `shadows`, `lens` or `gi` (`FieldKind`); absent in files written before it was recorded |
 //! | `[[buffers]]` | per gathered buffer, in the kernel's order: `name`, `element` (its struct), `element_bytes`, `per` (`pixel` or `sample`); a file whose layout differs from this build's is refused |
 //! | `[record]` | the render record (scene information, filter, settings: src/stats/record.rs) as text |
 //! | `[[pieces]]` | per piece: `tile` (`x`, `y`, `width`, `height`), `samples` = [A, B] (samples A..B−1), `offset` and `bytes` of its payload, `fnv1a` (16 hex digits, its checksum), `rays` traced, device `seconds`, `device` |
@@ -244,6 +245,10 @@ struct Header {
     /// The sphere light of each plane of the shadow output.
     #[serde(default)]
     shadow_lights: Vec<u32>,
+    /// What the light-field output holds ([`crate::layout::outputs::FieldKind::name`]); files
+    /// written before it was recorded have none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    light_field: Option<String>,
     buffers: Vec<BufferLayout>,
     record: BTreeMap<String, String>,
     pieces: Vec<PieceHeader>,
@@ -461,6 +466,15 @@ fn check_header(h: &Header) -> Result<RenderIdentity> {
             .find(|o| o.name == name)
             .with_context(|| format!("the header lists an unknown output {name:?}"))?;
         outputs = outputs.with(o.output);
+    }
+    if let Some(name) = &h.light_field {
+        outputs = outputs.with_field_named(name).with_context(|| {
+            format!(
+                "the header says the light-field output holds {name:?}, which its outputs ({}) \
+                 cannot hold",
+                h.outputs.join(", ")
+            )
+        })?;
     }
     if outputs != outputs.closed() || !outputs.contains(Output::Colour) {
         bail!(

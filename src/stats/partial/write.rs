@@ -107,6 +107,7 @@ fn write_with(
             .map(String::from)
             .collect(),
         shadow_lights: identity.shadow_lights.clone(),
+        light_field: identity.outputs.light_field().map(|k| k.name().to_string()),
         buffers: identity.outputs.buffers().map(BufferLayout::of).collect(),
         record: identity.record.to_attributes(),
         pieces,
