@@ -220,7 +220,9 @@ impl Renderer {
     ) -> Result<Renderer> {
         check_size(&gpu, options)?;
         let tile = options.tile();
-        let outputs = options.outputs.closed();
+        // Every frame records which light field its light-field output holds, decided here
+        // by the renderer's own sampling rule (lens_field.rs), whoever built the options.
+        let outputs = options.recorded_outputs();
         let capacity = if outputs.contains(Output::Samples) {
             options.sample_capacity.max(1)
         } else {
