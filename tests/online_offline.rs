@@ -59,7 +59,6 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
         }
         o.shadows.lights = LightPlanes(lights.max(1));
         o.shadows.light_field_gi = gi;
-        o.outputs = o.recorded_outputs();
         o.sample_capacity = spp;
         let mut r = Renderer::with_arrays(gpu(), &scene, arrays, &o).unwrap();
         assert_eq!(r.scene_info, info);

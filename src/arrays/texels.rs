@@ -11,7 +11,7 @@
 
 use std::collections::HashMap;
 
-use crate::layout::{Float4, TextureInfo};
+use crate::layout::{Float2, Float4, TextureInfo};
 use crate::scene::texture::{Texture, srgb8_tables};
 
 /// `TextureInfo::format`: one linear `Float4` per texel.
@@ -77,8 +77,8 @@ pub fn pack(textures: &[Texture]) -> (Vec<Float4>, Vec<TextureInfo>) {
             width: t.width,
             height: t.height,
             format,
-            uv_scale: crate::layout::Float2::from_vec2(t.uv_scale),
-            uv_shift: crate::layout::Float2::from_vec2(t.uv_shift),
+            uv_scale: Float2::from_vec2(t.uv_scale),
+            uv_shift: Float2::from_vec2(t.uv_shift),
         });
     }
     (texels, infos)

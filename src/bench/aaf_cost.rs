@@ -122,7 +122,6 @@ fn measure(ctx: &Context, study: &StudyScene, c: &Configured, runs: usize) -> Re
     let mut o = options(&study.scene, &s, study.arrays.params.seed);
     o.outputs = OutputSet::colour().union(c.needs());
     c.adjust_render(&mut o);
-    o.outputs = o.recorded_outputs();
     let mut r = Renderer::with_arrays(ctx.gpu.clone(), &study.scene, study.arrays.clone(), &o)?;
     let mut m = Measured {
         filter: Duration::MAX,

@@ -106,8 +106,6 @@ impl StudyScene {
         if let Some(f) = filter {
             f.adjust_render(&mut o);
         }
-        // Its frames say which light field they hold (the filters check it).
-        o.outputs = o.recorded_outputs();
         Renderer::with_arrays(ctx.gpu.clone(), &self.scene, self.arrays.clone(), &o)
     }
 

@@ -94,8 +94,6 @@ impl SplitRenderer {
             bail!("no device to render with");
         };
         let mut options = options.clone();
-        // The film records which light field it gathers (the frames and files say so).
-        options.outputs = options.recorded_outputs();
         if gpus.len() > 1 && options.local_size.is_none() {
             // Bands change height when re-balanced; a fixed work-group size keeps one compiled
             // kernel (see BAND_WORK_GROUP).
