@@ -327,6 +327,27 @@ typedef struct __attribute__((aligned(16))) {
 #define LIGHT_FIELD_PIXEL_EXTRA 68
 #define LIGHT_FIELD_PIXEL_FLOATS 72
 
+// Sheared soft shadows and depth of field together (Yan et al. 2015, appendix eqs.
+// 16-17; issue 16): beside the lens field (a [`LightFieldPixel`] per pixel whose radiance
+// lanes hold each lens sample's light without the filtered sphere lights' direct term on
+// the pixel centre's receiver, kernels/render/lens_field.cl `lens_shadow_field_sample`),
+// what the filter needs to put that term back after filtering the shadows: eq. 16's
+// texture k(x, u) of every lens sample and eq. 17's F̄ per light.
+typedef struct __attribute__((aligned(16))) {
+    float albedo[16]; // Red albedo k(x, u) of lens point (a, b)'s first hit where that hit took the  filtered lights' direct term out (a diffuse hit on the pixel centre's receiver),  else 0; lanes as [`LightFieldPixel::samples`].
+    float albedo_green[16]; // The green albedo, lanes as `albedo`.
+    float albedo_blue[16]; // The blue albedo, lanes as `albedo`.
+    float albedo_extra[4]; // Σ w(u) k(u) (rgb) over the fallback's 36 extra samples (their Σ w is the lens  field's extra.w); w: 0.
+    float4 unshadowed[8]; // Per shadow plane: eq. 17's F̄ without its visibility, the mean over the lens samples  on the receiver of the plane's light's unoccluded term (rgb; eq. 3.1's r / albedo,  kernels/render/shadows.cl `shadow_unshadowed`), and (w) how many samples that is.
+} LensShadowPixel;
+// Float lanes of LensShadowPixel (offset / 4).
+#define LENS_SHADOW_PIXEL_ALBEDO 0
+#define LENS_SHADOW_PIXEL_ALBEDO_GREEN 16
+#define LENS_SHADOW_PIXEL_ALBEDO_BLUE 32
+#define LENS_SHADOW_PIXEL_ALBEDO_EXTRA 48
+#define LENS_SHADOW_PIXEL_UNSHADOWED 52
+#define LENS_SHADOW_PIXEL_FLOATS 84
+
 // AAF indirect light (Wang 2013 ch. 4; kernels/render/indirect.cl): the primary hit
 // through the pixel centre (and the lens centre) and the indirect samples of the sparse
 // and the adaptive pass, for one of two lobes: a diffuse receiver's cosine-weighted

@@ -120,6 +120,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/sheared_gi.cl"),
     ),
     (
+        "filters/sheared_lens_shadows.cl",
+        include_str!("../kernels/filters/sheared_lens_shadows.cl"),
+    ),
+    (
         "filters/path_density.cl",
         include_str!("../kernels/filters/path_density.cl"),
     ),

@@ -384,12 +384,13 @@ fn render_filters_depth_of_field_end_to_end_and_offline_gives_the_same_bytes() {
     );
     assert_eq!(a.pixels, b.pixels, "online == offline");
     assert!(a.pixels.iter().flatten().all(|c| c.is_finite()));
-    // Both effects at once is refused, naming the combination; a pinhole has no lens field.
+    // Depth of field alone with a chosen light is refused, naming the effect that does both;
+    // a pinhole has no lens field.
     for (scene, light, needles) in [
         (
             "scenes/outside_dof.toml",
             "0",
-            ["soft shadows", "not both at once"],
+            ["depth of field alone", "dof-shadows"],
         ),
         (
             "scenes/grids.toml",

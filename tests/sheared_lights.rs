@@ -199,6 +199,7 @@ fn field_kind(effect: Effect) -> FieldKind {
         Effect::Shadows => FieldKind::Shadows,
         Effect::Dof => FieldKind::Lens,
         Effect::Gi => FieldKind::Gi,
+        Effect::DofShadows => FieldKind::Shadows,
     }
 }
 

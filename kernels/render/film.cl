@@ -49,6 +49,12 @@ typedef struct {
                                          // light to the first surface, when that is the pixel
                                          // centre's receiver (ShadowTerms)
 #endif
+#if OUTPUT_LENS_SHADOWS
+    uint receiver;          // the shadow planes whose receiver's object the first hit is on
+                            // (the planes whose shadow_direct it records), a bit each
+    float3 receiver_albedo; // that hit's albedo and shading normal (0 when receiver is 0)
+    float3 receiver_normal;
+#endif
 } PathSample;
 
 inline PathSample path_sample_empty(void) {
@@ -70,6 +76,11 @@ inline PathSample path_sample_empty(void) {
 #endif
 #if OUTPUT_SHADOWS
     for (uint l = 0u; l < SHADOW_PLANES; ++l) ps.shadow_direct[l] = (float3)(0.0f);
+#endif
+#if OUTPUT_LENS_SHADOWS
+    ps.receiver = 0u;
+    ps.receiver_albedo = (float3)(0.0f);
+    ps.receiver_normal = (float3)(0.0f);
 #endif
     return ps;
 }

@@ -123,6 +123,14 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
             float object = hit_object(s, &hit);
             for (uint l = 0u; l < SHADOW_PLANES; ++l)
                 if (object == shadow_objects[l]) on_receiver |= 1u << l;
+#if OUTPUT_LENS_SHADOWS
+            // The lens pass puts k(x, u) back on the filtered term (Yan et al.'s eq. 16).
+            if (on_receiver != 0u) {
+                ps.receiver = on_receiver;
+                ps.receiver_albedo = albedo;
+                ps.receiver_normal = sf.ns;
+            }
+#endif
         }
 #endif
 #if HAS_LIGHTS && NEXT_EVENT_ESTIMATION

@@ -52,6 +52,7 @@ pub fn all_declarations() -> Vec<Declaration> {
         declaration::<ShadowTerms>(true),
         declaration::<ShadowPixel>(true),
         declaration::<LightFieldPixel>(true),
+        declaration::<LensShadowPixel>(true),
         declaration::<IndirectPixel>(true),
         declaration::<AafShadowParams>(false),
         declaration::<ShearedParams>(false),

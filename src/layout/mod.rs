@@ -571,6 +571,31 @@ device_structs! {
         pub extra: [f32; 4],
     }
 
+    /// Sheared soft shadows and depth of field together (Yan et al. 2015, appendix eqs.
+    /// 16-17; issue 16): beside the lens field (a [`LightFieldPixel`] per pixel whose radiance
+    /// lanes hold each lens sample's light without the filtered sphere lights' direct term on
+    /// the pixel centre's receiver, kernels/render/lens_field.cl `lens_shadow_field_sample`),
+    /// what the filter needs to put that term back after filtering the shadows: eq. 16's
+    /// texture k(x, u) of every lens sample and eq. 17's F̄ per light.
+    #[align(16)]
+    pub struct LensShadowPixel {
+        /// Red albedo k(x, u) of lens point (a, b)'s first hit where that hit took the
+        /// filtered lights' direct term out (a diffuse hit on the pixel centre's receiver),
+        /// else 0; lanes as [`LightFieldPixel::samples`].
+        pub albedo: [f32; 16],
+        /// The green albedo, lanes as `albedo`.
+        pub albedo_green: [f32; 16],
+        /// The blue albedo, lanes as `albedo`.
+        pub albedo_blue: [f32; 16],
+        /// Σ w(u) k(u) (rgb) over the fallback's 36 extra samples (their Σ w is the lens
+        /// field's extra.w); w: 0.
+        pub albedo_extra: [f32; 4],
+        /// Per shadow plane: eq. 17's F̄ without its visibility, the mean over the lens samples
+        /// on the receiver of the plane's light's unoccluded term (rgb; eq. 3.1's r / albedo,
+        /// kernels/render/shadows.cl `shadow_unshadowed`), and (w) how many samples that is.
+        pub unshadowed: [Float4; 8],
+    }
+
     /// Parameters of the AAF soft-shadow filter passes (kernels/filters/aaf_shadows.cl).
     #[align(16)]
     pub struct AafShadowParams {

@@ -21,8 +21,8 @@
 use std::mem::{offset_of, size_of};
 
 use super::{
-    DepthShift, FilterVector, Float4, IndirectPixel, LightFieldPixel, SampleVector, ShadowPixel,
-    ShadowTerms, WelfordState, WelfordSums,
+    DepthShift, FilterVector, Float4, IndirectPixel, LensShadowPixel, LightFieldPixel,
+    SampleVector, ShadowPixel, ShadowTerms, WelfordState, WelfordSums,
 };
 
 /// A group of per-pixel outputs switched on together.
@@ -55,6 +55,11 @@ pub enum Output {
     /// pixel's centre receiver (diffuse, or a metal's glossy lobe), demodulated, with z_min
     /// and z_max.
     Indirect,
+    /// Sheared soft shadows and depth of field together (Yan et al. 2015, appendix eqs.
+    /// 16-17): beside the shadow fields of the light-field output, the lens field with each
+    /// lens sample's light less the filtered lights' direct term on the pixel centre's
+    /// receiver, that sample's albedo, and the lights' unoccluded terms.
+    LensShadows,
 }
 
 /// A device buffer of the megakernel.
@@ -71,6 +76,8 @@ pub enum BufferId {
     OddHalves,
     LightFieldPixels,
     IndirectPixels,
+    LensFieldPixels,
+    LensShadowPixels,
 }
 
 /// How many elements a buffer holds.
@@ -250,6 +257,11 @@ const L_BLUE: usize = lane(offset_of!(LightFieldPixel, blue));
 const L_POSITION: usize = lane(offset_of!(LightFieldPixel, position));
 const L_NORMAL: usize = lane(offset_of!(LightFieldPixel, normal));
 const L_EXTRA: usize = lane(offset_of!(LightFieldPixel, extra));
+const K_ALBEDO: usize = lane(offset_of!(LensShadowPixel, albedo));
+const K_GREEN: usize = lane(offset_of!(LensShadowPixel, albedo_green));
+const K_BLUE: usize = lane(offset_of!(LensShadowPixel, albedo_blue));
+const K_EXTRA: usize = lane(offset_of!(LensShadowPixel, albedo_extra));
+const K_UNSHADOWED: usize = lane(offset_of!(LensShadowPixel, unshadowed));
 const D_MEAN: usize = lane(offset_of!(DepthShift, mean));
 
 /// The mean each lane of [`WelfordSums`] is the S_n of: (S_n lane, buffer of the mean, lane of
@@ -372,6 +384,26 @@ pub const BUFFERS: &[BufferDecl] = &[
         per: Per::Pixel,
         merge: Merge::Identical,
         doc: "AAF indirect: demodulated indirect sums, z_min, z_max and the centre's hit, per pixel",
+    },
+    BufferDecl {
+        id: LensFieldPixels,
+        name: "lens_field",
+        element: "LightFieldPixel",
+        element_bytes: size_of::<LightFieldPixel>(),
+        per: Per::Pixel,
+        merge: Merge::Identical,
+        doc: "sheared shadows with depth of field: the lens field, each sample's light less the \
+              filtered lights' direct term on the receiver",
+    },
+    BufferDecl {
+        id: LensShadowPixels,
+        name: "lens_shadow",
+        element: "LensShadowPixel",
+        element_bytes: size_of::<LensShadowPixel>(),
+        per: Per::Pixel,
+        merge: Merge::Identical,
+        doc: "sheared shadows with depth of field: each lens sample's albedo and each light's \
+              unoccluded term",
     },
 ];
 
@@ -629,6 +661,301 @@ pub const OUTPUTS: &[OutputDecl] = &[
         ],
         doc: "indirect light of diffuse and glossy receivers: demodulated indirect samples of \
               the centre's receiver, z_min, z_max, pixel size, bandlimit, lobe (AAF ch. 4)",
+    },
+    OutputDecl {
+        output: Output::LensShadows,
+        name: "lens-shadows",
+        switch: Some("OUTPUT_LENS_SHADOWS"),
+        // The shadow passes give each pixel centre's receiver and its shadow fields (in the
+        // light-field output); the lens pass reads the receiver.
+        requires: &[Output::Colour, Output::Shadows, Output::LightField],
+        buffers: &[LensFieldPixels, LensShadowPixels],
+        channels: &[
+            ch("lens.f00", LensFieldPixels, L_SAMPLES + 0),
+            ch("lens.f01", LensFieldPixels, L_SAMPLES + 1),
+            ch("lens.f02", LensFieldPixels, L_SAMPLES + 2),
+            ch("lens.f03", LensFieldPixels, L_SAMPLES + 3),
+            ch("lens.f04", LensFieldPixels, L_SAMPLES + 4),
+            ch("lens.f05", LensFieldPixels, L_SAMPLES + 5),
+            ch("lens.f06", LensFieldPixels, L_SAMPLES + 6),
+            ch("lens.f07", LensFieldPixels, L_SAMPLES + 7),
+            ch("lens.f08", LensFieldPixels, L_SAMPLES + 8),
+            ch("lens.f09", LensFieldPixels, L_SAMPLES + 9),
+            ch("lens.f10", LensFieldPixels, L_SAMPLES + 10),
+            ch("lens.f11", LensFieldPixels, L_SAMPLES + 11),
+            ch("lens.f12", LensFieldPixels, L_SAMPLES + 12),
+            ch("lens.f13", LensFieldPixels, L_SAMPLES + 13),
+            ch("lens.f14", LensFieldPixels, L_SAMPLES + 14),
+            ch("lens.f15", LensFieldPixels, L_SAMPLES + 15),
+            ch("lens.g00", LensFieldPixels, L_GREEN + 0),
+            ch("lens.g01", LensFieldPixels, L_GREEN + 1),
+            ch("lens.g02", LensFieldPixels, L_GREEN + 2),
+            ch("lens.g03", LensFieldPixels, L_GREEN + 3),
+            ch("lens.g04", LensFieldPixels, L_GREEN + 4),
+            ch("lens.g05", LensFieldPixels, L_GREEN + 5),
+            ch("lens.g06", LensFieldPixels, L_GREEN + 6),
+            ch("lens.g07", LensFieldPixels, L_GREEN + 7),
+            ch("lens.g08", LensFieldPixels, L_GREEN + 8),
+            ch("lens.g09", LensFieldPixels, L_GREEN + 9),
+            ch("lens.g10", LensFieldPixels, L_GREEN + 10),
+            ch("lens.g11", LensFieldPixels, L_GREEN + 11),
+            ch("lens.g12", LensFieldPixels, L_GREEN + 12),
+            ch("lens.g13", LensFieldPixels, L_GREEN + 13),
+            ch("lens.g14", LensFieldPixels, L_GREEN + 14),
+            ch("lens.g15", LensFieldPixels, L_GREEN + 15),
+            ch("lens.b00", LensFieldPixels, L_BLUE + 0),
+            ch("lens.b01", LensFieldPixels, L_BLUE + 1),
+            ch("lens.b02", LensFieldPixels, L_BLUE + 2),
+            ch("lens.b03", LensFieldPixels, L_BLUE + 3),
+            ch("lens.b04", LensFieldPixels, L_BLUE + 4),
+            ch("lens.b05", LensFieldPixels, L_BLUE + 5),
+            ch("lens.b06", LensFieldPixels, L_BLUE + 6),
+            ch("lens.b07", LensFieldPixels, L_BLUE + 7),
+            ch("lens.b08", LensFieldPixels, L_BLUE + 8),
+            ch("lens.b09", LensFieldPixels, L_BLUE + 9),
+            ch("lens.b10", LensFieldPixels, L_BLUE + 10),
+            ch("lens.b11", LensFieldPixels, L_BLUE + 11),
+            ch("lens.b12", LensFieldPixels, L_BLUE + 12),
+            ch("lens.b13", LensFieldPixels, L_BLUE + 13),
+            ch("lens.b14", LensFieldPixels, L_BLUE + 14),
+            ch("lens.b15", LensFieldPixels, L_BLUE + 15),
+            ch("lens.jitter.U", LensFieldPixels, L_JITTER),
+            ch("lens.jitter.V", LensFieldPixels, L_JITTER + 1),
+            ch("lens.dir1.X", LensFieldPixels, L_DIR1),
+            ch("lens.dir1.Y", LensFieldPixels, L_DIR1 + 1),
+            ch("lens.dir2.X", LensFieldPixels, L_DIR2),
+            ch("lens.dir2.Y", LensFieldPixels, L_DIR2 + 1),
+            ch("lens.scale.X", LensFieldPixels, L_SCALE),
+            ch("lens.scale.Y", LensFieldPixels, L_SCALE + 1),
+            ch("lens.count", LensFieldPixels, L_COUNT),
+            ch("lens.slope.min", LensFieldPixels, L_SLOPES),
+            ch("lens.slope.max", LensFieldPixels, L_SLOPES + 1),
+            ch("lens.extra", LensFieldPixels, L_EXTRA_SAMPLES),
+            ch("lens.position.X", LensFieldPixels, L_POSITION),
+            ch("lens.position.Y", LensFieldPixels, L_POSITION + 1),
+            ch("lens.position.Z", LensFieldPixels, L_POSITION + 2),
+            ch("lens.normal.X", LensFieldPixels, L_NORMAL),
+            ch("lens.normal.Y", LensFieldPixels, L_NORMAL + 1),
+            ch("lens.normal.Z", LensFieldPixels, L_NORMAL + 2),
+            ch("lens.extra.R", LensFieldPixels, L_EXTRA),
+            ch("lens.extra.G", LensFieldPixels, L_EXTRA + 1),
+            ch("lens.extra.B", LensFieldPixels, L_EXTRA + 2),
+            ch("lens.extra.W", LensFieldPixels, L_EXTRA + 3),
+            ch("lensshadow.albedo.r00", LensShadowPixels, K_ALBEDO + 0),
+            ch("lensshadow.albedo.r01", LensShadowPixels, K_ALBEDO + 1),
+            ch("lensshadow.albedo.r02", LensShadowPixels, K_ALBEDO + 2),
+            ch("lensshadow.albedo.r03", LensShadowPixels, K_ALBEDO + 3),
+            ch("lensshadow.albedo.r04", LensShadowPixels, K_ALBEDO + 4),
+            ch("lensshadow.albedo.r05", LensShadowPixels, K_ALBEDO + 5),
+            ch("lensshadow.albedo.r06", LensShadowPixels, K_ALBEDO + 6),
+            ch("lensshadow.albedo.r07", LensShadowPixels, K_ALBEDO + 7),
+            ch("lensshadow.albedo.r08", LensShadowPixels, K_ALBEDO + 8),
+            ch("lensshadow.albedo.r09", LensShadowPixels, K_ALBEDO + 9),
+            ch("lensshadow.albedo.r10", LensShadowPixels, K_ALBEDO + 10),
+            ch("lensshadow.albedo.r11", LensShadowPixels, K_ALBEDO + 11),
+            ch("lensshadow.albedo.r12", LensShadowPixels, K_ALBEDO + 12),
+            ch("lensshadow.albedo.r13", LensShadowPixels, K_ALBEDO + 13),
+            ch("lensshadow.albedo.r14", LensShadowPixels, K_ALBEDO + 14),
+            ch("lensshadow.albedo.r15", LensShadowPixels, K_ALBEDO + 15),
+            ch("lensshadow.albedo.g00", LensShadowPixels, K_GREEN + 0),
+            ch("lensshadow.albedo.g01", LensShadowPixels, K_GREEN + 1),
+            ch("lensshadow.albedo.g02", LensShadowPixels, K_GREEN + 2),
+            ch("lensshadow.albedo.g03", LensShadowPixels, K_GREEN + 3),
+            ch("lensshadow.albedo.g04", LensShadowPixels, K_GREEN + 4),
+            ch("lensshadow.albedo.g05", LensShadowPixels, K_GREEN + 5),
+            ch("lensshadow.albedo.g06", LensShadowPixels, K_GREEN + 6),
+            ch("lensshadow.albedo.g07", LensShadowPixels, K_GREEN + 7),
+            ch("lensshadow.albedo.g08", LensShadowPixels, K_GREEN + 8),
+            ch("lensshadow.albedo.g09", LensShadowPixels, K_GREEN + 9),
+            ch("lensshadow.albedo.g10", LensShadowPixels, K_GREEN + 10),
+            ch("lensshadow.albedo.g11", LensShadowPixels, K_GREEN + 11),
+            ch("lensshadow.albedo.g12", LensShadowPixels, K_GREEN + 12),
+            ch("lensshadow.albedo.g13", LensShadowPixels, K_GREEN + 13),
+            ch("lensshadow.albedo.g14", LensShadowPixels, K_GREEN + 14),
+            ch("lensshadow.albedo.g15", LensShadowPixels, K_GREEN + 15),
+            ch("lensshadow.albedo.b00", LensShadowPixels, K_BLUE + 0),
+            ch("lensshadow.albedo.b01", LensShadowPixels, K_BLUE + 1),
+            ch("lensshadow.albedo.b02", LensShadowPixels, K_BLUE + 2),
+            ch("lensshadow.albedo.b03", LensShadowPixels, K_BLUE + 3),
+            ch("lensshadow.albedo.b04", LensShadowPixels, K_BLUE + 4),
+            ch("lensshadow.albedo.b05", LensShadowPixels, K_BLUE + 5),
+            ch("lensshadow.albedo.b06", LensShadowPixels, K_BLUE + 6),
+            ch("lensshadow.albedo.b07", LensShadowPixels, K_BLUE + 7),
+            ch("lensshadow.albedo.b08", LensShadowPixels, K_BLUE + 8),
+            ch("lensshadow.albedo.b09", LensShadowPixels, K_BLUE + 9),
+            ch("lensshadow.albedo.b10", LensShadowPixels, K_BLUE + 10),
+            ch("lensshadow.albedo.b11", LensShadowPixels, K_BLUE + 11),
+            ch("lensshadow.albedo.b12", LensShadowPixels, K_BLUE + 12),
+            ch("lensshadow.albedo.b13", LensShadowPixels, K_BLUE + 13),
+            ch("lensshadow.albedo.b14", LensShadowPixels, K_BLUE + 14),
+            ch("lensshadow.albedo.b15", LensShadowPixels, K_BLUE + 15),
+            ch("lensshadow.albedo.extra.R", LensShadowPixels, K_EXTRA + 0),
+            ch("lensshadow.albedo.extra.G", LensShadowPixels, K_EXTRA + 1),
+            ch("lensshadow.albedo.extra.B", LensShadowPixels, K_EXTRA + 2),
+            ch(
+                "lensshadow.unshadowed0.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 0,
+            ),
+            ch(
+                "lensshadow.unshadowed0.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 1,
+            ),
+            ch(
+                "lensshadow.unshadowed0.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 2,
+            ),
+            ch(
+                "lensshadow.unshadowed0.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 3,
+            ),
+            ch(
+                "lensshadow.unshadowed1.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 4,
+            ),
+            ch(
+                "lensshadow.unshadowed1.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 5,
+            ),
+            ch(
+                "lensshadow.unshadowed1.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 6,
+            ),
+            ch(
+                "lensshadow.unshadowed1.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 7,
+            ),
+            ch(
+                "lensshadow.unshadowed2.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 8,
+            ),
+            ch(
+                "lensshadow.unshadowed2.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 9,
+            ),
+            ch(
+                "lensshadow.unshadowed2.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 10,
+            ),
+            ch(
+                "lensshadow.unshadowed2.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 11,
+            ),
+            ch(
+                "lensshadow.unshadowed3.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 12,
+            ),
+            ch(
+                "lensshadow.unshadowed3.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 13,
+            ),
+            ch(
+                "lensshadow.unshadowed3.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 14,
+            ),
+            ch(
+                "lensshadow.unshadowed3.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 15,
+            ),
+            ch(
+                "lensshadow.unshadowed4.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 16,
+            ),
+            ch(
+                "lensshadow.unshadowed4.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 17,
+            ),
+            ch(
+                "lensshadow.unshadowed4.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 18,
+            ),
+            ch(
+                "lensshadow.unshadowed4.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 19,
+            ),
+            ch(
+                "lensshadow.unshadowed5.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 20,
+            ),
+            ch(
+                "lensshadow.unshadowed5.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 21,
+            ),
+            ch(
+                "lensshadow.unshadowed5.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 22,
+            ),
+            ch(
+                "lensshadow.unshadowed5.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 23,
+            ),
+            ch(
+                "lensshadow.unshadowed6.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 24,
+            ),
+            ch(
+                "lensshadow.unshadowed6.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 25,
+            ),
+            ch(
+                "lensshadow.unshadowed6.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 26,
+            ),
+            ch(
+                "lensshadow.unshadowed6.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 27,
+            ),
+            ch(
+                "lensshadow.unshadowed7.R",
+                LensShadowPixels,
+                K_UNSHADOWED + 28,
+            ),
+            ch(
+                "lensshadow.unshadowed7.G",
+                LensShadowPixels,
+                K_UNSHADOWED + 29,
+            ),
+            ch(
+                "lensshadow.unshadowed7.B",
+                LensShadowPixels,
+                K_UNSHADOWED + 30,
+            ),
+            ch(
+                "lensshadow.unshadowed7.W",
+                LensShadowPixels,
+                K_UNSHADOWED + 31,
+            ),
+        ],
+        doc: "sheared soft shadows with depth of field (Yan et al.'s appendix): the lens field \
+              less the filtered lights' direct term, each lens sample's albedo, the lights' \
+              unoccluded terms",
     },
 ];
 

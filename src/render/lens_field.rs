@@ -38,6 +38,16 @@ pub fn check(side: u32, whole_image: bool) -> Result<()> {
     Ok(())
 }
 
+/// What the lens pass of sheared shadows with depth of field (the lens-shadows output) reads
+/// and writes besides the scene.
+pub(super) struct LensShadows<'a> {
+    pub shadow_pixels: &'a Buffer<u8>,
+    /// The filtered lights, a bit each (a shadow plane per set bit).
+    pub lights: u32,
+    pub lens_field: &'a Buffer<u8>,
+    pub lens_shadow: &'a Buffer<u8>,
+}
+
 /// The lens-field pass of one renderer.
 pub(super) struct LensPass {
     kernel: Kernel,
@@ -45,7 +55,10 @@ pub(super) struct LensPass {
 }
 
 impl LensPass {
-    /// The pass over the renderer's scene buffers into `field`.
+    /// The pass over the renderer's scene buffers into `field`, or with `shadows` (the shadow
+    /// output's pixels, the filtered lights' bit mask, and the lens-shadows output's two
+    /// buffers) the lens field of sheared shadows with depth of field into those buffers.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         gpu: &Gpu,
         program: &Program,
@@ -54,24 +67,35 @@ impl LensPass {
         scene: &super::DeviceScene,
         debug_counters: &Buffer<u32>,
         field: &Buffer<u8>,
+        shadows: Option<LensShadows<'_>>,
     ) -> Result<LensPass> {
         let (side, gi) = (sampling.light_field, sampling.light_field_gi);
         check(side, true)?;
         let rays = gpu.zeroed::<u32>(size[0] * size[1], "lens-field ray count")?;
         let mut b = Kernel::builder();
+        let name = match (&shadows, gi) {
+            (Some(_), _) => "lens_shadow_field_sample",
+            (None, true) => "gi_field_sample",
+            (None, false) => "lens_field_sample",
+        };
         b.program(program)
-            .name(if gi {
-                "gi_field_sample"
-            } else {
-                "lens_field_sample"
-            })
+            .name(name)
             .queue(gpu.queue.clone())
             .global_work_size(size);
         scene.bind(&mut b);
-        b.arg_named("debug_counters", debug_counters)
-            .arg_named("light_field", field)
-            .arg_named("lens_rays", &rays)
-            .arg_named("side", side);
+        b.arg_named("debug_counters", debug_counters);
+        match &shadows {
+            Some(s) => {
+                b.arg_named("shadow_pixels", s.shadow_pixels)
+                    .arg_named("shadow_lights", s.lights)
+                    .arg_named("lens_field", s.lens_field)
+                    .arg_named("lens_shadow", s.lens_shadow);
+            }
+            None => {
+                b.arg_named("light_field", field);
+            }
+        }
+        b.arg_named("lens_rays", &rays).arg_named("side", side);
         let kernel = b.build().context("creating the lens-field kernel")?;
         Ok(LensPass { kernel, rays })
     }

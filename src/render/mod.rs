@@ -382,7 +382,22 @@ impl Renderer {
             )?),
             None => None,
         };
-        let lens_pass = if self.outputs.contains(Output::LightField) && self.shadow_lights.is_none()
+        // The lens field: with the light-field output alone (depth of field, GI), or beside
+        // the shadow fields with the lens-shadows output (both effects, after the shadow
+        // passes: it reads their receivers).
+        let lens_shadows = match self.shadow_lights {
+            Some(lights) if self.outputs.contains(Output::LensShadows) => {
+                Some(lens_field::LensShadows {
+                    shadow_pixels: self.buffer(BufferId::ShadowPixels),
+                    lights: lights.0,
+                    lens_field: self.buffer(BufferId::LensFieldPixels),
+                    lens_shadow: self.buffer(BufferId::LensShadowPixels),
+                })
+            }
+            _ => None,
+        };
+        let lens_pass = if self.outputs.contains(Output::LightField)
+            && (self.shadow_lights.is_none() || lens_shadows.is_some())
         {
             Some(lens_field::LensPass::new(
                 &self.gpu,
@@ -392,6 +407,7 @@ impl Renderer {
                 &self._scene,
                 &self.debug_counters,
                 self.buffer(BufferId::LightFieldPixels),
+                lens_shadows,
             )?)
         } else {
             None

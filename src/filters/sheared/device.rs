@@ -51,6 +51,10 @@ struct Passes {
     q2a: Buffer<f32>,
     visibility: Buffer<f32>,
     image: Buffer<Float4>,
+    /// With depth of field as well: the lens field each light's combine adds its filtered
+    /// term to (a [`crate::layout::LightFieldPixel`] per pixel), which the depth-of-field
+    /// filter reads; None: each light composes onto `image`.
+    combined: Option<Buffer<u8>>,
 }
 
 /// The sheared filter, built for an image size and its lights (none: the image passes
@@ -77,6 +81,39 @@ impl ShearedKernel {
         width: u32,
         height: u32,
     ) -> Result<ShearedKernel> {
+        Self::build(gpu, settings, lights, scene_centre, width, height, false)
+    }
+
+    /// The shadow half of sheared shadows with depth of field (Yan et al.'s appendix): each
+    /// light's last launch, in place of the compose, adds its filtered direct term to the lens
+    /// field of the frame's lens-shadows output (kernels/filters/sheared_lens_shadows.cl),
+    /// into [`Self::combined_field`].
+    pub fn with_lens(
+        gpu: Arc<Gpu>,
+        settings: &ShearedSettings,
+        lights: &[(u32, [f32; 4])],
+        scene_centre: [f32; 3],
+        width: u32,
+        height: u32,
+    ) -> Result<ShearedKernel> {
+        if lights.is_empty() {
+            bail!(
+                "sheared shadows with depth of field need a filtered sphere light (light = -1 \
+                 filters none): use effect = \"dof\" for depth of field alone"
+            );
+        }
+        Self::build(gpu, settings, lights, scene_centre, width, height, true)
+    }
+
+    fn build(
+        gpu: Arc<Gpu>,
+        settings: &ShearedSettings,
+        lights: &[(u32, [f32; 4])],
+        scene_centre: [f32; 3],
+        width: u32,
+        height: u32,
+        lens: bool,
+    ) -> Result<ShearedKernel> {
         settings.validate()?;
         if width == 0 || height == 0 {
             bail!("the image must be at least 1x1 pixels, got {width}x{height}");
@@ -84,7 +121,15 @@ impl ShearedKernel {
         let passes = if lights.is_empty() {
             None
         } else {
-            Some(Passes::new(&gpu, settings, lights, scene_centre, width, height)?)
+            Some(Passes::new(
+                &gpu,
+                settings,
+                lights,
+                scene_centre,
+                width,
+                height,
+                lens,
+            )?)
         };
         Ok(ShearedKernel {
             gpu,
@@ -94,6 +139,12 @@ impl ShearedKernel {
             max_radius: settings.max_radius,
             step_times: [Duration::ZERO; 6],
         })
+    }
+
+    /// With [`Self::with_lens`]: the lens field with the lights' filtered terms put back, as
+    /// the last run left it on the rows it filtered.
+    pub fn combined_field(&self) -> Option<&Buffer<u8>> {
+        self.passes.as_ref()?.combined.as_ref()
     }
 
     /// Kernel time of each launch of the last run, in the order of [`STEPS`], summed over
@@ -115,12 +166,9 @@ impl ShearedKernel {
     /// The image's other rows are black. Each light runs the six launches on its planes.
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
         let start = Instant::now();
-        let h = self.height;
-        let rows = rows.start.min(h)..rows.end.min(h);
-        let widen = |r: u32| rows.start.saturating_sub(r)..(rows.end + r).min(h);
-        let (wide, wider) = (widen(self.max_radius), widen(2 * self.max_radius));
         frame.check_size(self.width, self.height, "the sheared filter")?;
-        let Some(p) = &mut self.passes else {
+        let rows = rows.start.min(self.height)..rows.end.min(self.height);
+        let Some(p) = &self.passes else {
             let mut image = frame.beauty()?;
             for (y, row) in image.pixels.chunks_mut(self.width as usize).enumerate() {
                 if !rows.contains(&(y as u32)) {
@@ -133,16 +181,43 @@ impl ShearedKernel {
                 kernel_time: Some(Duration::ZERO),
             });
         };
-        frame.require(
-            OutputSet::of(&[Output::Colour, Output::Shadows, Output::LightField]),
-            "the sheared filter",
-        )?;
+        if p.combined.is_some() {
+            bail!(
+                "this sheared filter was built for shadows with depth of field: its lights' \
+                 terms go into the lens field (run_lights), not into an image"
+            );
+        }
+        self.run_lights(frame, rows.clone())?;
+        let p = self.passes.as_ref().expect("checked above");
+        Ok(FilterRun {
+            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
+            wall_time: start.elapsed(),
+            kernel_time: Some(self.step_times.iter().sum()),
+        })
+    }
+
+    /// Every light's six launches for the pixels of `rows`: the compose (or, with
+    /// [`Self::with_lens`], the combine into [`Self::combined_field`]) of each on the rows
+    /// themselves, the steps before on the rows they read (see [`Self::filter_rows`]).
+    pub fn run_lights(&mut self, frame: &Frame, rows: Range<u32>) -> Result<()> {
+        let h = self.height;
+        let rows = rows.start.min(h)..rows.end.min(h);
+        let widen = |r: u32| rows.start.saturating_sub(r)..(rows.end + r).min(h);
+        let (wide, wider) = (widen(self.max_radius), widen(2 * self.max_radius));
+        frame.check_size(self.width, self.height, "the sheared filter")?;
+        let Some(p) = &mut self.passes else {
+            return Ok(());
+        };
+        let lens = p.combined.is_some();
+        let mut needs = OutputSet::of(&[Output::Colour, Output::Shadows, Output::LightField]);
+        if lens {
+            needs = needs.with(Output::LensShadows);
+        }
+        frame.require(needs, "the sheared filter")?;
         let info = frame.info();
         let planes = info.shadow_planes();
         let shadow = frame.device(&self.gpu, BufferId::ShadowPixels)?;
         let field = frame.device(&self.gpu, BufferId::LightFieldPixels)?;
-        let fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
-        let terms = frame.device(&self.gpu, BufferId::ShadowTerms)?;
         let bands = [&wider, &wider, &wide, &wide, &rows, &rows];
         self.step_times = [Duration::ZERO; 6];
         for (chained, l) in p.lights.iter().enumerate() {
@@ -156,7 +231,7 @@ impl ShearedKernel {
                 );
             };
             let plane = plane as u32;
-            let [prepare, k1a, k1b, _, k2b, compose] = &l.kernels;
+            let [prepare, k1a, k1b, _, k2b, last] = &l.kernels;
             for k in [prepare, k1b, k2b] {
                 k.set_arg("shadow_pixels", shadow)?;
             }
@@ -165,12 +240,21 @@ impl ShearedKernel {
                 k.set_arg("plane", plane)?;
                 k.set_arg("planes", planes)?;
             }
-            compose.set_arg("pixels", shadow)?;
-            compose.set_arg("fv", fv)?;
-            compose.set_arg("terms", terms)?;
-            compose.set_arg("plane", plane)?;
-            compose.set_arg("planes", planes)?;
-            compose.set_arg("chained", (chained > 0) as u32)?;
+            if lens {
+                last.set_arg("lens_field", frame.device(&self.gpu, BufferId::LensFieldPixels)?)?;
+                last.set_arg(
+                    "lens_shadow",
+                    frame.device(&self.gpu, BufferId::LensShadowPixels)?,
+                )?;
+                last.set_arg("shadow_pixels", shadow)?;
+            } else {
+                last.set_arg("pixels", shadow)?;
+                last.set_arg("fv", frame.device(&self.gpu, BufferId::FilterVectors)?)?;
+                last.set_arg("terms", frame.device(&self.gpu, BufferId::ShadowTerms)?)?;
+            }
+            last.set_arg("plane", plane)?;
+            last.set_arg("planes", planes)?;
+            last.set_arg("chained", (chained > 0) as u32)?;
             for (n, k) in l.kernels.iter().enumerate() {
                 // SAFETY: every buffer is owned by self or the frame, both alive until the
                 // event completes (enqueue_rows waits), and sized for width x height pixels
@@ -180,11 +264,7 @@ impl ShearedKernel {
                 self.step_times[n] += event_duration(&event)?;
             }
         }
-        Ok(FilterRun {
-            image: read_rgb_rows(&p.image, self.width, self.height, rows)?,
-            wall_time: start.elapsed(),
-            kernel_time: Some(self.step_times.iter().sum()),
-        })
+        Ok(())
     }
 
     /// The last run's intermediate buffers, of its last light (None without a light).
@@ -217,6 +297,7 @@ impl Passes {
         scene_centre: [f32; 3],
         w: u32,
         h: u32,
+        lens: bool,
     ) -> Result<Passes> {
         let n = w as usize * h as usize;
         let bins = s.bins;
@@ -230,6 +311,19 @@ impl Passes {
         )?;
         let program = gpu.program("filters/sheared.cl", &[], "")?;
         let aaf = gpu.program("filters/aaf_shadows.cl", &[], "")?;
+        let combine = if lens {
+            Some(gpu.program("filters/sheared_lens_shadows.cl", &[], "")?)
+        } else {
+            None
+        };
+        let combined = if lens {
+            Some(gpu.zeroed::<u8>(
+                n * std::mem::size_of::<crate::layout::LightFieldPixel>(),
+                "sheared lens field with the shadows put back",
+            )?)
+        } else {
+            None
+        };
         let guide = gpu.zeroed::<Float4>(n, "sheared guide")?;
         let p1a = gpu.zeroed::<f32>(n * p_floats(bins), "sheared step 1a")?;
         let g1b = gpu.zeroed::<f32>(n * g_floats(bins), "sheared step 1b")?;
@@ -274,18 +368,29 @@ impl Passes {
                     .arg(&visibility)
                     .build()
                     .context(what)?;
-                let compose = compose_kernel(
-                    gpu,
-                    &aaf,
-                    "aaf_compose_sheared",
-                    size,
-                    &compose_params,
-                    [&guide, &image],
-                    &visibility,
-                )?;
+                let last = match (&combine, &combined) {
+                    (Some(program), Some(out)) => combine_kernel(
+                        gpu,
+                        program,
+                        size,
+                        &params,
+                        &guide,
+                        &visibility,
+                        out,
+                    )?,
+                    _ => compose_kernel(
+                        gpu,
+                        &aaf,
+                        "aaf_compose_sheared",
+                        size,
+                        &compose_params,
+                        [&guide, &image],
+                        &visibility,
+                    )?,
+                };
                 Ok(LightPasses {
                     light,
-                    kernels: [prepare, k1a, k1b, k2a, k2b, compose],
+                    kernels: [prepare, k1a, k1b, k2a, k2b, last],
                     _params: params,
                     _compose_params: compose_params,
                 })
@@ -299,8 +404,36 @@ impl Passes {
             q2a,
             visibility,
             image,
+            combined,
         })
     }
+}
+
+/// kernels/filters/sheared_lens_shadows.cl `sheared_lens_combine` into `out`, its frame
+/// buffers, plane and chaining set per run.
+fn combine_kernel(
+    gpu: &Gpu,
+    program: &ocl::Program,
+    size: [usize; 2],
+    params: &Buffer<ShearedParams>,
+    guide: &Buffer<Float4>,
+    visibility: &Buffer<f32>,
+    out: &Buffer<u8>,
+) -> Result<Kernel> {
+    let none = None::<&Buffer<u8>>;
+    gpu.kernel(program, "sheared_lens_combine", size)
+        .arg_named("p", params)
+        .arg_named("lens_field", none)
+        .arg_named("lens_shadow", none)
+        .arg_named("shadow_pixels", none)
+        .arg_named("plane", 0u32)
+        .arg_named("planes", 1u32)
+        .arg_named("chained", 0u32)
+        .arg(guide)
+        .arg(visibility)
+        .arg(out)
+        .build()
+        .context("creating the sheared lens-shadows combine kernel")
 }
 
 /// A builder of step `name` (prepare, 1a, 1b or 2b) with the arguments these share, in

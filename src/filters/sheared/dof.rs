@@ -31,8 +31,10 @@
 //! - **Rejection** (§3.3 K1b): normals of the lens-centre hits within `normal_angle`; a pixel
 //!   whose centre ray leaves the scene shares only with such pixels. No world-distance test:
 //!   a blurred edge mixes depths by design, and eq. 4's σ_x shrinks with the slope spread.
-//! - **Sphere lights in a lens scene**: their shadows stay as path traced inside the radiance
-//!   samples (unfiltered); filtering both (the appendix's eqs. 16-17) is not built.
+//! - **Sphere lights in a lens scene**: with this effect alone their shadows stay as path
+//!   traced inside the radiance samples; `effect = "dof-shadows"` filters both (the
+//!   appendix's eqs. 16-17, lens_shadows.rs), over a lens field whose samples carry the
+//!   shadow filter's result.
 
 use glam::Vec3;
 use rayon::prelude::*;

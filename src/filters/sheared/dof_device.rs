@@ -168,9 +168,7 @@ impl DofKernel {
     /// Filters the pixels of `rows` (a band of a split frame: the steps before 2b run on the
     /// band widened by 2b's reach, so the band gets the whole frame's bytes).
     pub fn filter_rows(&mut self, frame: &Frame, rows: Range<u32>) -> Result<FilterRun> {
-        let start = Instant::now();
-        let h = self.height;
-        frame.check_size(self.width, h, "the sheared filter")?;
+        frame.check_size(self.width, self.height, "the sheared filter")?;
         // The frame records which field its light-field output holds (the shadow fields of
         // a render with the shadow output, the lens field or the GI field): another one than
         // this effect reads is refused rather than filtered as the wrong samples.
@@ -178,9 +176,25 @@ impl DofKernel {
             OutputSet::colour().with_field(self.field),
             &format!("the sheared filter ({})", self.effect),
         )?;
+        let field = frame.device(&self.gpu, BufferId::LightFieldPixels)?;
+        self.filter_field_rows(frame, field, rows)
+    }
+
+    /// [`Self::filter_rows`] over `field` (a [`LightFieldPixel`] per pixel on this device)
+    /// in place of the frame's light-field output: the lens field that sheared shadows with
+    /// depth of field composes (src/filters/sheared/lens_shadows.rs). It must hold the rows
+    /// within [`Self::reach`] of `rows`.
+    pub fn filter_field_rows(
+        &mut self,
+        frame: &Frame,
+        field: &Buffer<u8>,
+        rows: Range<u32>,
+    ) -> Result<FilterRun> {
+        let start = Instant::now();
+        let h = self.height;
+        frame.check_size(self.width, h, "the sheared filter")?;
         let rows = rows.start.min(h)..rows.end.min(h);
         let wide = rows.start.saturating_sub(self.max_radius)..(rows.end + self.max_radius).min(h);
-        let field = frame.device(&self.gpu, BufferId::LightFieldPixels)?;
         let [prepare, k1a, k1b, _, k2b] = &self.kernels;
         for k in [prepare, k1a, k1b, k2b] {
             k.set_arg("light_field", field)?;

@@ -11,12 +11,14 @@
 //! kernels/render/lens_field.cl); a pinhole camera with sphere lights gets their soft
 //! shadows; a pinhole camera without one gets diffuse indirect light (`gi.rs`,
 //! kernels/filters/sheared_gi.cl over the GI field of kernels/render/gi_field.cl; the same
-//! launches as depth of field, `DofKernel::gi`). In a lens scene the sphere lights' shadows
-//! stay as path traced in the radiance samples (unfiltered): both at once (the seed's
-//! appendix, eqs. 16-17) is a later step, and asking for it (`effect = "dof"` with `light` >=
-//! 0) is refused with a message naming the combination, as are GI with a chosen light (GI
-//! filters indirect light only; the shadows stay as path traced) and GI through a thin lens
-//! (its receivers are the lens-centre hits).
+//! launches as depth of field, `DofKernel::gi`). A thin lens with sphere lights gets both
+//! (`effect = "dof-shadows"`, the seed's appendix, eqs. 16-17, `lens_shadows.rs`): the
+//! shadows filtered over the light, put back on each lens sample, then the lens filtered.
+//! Refused, with a message naming the alternative: depth of field alone with a chosen light,
+//! "dof-shadows" with light = -1, GI with a chosen light (GI filters indirect light only; the
+//! shadows stay as path traced) and GI through a thin lens (its receivers are the lens-centre
+//! hits; with "dof-shadows" the indirect light rides in the lens samples and is filtered over
+//! the lens).
 //!
 //! What the seed leaves open, and what is done:
 //! - **The light** (§3.2: a Gaussian of σ_y over a square of side 4σ_y): our sphere is sampled
@@ -82,6 +84,7 @@ mod device;
 pub mod dof;
 mod dof_device;
 pub mod gi;
+pub mod lens_shadows;
 pub mod reference;
 pub mod shear;
 
@@ -113,6 +116,10 @@ pub enum Effect {
     Dof,
     /// Diffuse indirect light (the GI field over the v-plane).
     Gi,
+    /// The sphere lights' soft shadows and depth of field together (the seed's appendix, eqs.
+    /// 16-17; `lens_shadows.rs`).
+    #[serde(rename = "dof-shadows")]
+    DofShadows,
 }
 
 crate::filter_settings! {
@@ -144,8 +151,10 @@ crate::filter_settings! {
         /// Factor on eq. 5's shear eta (1: as settled; 0: axis-aligned; -1: the other sign).
         pub shear: f32 = 1.0,
         /// What is filtered: "shadows" (the sphere lights'), "dof" (depth of field, needs a
-        /// thin lens) or "gi" (diffuse indirect light, a pinhole camera); auto: "dof" with a
-        /// thin lens (lens_radius > 0), else "shadows" with a sphere light, else "gi".
+        /// thin lens), "dof-shadows" (both, Yan et al.'s appendix) or "gi" (diffuse indirect
+        /// light, a pinhole camera); auto: with a thin lens (lens_radius > 0) "dof-shadows"
+        /// when the scene has a sphere light, else "dof"; with a pinhole "shadows" with a
+        /// sphere light, else "gi".
         pub effect: Auto<Effect> = Auto::Auto,
     }
 }
@@ -180,16 +189,15 @@ impl ShearedSettings {
         let chosen_light = light_index(self.light).is_some() && !self.light.is_auto();
         if self.effect == Auto::Set(Effect::Dof) && chosen_light {
             bail!(
-                "the sheared filter does depth of field or sphere lights' soft shadows, not \
-                 both at once (Yan et al.'s appendix, eqs. 16-17, is not built): with effect = \
-                 \"dof\" set light = -1 (the shadows stay as path traced), or effect = \"shadows\""
+                "the sheared filter's effect = \"dof\" filters depth of field alone: for a \
+                 sphere light's soft shadows as well set effect = \"dof-shadows\" (Yan et \
+                 al.'s appendix), or light = -1 (the shadows stay as path traced)"
             );
         }
-        if self.effect == Auto::Set(Effect::Gi) && chosen_light {
+        if self.effect == Auto::Set(Effect::DofShadows) && self.light == Auto::Set(-1) {
             bail!(
-                "the sheared filter's GI (effect = \"gi\") filters diffuse indirect light only, \
-                 not a sphere light's soft shadows as well: set light = -1 (the shadows stay as \
-                 path traced), or effect = \"shadows\""
+                "effect = \"dof-shadows\" filters sphere lights' shadows with depth of field, \
+                 but light = -1 filters none: choose a light (or auto), or effect = \"dof\""
             );
         }
         self.sampling().check()
@@ -221,9 +229,16 @@ impl ShearedSettings {
         }
     }
 
-    /// Whether the filter does depth of field (after `specialise`; `auto` counts as no).
+    /// Whether the filter does depth of field alone (after `specialise`; `auto` counts as
+    /// no).
     pub fn is_dof(&self) -> bool {
         self.effect == Auto::Set(Effect::Dof)
+    }
+
+    /// Whether the filter does soft shadows and depth of field together (after
+    /// `specialise`; `auto`: no).
+    pub fn is_dof_shadows(&self) -> bool {
+        self.effect == Auto::Set(Effect::DofShadows)
     }
 
     /// Whether the filter does diffuse indirect light (after `specialise`; `auto`: no).
@@ -292,7 +307,15 @@ impl ShearedSettings {
         if self.is_dof() || self.is_gi() {
             return n * dof_device::bytes_per_pixel(self.bins);
         }
-        n * self.shadow_bytes_per_pixel(self.filtered_lights().len().max(1) as u32)
+        let shadows = n * self.shadow_bytes_per_pixel(self.filtered_lights().len().max(1) as u32);
+        if self.is_dof_shadows() {
+            // The lens field twice (as rendered, and combined), each sample's albedo and the
+            // lights' terms, and the depth-of-field filter's buffers.
+            let lens = std::mem::size_of::<LightFieldPixel>()
+                + std::mem::size_of::<crate::layout::LensShadowPixel>();
+            return shadows + n * (lens as u64 + dof_device::bytes_per_pixel(self.bins));
+        }
+        shadows
     }
 
     /// Soft shadows of `lights` sphere lights: bytes per pixel of their light fields (one per
@@ -323,14 +346,13 @@ impl FilterKind for Sheared {
     fn specialise(s: &mut ShearedSettings, scene: &SceneInfo) -> Vec<String> {
         let lens = scene.camera.lens_radius;
         if s.effect.is_auto() {
-            s.effect = Auto::Set(if lens > 0.0 {
-                Effect::Dof
-            } else if !scene.sphere_lights.is_empty()
-                || light_index(s.light).is_some() && !s.light.is_auto()
-            {
-                Effect::Shadows
-            } else {
-                Effect::Gi
+            let shadows = !scene.sphere_lights.is_empty()
+                || light_index(s.light).is_some() && !s.light.is_auto();
+            s.effect = Auto::Set(match (lens > 0.0, shadows) {
+                (true, true) => Effect::DofShadows,
+                (true, false) => Effect::Dof,
+                (false, true) => Effect::Shadows,
+                (false, false) => Effect::Gi,
             });
         }
         if s.is_gi() {
@@ -348,6 +370,23 @@ impl FilterKind for Sheared {
                     scene.sphere_lights.len()
                 ));
             }
+            return notes;
+        }
+        if s.is_dof_shadows() {
+            let mut notes = vec![format!(
+                "soft shadows and depth of field together (Yan et al.'s appendix, eqs. \
+                 16-17): the lights' shadows filtered over the light, put back on each of the \
+                 l x l lens samples, then filtered over the lens (radius {lens}, focal \
+                 distance {})",
+                scene.camera.focal_distance
+            )];
+            notes.extend(specialise_lights(
+                &mut s.light,
+                &mut s.light_count,
+                scene,
+                "filtered",
+                "each with its own light field, sigma_y, shear and steps 1a-2b",
+            ));
             return notes;
         }
         if !s.is_dof() {
@@ -370,7 +409,7 @@ impl FilterKind for Sheared {
             if !scene.sphere_lights.is_empty() {
                 notes.push(format!(
                     "light = -1: the {} sphere light(s)' shadows stay as path traced \
-                     (unfiltered); shadows and depth of field together are not built",
+                     (unfiltered); effect = \"dof-shadows\" filters them as well",
                     scene.sphere_lights.len()
                 ));
             }
@@ -381,7 +420,10 @@ impl FilterKind for Sheared {
     /// Depth of field wherever the camera has a lens, the shadows of sphere lights, or
     /// diffuse indirect light where paths go past their first surface.
     fn applies(s: &ShearedSettings, scene: &SceneInfo) -> bool {
-        s.is_dof() || (s.is_gi() && scene.indirect) || !s.filtered_lights().is_empty()
+        s.is_dof()
+            || s.is_dof_shadows()
+            || (s.is_gi() && scene.indirect)
+            || !s.filtered_lights().is_empty()
     }
 
     fn needs(s: &ShearedSettings) -> OutputSet {
@@ -394,6 +436,9 @@ impl FilterKind for Sheared {
             return OutputSet::colour().with_field(FieldKind::Gi);
         }
         let outputs = light_needs(s.light);
+        if s.is_dof_shadows() {
+            return outputs.with(Output::LightField).with(Output::LensShadows);
+        }
         match light_index(s.light) {
             Some(_) => outputs.with(Output::LightField),
             None => outputs,
@@ -420,6 +465,9 @@ impl FilterKind for Sheared {
             }
             let p = s.gi_params(frame.width, frame.height);
             return Ok(Box::new(DofKernel::gi(gpu.clone(), p)?));
+        }
+        if s.is_dof_shadows() {
+            return Ok(Box::new(lens_shadows::LensShadowKernel::new(s, frame, gpu)?));
         }
         if s.is_dof() {
             let lens = frame.scene.camera.lens_radius;

@@ -2,23 +2,27 @@
 //! al. 2015 §3.1, §3.2 "DoF"; src/render/lens_field.rs), with the same float operations in the
 //! same order. The first hit's depth comes from one more closest-hit query on the sample's
 //! camera ray (the kernel reads it from the path's first vertex: the same hit).
+//! [`lens_shadow_field`] is `lens_shadow_field_sample` (soft shadows with depth of field) for
+//! one filtered light.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::pathtrace::{ReferenceOptions, ShadowTarget, surface_at, trace_path_from};
+use super::pathtrace::{PathSample, ReferenceOptions, ShadowTarget, surface_at, trace_path_from};
 use super::rng::{DIM_LENS_U, DIM_LENS_V, DIM_PIXEL_X, DIM_PIXEL_Y, rng_sample_key, rng_uniform};
 use super::sampling::pinhole_direction;
+use super::shadows::shadow_unshadowed;
 use crate::arrays::SceneArrays;
 use crate::arrays::trace::intersect_closest;
-use crate::layout::LightFieldPixel;
+use crate::layout::{LensShadowPixel, LightFieldPixel};
 
 /// kernels/render/lens_field.cl `LENS_SAMPLE_BASE`.
 pub const LENS_SAMPLE_BASE: u32 = 0xFFFF_FE00;
 const LENS_JITTER_SAMPLE: u32 = LENS_SAMPLE_BASE + 0xF0;
 const EXTRA_SIDE: u32 = 6;
 
-/// `lens_sample`: (radiance, slope) of lens point (u1, u2) (right, down) for pixel (x, y).
+/// `lens_sample`: the path of lens point (u1, u2) (right, down) for pixel (x, y), its slope
+/// and its first hit's point (None: the sky).
 #[allow(clippy::too_many_arguments)]
 fn lens_sample(
     s: &SceneArrays,
@@ -29,7 +33,8 @@ fn lens_sample(
     u: [f32; 2],
     slope_k: f32,
     rays: &mut u32,
-) -> (Vec3, f32) {
+    target: ShadowTarget,
+) -> (PathSample, f32, Option<Vec3>) {
     let p = &s.params;
     let (jx, jy) = (
         rng_uniform(key, 0, DIM_PIXEL_X),
@@ -41,15 +46,18 @@ fn lens_sample(
     let focus = cam + dir * (p.focal_distance / dir.dot(forward));
     let o = cam + u[0] * p.camera_right.xyz() - u[1] * p.camera_up.xyz();
     let d = (focus - o).normalize();
-    let ps = trace_path_from(s, opt, o, d, key, rays, ShadowTarget::NONE);
-    let z = match intersect_closest(s, o, d, f32::INFINITY) {
-        Some(hit) => (surface_at(s, &hit, o, d).p - cam).dot(forward),
+    let ps = trace_path_from(s, opt, o, d, key, rays, target);
+    let hit = intersect_closest(s, o, d, f32::INFINITY).map(|hit| surface_at(s, &hit, o, d).p);
+    let z = match hit {
+        Some(q) => (q - cam).dot(forward),
         None => f32::INFINITY,
     };
-    (
-        ps.direct + ps.indirect,
-        slope_k * (1.0 / z - 1.0 / p.focal_distance),
-    )
+    (ps, slope_k * (1.0 / z - 1.0 / p.focal_distance), hit)
+}
+
+/// `lens_radiance`: all the sample's light but the filtered light's direct term.
+fn lens_radiance(ps: &PathSample) -> Vec3 {
+    ps.direct + ps.indirect - ps.shadow_direct
 }
 
 /// `lens_weight`.
@@ -68,13 +76,39 @@ pub fn lens_field(
     opt: ReferenceOptions,
     side: u32,
 ) -> (Vec<LightFieldPixel>, u64) {
+    let (field, _, rays) = fields(s, opt, side, |_| ShadowTarget::NONE);
+    (field, rays)
+}
+
+/// `lens_shadow_field_sample` over every pixel for one filtered light (a shadow plane):
+/// `target(pixel)` is that light and the object of the pixel centre's receiver (NaN where the
+/// shadow output has none). The lens fields, the [`LensShadowPixel`]s (plane 0) and the rays.
+pub fn lens_shadow_field(
+    s: &SceneArrays,
+    opt: ReferenceOptions,
+    side: u32,
+    target: impl Fn(u32) -> ShadowTarget + Sync,
+) -> (Vec<LightFieldPixel>, Vec<LensShadowPixel>, u64) {
+    fields(s, opt, side, target)
+}
+
+fn fields(
+    s: &SceneArrays,
+    opt: ReferenceOptions,
+    side: u32,
+    target: impl Fn(u32) -> ShadowTarget + Sync,
+) -> (Vec<LightFieldPixel>, Vec<LensShadowPixel>, u64) {
     let p = &s.params;
     let (w, h) = (p.image_width, p.image_height);
-    let out: Vec<(LightFieldPixel, u32)> = (0..w * h)
+    let out: Vec<(LightFieldPixel, LensShadowPixel, u32)> = (0..w * h)
         .into_par_iter()
         .map(|pixel| {
             let (x, y) = (pixel % w, pixel / w);
+            let t = target(pixel);
+            let light = (t.light < p.light_count).then(|| &s.lights[t.light as usize]);
             let mut lf = LightFieldPixel::default();
+            let mut ls = LensShadowPixel::default();
+            let (mut unshadowed, mut on) = (Vec3::ZERO, 0f32);
             let mut rays = 0u32;
             let radius = p.lens_radius;
             let slope_k = h as f32 / (2.0 * p.tan_half_fov);
@@ -99,41 +133,58 @@ pub fn lens_field(
                     let u1 = radius * (2.0 * (a as f32 + j[0]) * inv - 1.0);
                     let u2 = radius * (2.0 * (b as f32 + j[1]) * inv - 1.0);
                     let key = rng_sample_key(p.seed, pixel, LENS_SAMPLE_BASE + k);
-                    let (l, sl) = lens_sample(s, opt, x, y, key, [u1, u2], slope_k, &mut rays);
+                    let (ps, sl, hit) =
+                        lens_sample(s, opt, x, y, key, [u1, u2], slope_k, &mut rays, t);
+                    let l = lens_radiance(&ps);
                     s_min = s_min.min(sl);
                     s_max = s_max.max(sl);
-                    (
-                        lf.samples[k as usize],
-                        lf.green[k as usize],
-                        lf.blue[k as usize],
-                    ) = (l.x, l.y, l.z);
+                    let k = k as usize;
+                    (lf.samples[k], lf.green[k], lf.blue[k]) = (l.x, l.y, l.z);
+                    if let (true, Some(light), Some(q)) = (ps.receiver, light, hit) {
+                        (ls.albedo[k], ls.albedo_green[k], ls.albedo_blue[k]) =
+                            (ps.albedo.x, ps.albedo.y, ps.albedo.z);
+                        unshadowed += shadow_unshadowed(light, q, ps.normal);
+                        on += 1.0;
+                    }
                 }
             }
             lf.slopes = [s_min, s_max];
             if s_min * s_max < 0.0 {
-                let (mut sum, mut wsum) = (Vec3::ZERO, 0f32);
+                let (mut sum, mut wsum, mut albedo) = (Vec3::ZERO, 0f32, Vec3::ZERO);
                 let inv6 = 1.0 / EXTRA_SIDE as f32;
                 for k in 0..EXTRA_SIDE * EXTRA_SIDE {
                     let key = rng_sample_key(p.seed, pixel, LENS_SAMPLE_BASE + 16 + k);
                     let (a, b) = ((k % EXTRA_SIDE) as f32, (k / EXTRA_SIDE) as f32);
                     let u1 = radius * (2.0 * (a + rng_uniform(key, 0, DIM_LENS_U)) * inv6 - 1.0);
                     let u2 = radius * (2.0 * (b + rng_uniform(key, 0, DIM_LENS_V)) * inv6 - 1.0);
-                    let (l, _) = lens_sample(s, opt, x, y, key, [u1, u2], slope_k, &mut rays);
+                    let (ps, _, _) =
+                        lens_sample(s, opt, x, y, key, [u1, u2], slope_k, &mut rays, t);
                     let wt = lens_weight(u1, u2, radius);
-                    sum += wt * l;
+                    sum += wt * lens_radiance(&ps);
                     wsum += wt;
+                    if ps.receiver {
+                        albedo += wt * ps.albedo;
+                    }
                 }
                 lf.extra_samples = (EXTRA_SIDE * EXTRA_SIDE) as f32;
                 lf.extra = [sum.x, sum.y, sum.z, wsum];
+                ls.albedo_extra = [albedo.x, albedo.y, albedo.z, 0.0];
             }
+            let mean = if on > 0.0 {
+                unshadowed / on
+            } else {
+                Vec3::ZERO
+            };
+            ls.unshadowed[0].0 = [mean.x, mean.y, mean.z, on];
             lf.jitter = j;
             lf.dir1 = [1.0, 0.0];
             lf.dir2 = [0.0, 1.0];
             lf.scale = [1.0, 1.0];
             lf.count = (side * side) as f32;
-            (lf, rays)
+            (lf, ls, rays)
         })
         .collect();
-    let rays = out.iter().map(|(_, r)| *r as u64).sum();
-    (out.into_iter().map(|(lf, _)| lf).collect(), rays)
+    let rays = out.iter().map(|(_, _, r)| *r as u64).sum();
+    let (field, shadow) = out.into_iter().map(|(lf, ls, _)| (lf, ls)).unzip();
+    (field, shadow, rays)
 }

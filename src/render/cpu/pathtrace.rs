@@ -323,6 +323,9 @@ pub struct PathSample {
     /// The light the path brought to its first surface straight from the shadow light, when
     /// that surface is the pixel centre's receiver.
     pub shadow_direct: Vec3,
+    /// The first hit is a diffuse point of the receiver's object (kernels/render/film.cl
+    /// PathSample.receiver, one plane).
+    pub receiver: bool,
 }
 
 impl PathSample {
@@ -337,6 +340,7 @@ impl PathSample {
             albedo2: Vec3::ZERO,
             direction: Vec3::ZERO,
             shadow_direct: Vec3::ZERO,
+            receiver: false,
         }
     }
 
@@ -482,6 +486,7 @@ pub fn trace_path_from(
             && super::shadows::hit_object(s, &hit) == target.object
         {
             on_receiver = true;
+            ps.receiver = true;
         }
         if has_lights && opt.next_event_estimation && m.kind == MATERIAL_DIFFUSE {
             let (li, chosen) = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, rays);
