@@ -26,9 +26,10 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
     let scenes = bundled_scenes();
     assert_eq!(
         scenes.len(),
-        13,
+        14,
         "the five thesis scenes, their DOF variants, Grids, Curved and two_lights_shadows \
-         (the shadow filters' sphere-light scenes)"
+         (the shadow filters' sphere-light scenes) and toasters_dof (sheared shadows with \
+         depth of field)"
     );
     for path in scenes {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();

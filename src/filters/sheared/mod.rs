@@ -194,6 +194,13 @@ impl ShearedSettings {
                  al.'s appendix), or light = -1 (the shadows stay as path traced)"
             );
         }
+        if self.effect == Auto::Set(Effect::Gi) && chosen_light {
+            bail!(
+                "the sheared filter's GI (effect = \"gi\") filters diffuse indirect light only, \
+                 not a sphere light's soft shadows as well: set light = -1 (the shadows stay as \
+                 path traced), or effect = \"shadows\""
+            );
+        }
         if self.effect == Auto::Set(Effect::DofShadows) && self.light == Auto::Set(-1) {
             bail!(
                 "effect = \"dof-shadows\" filters sphere lights' shadows with depth of field, \
