@@ -241,10 +241,13 @@ typedef struct __attribute__((aligned(16))) {
 typedef struct __attribute__((aligned(16))) {
     float direct[3]; // The light the path samples whose first hit is the pixel centre's receiver brought  to it straight from that light (its next-event estimate, or its emission found by  the first bounce): the part of F that the filtered term replaces.
     float pad0;
+    float unshadowed[3]; // The same samples' unoccluded term: albedo × the light's unoccluded term at their  first hit (kernels/render/shadows.cl `shadow_unshadowed`), 0 for a sample off the  receiver: eq. 3.1's r(x) averaged over the pixel as `direct` is, so that the  sheared filter's r · v stands where `direct` stood (texture and edge included).
+    float pad1;
 } ShadowTerms;
 // Float lanes of ShadowTerms (offset / 4).
 #define SHADOW_TERMS_DIRECT 0
-#define SHADOW_TERMS_FLOATS 4
+#define SHADOW_TERMS_UNSHADOWED 4
+#define SHADOW_TERMS_FLOATS 8
 
 // AAF soft shadows: the primary hit through the pixel centre (and the lens centre) and its
 // light samples (kernels/render/shadows.cl), from the sparse and the adaptive pass.

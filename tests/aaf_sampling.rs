@@ -83,7 +83,7 @@ fn shadow_passes_and_terms_match_the_rust_reference() {
     assert!(close * 100 >= device.len() * 99, "{close}");
     // The megakernel's shadow terms: the same running means as the reference.
     let terms = shadow_terms(&frame);
-    let mut reference = vec![[0f32; 4]; terms.len()];
+    let mut reference = vec![[0f32; 8]; terms.len()];
     let ro = ReferenceOptions {
         russian_roulette: false,
         next_event_estimation: true,
@@ -91,9 +91,14 @@ fn shadow_passes_and_terms_match_the_rust_reference() {
     render_shadow_terms(&arrays, ro, 0, &device, &mut reference, 0, 3);
     let mut far = 0;
     for (t, r) in terms.iter().zip(&reference) {
-        if t.direct
+        // Both the replaced light (lanes 0-2) and r (lanes 4-6).
+        let lanes = t
+            .direct
             .iter()
-            .zip(r)
+            .zip(&r[..3])
+            .chain(t.unshadowed.iter().zip(&r[4..7]));
+        if lanes
+            .clone()
             .any(|(a, b)| (a - b).abs() > 1e-5 * a.abs().max(b.abs()).max(1.0))
         {
             far += 1;

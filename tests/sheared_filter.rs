@@ -367,12 +367,11 @@ fn every_device_step_matches_its_rust_reference() {
         vis.iter()
             .all(|v| v.is_finite() && (0.0..=1.0 + 1e-6).contains(v))
     );
-    // Compose: AAF's, with the sheared visibility.
+    // Compose: the replaced light out, the path samples' r times the sheared visibility in.
     let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms).unwrap();
     let reference = compose(
         &frame.beauty().unwrap(),
         terms,
-        shadow,
         &dev.guide,
         &dev.visibility,
     );

@@ -529,7 +529,7 @@ fn every_plane_matches_the_rust_reference_of_its_light() {
                     .all(|(a, b)| (a - b).abs() <= 1e-5 * a.abs().max(b.abs()).max(1.0))
             })
             .count();
-        let mut reference = vec![[0f32; 4]; terms.len()];
+        let mut reference = vec![[0f32; 8]; terms.len()];
         render_shadow_terms(&arrays, ro, l, &device, &mut reference, 0, spp);
         let far = terms
             .iter()
@@ -537,7 +537,8 @@ fn every_plane_matches_the_rust_reference_of_its_light() {
             .filter(|(t, r)| {
                 t.direct
                     .iter()
-                    .zip(r.iter())
+                    .zip(&r[..3])
+                    .chain(t.unshadowed.iter().zip(&r[4..7]))
                     .any(|(a, b)| (a - b).abs() > 1e-5 * a.abs().max(b.abs()).max(1.0))
             })
             .count();

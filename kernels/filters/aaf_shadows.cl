@@ -101,7 +101,10 @@ __kernel void aaf_compose(__constant const AafShadowParams* p, __global const fl
 
 // The sheared filter's (kernels/filters/sheared.cl): one float4 of guide per pixel with the
 // kind in z, one float of visibility; the light of plane `plane`, from F or (`chained`) from
-// the image of the lights before, as aaf_compose.
+// the image of the lights before, as aaf_compose. r is the path samples' (ShadowTerms
+// .unshadowed: over the same samples as the replaced `direct`), not the sparse pass's: that
+// pass traces one receiver point per pixel (sparse_spp 1), whose albedo would stand for the
+// whole pixel (textures alias, edges take the receiver's r over the pixel's other objects).
 __kernel void aaf_compose_sheared(__constant const AafShadowParams* p, __global const float* fv,
                                   __global const float* terms, __global const float* pixels,
                                   uint plane, uint planes, uint chained,
@@ -111,7 +114,11 @@ __kernel void aaf_compose_sheared(__constant const AafShadowParams* p, __global 
     if (x >= p->width || y >= p->height) return;
     uint i = y * p->width + x;
     float3 base = chained ? image[i].xyz : aaf_beauty(fv, i);
-    aaf_compose_at(base, AAF_PLANE(terms, i, SHADOW_TERMS_FLOATS),
-                   AAF_PLANE(pixels, i, SHADOW_PIXEL_FLOATS), i, guide[i].z == AAF_NONE,
-                   visibility[i], image);
+    __global const float* t = AAF_PLANE(terms, i, SHADOW_TERMS_FLOATS);
+    if (guide[i].z == AAF_NONE) {
+        image[i] = (float4)(base, 0.0f);
+        return;
+    }
+    float3 rest = base - aaf_lane3(t, SHADOW_TERMS_DIRECT);
+    image[i] = (float4)(rest + aaf_lane3(t, SHADOW_TERMS_UNSHADOWED) * visibility[i], 0.0f);
 }

@@ -23,8 +23,8 @@
 #endif
 
 #if FILTER_VECTOR_FLOATS != 16 || WELFORD_SUMS_FLOATS != 16 || WELFORD_STATE_FLOATS != 20 \
-    || DEPTH_SHIFT_FLOATS != 2 || SHADOW_TERMS_FLOATS != 4
-#error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16, ShadowTerms as float4"
+    || DEPTH_SHIFT_FLOATS != 2 || SHADOW_TERMS_FLOATS != 8
+#error "noisefree: film.cl moves F and GB as float16, WelfordState as float4 + float16, ShadowTerms as float8"
 #endif
 
 // One path's contribution and first-hit features.
@@ -48,6 +48,7 @@ typedef struct {
     float3 shadow_direct[SHADOW_PLANES]; // per light plane: light straight from the plane's
                                          // light to the first surface, when that is the pixel
                                          // centre's receiver (ShadowTerms)
+    float3 shadow_unshadowed[SHADOW_PLANES]; // and albedo x the light's unoccluded term there
 #endif
 #if OUTPUT_LENS_SHADOWS
     uint receiver;          // the shadow planes whose receiver's object the first hit is on
@@ -75,7 +76,10 @@ inline PathSample path_sample_empty(void) {
     ps.normal2 = (float3)(0.0f);
 #endif
 #if OUTPUT_SHADOWS
-    for (uint l = 0u; l < SHADOW_PLANES; ++l) ps.shadow_direct[l] = (float3)(0.0f);
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) {
+        ps.shadow_direct[l] = (float3)(0.0f);
+        ps.shadow_unshadowed[l] = (float3)(0.0f);
+    }
 #endif
 #if OUTPUT_LENS_SHADOWS
     ps.receiver = 0u;
@@ -99,8 +103,8 @@ typedef struct {
     float position[4];                     // mean first-hit position (xyz), hits (w)
 #endif
 #if OUTPUT_SHADOWS
-    float shadow[SHADOW_PLANES * SHADOW_TERMS_FLOATS]; // ShadowTerms per light plane: the mean
-                                                       // of the replaced light
+    float shadow[SHADOW_PLANES * SHADOW_TERMS_FLOATS]; // ShadowTerms per light plane: the means
+                                                       // of the replaced light and of r
 #endif
 #if OUTPUT_HALVES
     float odd[4];                          // mean light of the odd-numbered samples, count
@@ -123,7 +127,7 @@ inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
 #endif
 #if OUTPUT_SHADOWS
     for (uint l = 0u; l < SHADOW_PLANES; ++l)
-        vstore4(vload4(pixel * SHADOW_PLANES + l, shadow_terms), l, p->shadow);
+        vstore8(vload8(pixel * SHADOW_PLANES + l, shadow_terms), l, p->shadow);
 #endif
 #if OUTPUT_HALVES
     vstore4(vload4(pixel, odd_halves), 0, p->odd);
@@ -146,7 +150,7 @@ inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pi
 #endif
 #if OUTPUT_SHADOWS
     for (uint l = 0u; l < SHADOW_PLANES; ++l)
-        vstore4(vload4(l, p->shadow), pixel * SHADOW_PLANES + l, shadow_terms);
+        vstore8(vload8(l, p->shadow), pixel * SHADOW_PLANES + l, shadow_terms);
 #endif
 #if OUTPUT_HALVES
     vstore4(vload4(0, p->odd), pixel, odd_halves);
@@ -242,6 +246,9 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count, uin
         running_mean(&sh[SHADOW_TERMS_DIRECT], ps->shadow_direct[l].x, n);
         running_mean(&sh[SHADOW_TERMS_DIRECT + 1], ps->shadow_direct[l].y, n);
         running_mean(&sh[SHADOW_TERMS_DIRECT + 2], ps->shadow_direct[l].z, n);
+        running_mean(&sh[SHADOW_TERMS_UNSHADOWED], ps->shadow_unshadowed[l].x, n);
+        running_mean(&sh[SHADOW_TERMS_UNSHADOWED + 1], ps->shadow_unshadowed[l].y, n);
+        running_mean(&sh[SHADOW_TERMS_UNSHADOWED + 2], ps->shadow_unshadowed[l].z, n);
     }
 #endif
 #if OUTPUT_POSITION

@@ -121,8 +121,14 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
 #if OUTPUT_SHADOWS && HAS_SPHERE_LIGHTS
         if (bounce == 0u && m->kind == MATERIAL_DIFFUSE && shadow_lights != 0u) {
             float object = hit_object(s, &hit);
-            for (uint l = 0u; l < SHADOW_PLANES; ++l)
-                if (object == shadow_objects[l]) on_receiver |= 1u << l;
+            for (uint l = 0u, light = 0u; l < SHADOW_PLANES; ++l, ++light) {
+                while (light < 32u && ((shadow_lights >> light) & 1u) == 0u) ++light;
+                if (object != shadow_objects[l] || light >= params->light_count) continue;
+                on_receiver |= 1u << l;
+                // r of this sample (ShadowTerms.unshadowed), what the filtered term puts back.
+                ps.shadow_unshadowed[l] =
+                    albedo * shadow_unshadowed(s->lights + light, sf.p, sf.ns);
+            }
 #if OUTPUT_LENS_SHADOWS
             // The lens pass puts k(x, u) back on the filtered term (Yan et al.'s eq. 16).
             if (on_receiver != 0u) {

@@ -414,6 +414,12 @@ device_structs! {
         /// the first bounce): the part of F that the filtered term replaces.
         pub direct: [f32; 3],
         pub pad0: f32,
+        /// The same samples' unoccluded term: albedo × the light's unoccluded term at their
+        /// first hit (kernels/render/shadows.cl `shadow_unshadowed`), 0 for a sample off the
+        /// receiver: eq. 3.1's r(x) averaged over the pixel as `direct` is, so that the
+        /// sheared filter's r · v stands where `direct` stood (texture and edge included).
+        pub unshadowed: [f32; 3],
+        pub pad1: f32,
     }
 
     /// AAF soft shadows: the primary hit through the pixel centre (and the lens centre) and its

@@ -214,6 +214,7 @@ const S_DIRECTION: usize = lane(offset_of!(WelfordSums, direction));
 const S_ALBEDO2: usize = lane(offset_of!(WelfordSums, albedo2));
 const W_DIRECTION: usize = lane(offset_of!(WelfordState, direction_mean));
 const T_DIRECT: usize = lane(offset_of!(ShadowTerms, direct));
+const T_UNSHADOWED: usize = lane(offset_of!(ShadowTerms, unshadowed));
 const P_VISIBLE: usize = lane(offset_of!(ShadowPixel, visible));
 const P_WEIGHT: usize = lane(offset_of!(ShadowPixel, weight));
 const P_SAMPLES: usize = lane(offset_of!(ShadowPixel, samples));
@@ -504,6 +505,9 @@ pub const OUTPUTS: &[OutputDecl] = &[
             ch("shadow.direct.R", ShadowTerms, T_DIRECT),
             ch("shadow.direct.G", ShadowTerms, T_DIRECT + 1),
             ch("shadow.direct.B", ShadowTerms, T_DIRECT + 2),
+            ch("shadow.r.R", ShadowTerms, T_UNSHADOWED),
+            ch("shadow.r.G", ShadowTerms, T_UNSHADOWED + 1),
+            ch("shadow.r.B", ShadowTerms, T_UNSHADOWED + 2),
             ch("shadow.visible", ShadowPixels, P_VISIBLE),
             ch("shadow.weight", ShadowPixels, P_WEIGHT),
             ch("shadow.samples", ShadowPixels, P_SAMPLES),

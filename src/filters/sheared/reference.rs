@@ -9,8 +9,6 @@ use rayon::prelude::*;
 
 use super::ShearedSettings;
 use super::shear::{bin_centre, bin_of, cap_sigma_x, eta, gauss, radius, sigma_x};
-use crate::filters::aaf_pass::PassPixel;
-use crate::filters::aaf_shadows::compose_over;
 use crate::imaging::RgbImage;
 use crate::layout::outputs::BufferId;
 use crate::layout::{LightFieldPixel, ShadowPixel, ShadowTerms, ShearedParams};
@@ -379,28 +377,34 @@ pub fn image(frame: &Frame, s: &ShearedSettings) -> Result<RgbImage> {
         let p = s.params(sphere, scene.scene_centre, w, h);
         let guide = prepare(&p, shadow, field);
         let visibility = factored(&p, shadow, field, &guide);
-        image = compose(&image, terms, shadow, &guide, &visibility);
+        image = compose(&image, terms, &guide, &visibility);
     }
     Ok(image)
 }
 
-/// `aaf_compose_sheared`: AAF's compose with this filter's guide (the kind) and visibility,
-/// onto `base`: base − the light's replaced term + r · visibility (base as is for no
-/// receiver).
+/// `aaf_compose_sheared`: onto `base`, base − the light's replaced term + r · visibility, r
+/// the path samples' own (`ShadowTerms::unshadowed`, over the samples `direct` is over; base
+/// as is for no receiver).
 pub fn compose(
     base: &RgbImage,
     terms: &[ShadowTerms],
-    shadow: &[ShadowPixel],
     guide: &[Guide],
     visibility: &[f32],
 ) -> RgbImage {
-    let kinds: Vec<PassPixel> = guide
-        .iter()
-        .map(|g| PassPixel {
-            kind: g[KIND],
-            ..Default::default()
+    let out = (0..base.pixels.len())
+        .into_par_iter()
+        .map(|i| {
+            let b = base.pixels[i];
+            if guide[i][KIND] == NONE {
+                return b;
+            }
+            let t = &terms[i];
+            std::array::from_fn(|c| (b[c] - t.direct[c]) + t.unshadowed[c] * visibility[i])
         })
         .collect();
-    let visibility: Vec<[f32; 4]> = visibility.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect();
-    compose_over(base, terms, shadow, &kinds, &visibility)
+    RgbImage {
+        width: base.width,
+        height: base.height,
+        pixels: out,
+    }
 }

@@ -323,6 +323,9 @@ pub struct PathSample {
     /// The light the path brought to its first surface straight from the shadow light, when
     /// that surface is the pixel centre's receiver.
     pub shadow_direct: Vec3,
+    /// Albedo × the shadow light's unoccluded term at the first hit, when that is the
+    /// receiver (ShadowTerms.unshadowed).
+    pub shadow_unshadowed: Vec3,
     /// The first hit is a diffuse point of the receiver's object (kernels/render/film.cl
     /// PathSample.receiver, one plane).
     pub receiver: bool,
@@ -340,6 +343,7 @@ impl PathSample {
             albedo2: Vec3::ZERO,
             direction: Vec3::ZERO,
             shadow_direct: Vec3::ZERO,
+            shadow_unshadowed: Vec3::ZERO,
             receiver: false,
         }
     }
@@ -487,6 +491,10 @@ pub fn trace_path_from(
         {
             on_receiver = true;
             ps.receiver = true;
+            if let Some(light) = shadow {
+                ps.shadow_unshadowed =
+                    albedo * super::shadows::shadow_unshadowed(light, sf.p, sf.ns);
+            }
         }
         if has_lights && opt.next_event_estimation && m.kind == MATERIAL_DIFFUSE {
             let (li, chosen) = sample_direct_light(s, sf.p, sf.ng, sf.ns, key, bounce, rays);

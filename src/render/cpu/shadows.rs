@@ -393,7 +393,7 @@ pub fn passes(s: &SceneArrays, sampling: &ShadowSampling) -> (Vec<ShadowPixel>, 
     (pixels, rays)
 }
 
-/// The shadow terms (ShadowTerms lanes: the replaced light, pad) of samples
+/// The shadow terms (ShadowTerms lanes: the replaced light, pad, r, pad) of samples
 /// [sample_base, sample_base + count) of every pixel for light `shadow_light`, whose shadow
 /// pixels (the passes' output: the centre's receiver) are `pixels`, folded as
 /// kernels/render/film.cl folds them (eq. 6.5), into `terms`.
@@ -402,7 +402,7 @@ pub fn render_shadow_terms(
     opt: ReferenceOptions,
     shadow_light: u32,
     pixels: &[ShadowPixel],
-    terms: &mut [[f32; 4]],
+    terms: &mut [[f32; 8]],
     sample_base: u32,
     count: u32,
 ) {
@@ -424,8 +424,9 @@ pub fn render_shadow_terms(
             let key = rng_sample_key(s.params.seed, pixel as u32, sample);
             let ps = trace_path(s, opt, x, y, key, &mut rays, target);
             let n = (sample + 1) as f32;
-            for (c, v) in t.iter_mut().take(3).enumerate() {
-                *v += (ps.shadow_direct[c] - *v) / n;
+            for c in 0..3 {
+                t[c] += (ps.shadow_direct[c] - t[c]) / n;
+                t[4 + c] += (ps.shadow_unshadowed[c] - t[4 + c]) / n;
             }
         }
     });
