@@ -369,12 +369,7 @@ fn every_device_step_matches_its_rust_reference() {
     );
     // Compose: the replaced light out, the path samples' r times the sheared visibility in.
     let terms: &[ShadowTerms] = frame.host_slice(BufferId::ShadowTerms).unwrap();
-    let reference = compose(
-        &frame.beauty().unwrap(),
-        terms,
-        &dev.guide,
-        &dev.visibility,
-    );
+    let reference = compose(&frame.beauty().unwrap(), terms, &dev.guide, &dev.visibility);
     close(
         &reference
             .pixels
