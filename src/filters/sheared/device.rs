@@ -1,5 +1,5 @@
 //! The sheared soft-shadow filter on the device (kernels/filters/sheared.cl): per filtered
-//! light, prepare, steps 1a, 1b, 2a, 2b, then AAF's compose (kernels/filters/aaf_shadows.cl
+//! light, prepare, steps 1a, 1b, 2a, 2b, then the compose (kernels/filters/aaf_shadows.cl
 //! `aaf_compose_sheared`, which reads the kind from the same guide lane; each light's compose
 //! on the image of the lights before it).
 
