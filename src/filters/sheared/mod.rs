@@ -49,7 +49,7 @@
 //!   `aaf_compose_sheared`), r the same path samples' albedo × unoccluded term
 //!   (`ShadowTerms::unshadowed`): the sparse pass's r is one receiver point per pixel at
 //!   sparse_spp 1, whose albedo aliased textures and whose object stood for the pixel's
-//!   others at edges (MSE 1.6-3.3x higher on the shadow scenes, 7x on a textured receiver:
+//!   others at edges (MSE 1.7-3.4x higher on the shadow scenes, 7x on a textured receiver:
 //!   results/README.md). AAF keeps its sparse and adaptive passes' r (its 20-40 receiver
 //!   points beat the path samples' r on Grids and Curved).
 //! - **Every sphere light, one at a time** (§3: "filter each light separately"; the digest
@@ -349,8 +349,9 @@ impl FilterKind for Sheared {
     type Settings = ShearedSettings;
     const NAME: &'static str = "sheared";
     const SUMMARY: &'static str = "4-D sheared filtering of every sphere light's soft shadows \
-         (a light at a time), of depth of field with a thin lens, or of diffuse indirect light, \
-         from l x l light, lens or v-plane samples per pixel (Yan et al. 2015; on the device)";
+         (a light at a time), of depth of field with a thin lens, of both together, or of \
+         diffuse indirect light, from l x l light, lens or v-plane samples per pixel (Yan et \
+         al. 2015; on the device)";
 
     fn check(s: &ShearedSettings) -> Result<()> {
         s.validate()
