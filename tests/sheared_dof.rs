@@ -341,49 +341,7 @@ fn the_lens_field_pass_matches_its_rust_reference() {
 
 #[test]
 fn render_filters_depth_of_field_end_to_end_and_offline_gives_the_same_bytes() {
-    let dir = tempdir("sheared_dof_cli");
-    let scene = repo_path("scenes/cornell_diffuse_dof.toml");
-    let (png, exr, aovs, off) = (
-        dir.join("online.png"),
-        dir.join("online.exr"),
-        dir.join("aovs.exr"),
-        dir.join("offline.exr"),
-    );
-    let out = noisefree()
-        .arg("render")
-        .arg(&scene)
-        .args([
-            "--width", "40", "--height", "32", "--spp", "1", "--filter", "sheared",
-        ])
-        .args(["--sheared-side", "2", "--out"])
-        .arg(&png)
-        .arg("--exr")
-        .arg(&exr)
-        .arg("--aovs")
-        .arg(&aovs)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert!(png.exists() && exr.exists());
-    let out = noisefree()
-        .arg("filter")
-        .arg(&aovs)
-        .args(["--filter", "sheared", "--exr"])
-        .arg(&off)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let (a, b) = (
-        noisefree::imaging::read_exr_rgb(&exr).unwrap(),
-        noisefree::imaging::read_exr_rgb(&off).unwrap(),
-    );
-    assert_eq!(a.pixels, b.pixels, "online == offline");
-    assert!(a.pixels.iter().flatten().all(|c| c.is_finite()));
+    cli_online_equals_offline("sheared_dof_cli", "scenes/cornell_diffuse_dof.toml");
     // Depth of field alone with a chosen light is refused, naming the effect that does both;
     // a pinhole has no lens field.
     for (scene, light, needles) in [

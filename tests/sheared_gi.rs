@@ -336,50 +336,7 @@ fn filtered_indirect_light_beats_unfiltered_mc_at_the_same_spp() {
 
 #[test]
 fn render_filters_gi_end_to_end_offline_gives_the_same_bytes_and_refusals() {
-    let dir = tempdir("sheared_gi_cli");
-    let scene = repo_path("scenes/cornell_diffuse.toml");
-    let (exr, aovs, off) = (
-        dir.join("online.exr"),
-        dir.join("aovs.exr"),
-        dir.join("offline.exr"),
-    );
-    let out = noisefree()
-        .arg("render")
-        .arg(&scene)
-        .args([
-            "--width", "40", "--height", "32", "--spp", "1", "--filter", "sheared",
-        ])
-        .args(["--sheared-side", "2", "--out"])
-        .arg(dir.join("online.png"))
-        .arg("--exr")
-        .arg(&exr)
-        .arg("--aovs")
-        .arg(&aovs)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let out = noisefree()
-        .arg("filter")
-        .arg(&aovs)
-        .args(["--filter", "sheared", "--sheared-side", "2", "--exr"])
-        .arg(&off)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let (a, b) = (
-        noisefree::imaging::read_exr_rgb(&exr).unwrap(),
-        noisefree::imaging::read_exr_rgb(&off).unwrap(),
-    );
-    assert_eq!(a.pixels, b.pixels, "online == offline");
-    assert!(a.pixels.iter().flatten().all(|c| c.is_finite()));
+    cli_online_equals_offline("sheared_gi_cli", "scenes/cornell_diffuse.toml");
     // GI with a chosen sphere light, GI through a thin lens, and an unknown effect are refused.
     for (scene, effect, extra, needles) in [
         (

@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::sheared::cli_online_equals_offline;
 use common::*;
 use noisefree::filters::sheared::lens_shadows;
 use noisefree::filters::sheared::{Effect, Sheared, ShearedSettings};
@@ -204,46 +205,8 @@ fn both_at_once_beats_depth_of_field_alone_on_the_toasters() {
 
 #[test]
 fn online_equals_offline_and_the_refusals_name_the_fix() {
-    let dir = tempdir("sheared_lens_shadows_cli");
+    cli_online_equals_offline("sheared_lens_shadows_cli", "scenes/toasters_dof.toml");
     let scene = repo_path("scenes/toasters_dof.toml");
-    let (exr, aovs, off) = (
-        dir.join("online.exr"),
-        dir.join("aovs.exr"),
-        dir.join("offline.exr"),
-    );
-    let out = noisefree()
-        .arg("render")
-        .arg(&scene)
-        .args([
-            "--width", "40", "--height", "32", "--spp", "1", "--filter", "sheared",
-        ])
-        .args(["--sheared-side", "2", "--out"])
-        .arg(dir.join("online.png"))
-        .arg("--exr")
-        .arg(&exr)
-        .arg("--aovs")
-        .arg(&aovs)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    let out = noisefree()
-        .arg("filter")
-        .arg(&aovs)
-        .args(["--filter", "sheared", "--exr"])
-        .arg(&off)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let (a, b) = (
-        noisefree::imaging::read_exr_rgb(&exr).unwrap(),
-        noisefree::imaging::read_exr_rgb(&off).unwrap(),
-    );
-    assert_eq!(a.pixels, b.pixels, "online == offline");
     let path = scene.to_str().unwrap();
     let base = [
         "render", path, "--width", "8", "--height", "8", "--spp", "1", "--filter", "sheared",

@@ -207,22 +207,12 @@ inline uint lens_field_pixel(const SceneRefs* s, uint x, uint y, uint side,
 }
 
 #if !OUTPUT_SHADOWS
-__kernel void lens_field_sample(__constant const SceneParams* params,
-                                __global const BvhNode* nodes,
-                                __global const TriangleGeom* tri_geom,
-                                __global const TriangleShading* tri_shading,
-                                __global const Sphere* spheres,
-                                __global const Material* materials,
-                                __global const TextureInfo* textures,
-                                __global const float4* texels, __global const Light* lights,
-                                __global const float* light_cdf, __global uint* debug_counters,
-                                __global float* light_field, __global uint* lens_rays,
-                                uint side) {
+__kernel void lens_field_sample(SHADOW_SCENE_PARAMS, __global float* light_field,
+                                __global uint* lens_rays, uint side) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
-    SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
-                   textures, texels, lights, light_cdf, debug_counters};
+    SceneRefs s = SHADOW_SCENE_REFS;
     float none[SHADOW_PLANES];
     for (uint l = 0u; l < SHADOW_PLANES; ++l) none[l] = NAN;
     lens_rays[pixel] = lens_field_pixel(&s, x, y, side,

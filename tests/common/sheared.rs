@@ -1,5 +1,6 @@
 //! What the sheared filters' tests share (tests/sheared_*.rs): the device-vs-reference step
-//! errors, a host frame holding a light field, and renders for the shadows effect.
+//! errors, a host frame holding a light field, renders for the shadows effect, and the
+//! command line's online == offline check.
 
 use noisefree::layout::FilterVector;
 
@@ -90,4 +91,56 @@ pub fn sheared_renderer(
         .unwrap_or_else(|e| panic!("{e:#}"));
     r.render_samples(spp).unwrap();
     r
+}
+
+/// `noisefree render SCENE --filter sheared --sheared-side 2` at 40 × 32, 1 spp, with its AOV
+/// file, then `noisefree filter` of that file: asserts both succeed and give the same bytes
+/// (online == offline) and returns the stderr of the render and the image.
+pub fn cli_online_equals_offline(
+    test: &str,
+    scene: &str,
+) -> (String, noisefree::imaging::RgbImage) {
+    let dir = super::tempdir(test);
+    let scene = super::repo_path(scene);
+    let (exr, aovs, off) = (
+        dir.join("online.exr"),
+        dir.join("aovs.exr"),
+        dir.join("offline.exr"),
+    );
+    let out = super::noisefree()
+        .arg("render")
+        .arg(&scene)
+        .args([
+            "--width", "40", "--height", "32", "--spp", "1", "--filter", "sheared",
+        ])
+        .args(["--sheared-side", "2", "--out"])
+        .arg(dir.join("online.png"))
+        .arg("--exr")
+        .arg(&exr)
+        .arg("--aovs")
+        .arg(&aovs)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    assert!(dir.join("online.png").exists());
+    let out = super::noisefree()
+        .arg("filter")
+        .arg(&aovs)
+        .args(["--filter", "sheared", "--sheared-side", "2", "--exr"])
+        .arg(&off)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (a, b) = (
+        noisefree::imaging::read_exr_rgb(&exr).unwrap(),
+        noisefree::imaging::read_exr_rgb(&off).unwrap(),
+    );
+    assert_eq!(a.pixels, b.pixels, "online == offline");
+    assert!(a.pixels.iter().flatten().all(|c| c.is_finite()));
+    (err, a)
 }
