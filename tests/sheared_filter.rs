@@ -43,9 +43,12 @@ fn synthetic(
     mut f: impl FnMut([f32; 2], [f32; 2]) -> f32,
 ) -> Synthetic {
     let (radius, height) = (1.0f32, 10.0f32);
+    // The synthetic light fields and their references are those of a Gaussian light of
+    // sigma_y = R/2 (the seed's), whatever the filter's default light_sigma.
     let settings = ShearedSettings {
         side,
         bins,
+        light_sigma: 0.5,
         ..Default::default()
     };
     let mut p = settings.params([0.0, 0.0, height, radius], [0.0; 3], w, h);

@@ -24,11 +24,15 @@
 //! - **The light** (§3.2: a Gaussian of σ_y over a square of side 4σ_y): our sphere is sampled
 //!   on the l × l jittered grid over the square [−R, R]² of one global frame perpendicular to
 //!   (scene centre → light centre), every point traced (a neighbour may need it after the
-//!   shear), and weighted by the Gaussian w_y of σ_y = R/2 (the silhouette disk's per-axis
-//!   standard deviation; digest §3.4, the FAITHFUL option). The disk indicator is not
-//!   separable in (y1, y2), which steps 1a-2b need; the Gaussian is. So the filtered term is
-//!   the shadow of a Gaussian light of the disk's second moment, not of the uniform disk: the
-//!   penumbra's shape differs slightly (its width does not).
+//!   shear), and weighted by a Gaussian w_y. The disk indicator is not separable in (y1, y2),
+//!   which steps 1a-2b need; the Gaussian is, so the filtered term is the shadow of a
+//!   Gaussian light, not of the uniform disk. σ_y = `light_sigma` · R: 0.5 is the disk's
+//!   per-axis standard deviation (digest §3.4, the FAITHFUL option), but over the square the
+//!   grid samples, a flatter Gaussian is nearer the uniform disk's penumbra: RMS at l = 3,
+//!   256², `bench --study aaf-shadows` on Grids / Curved / two_lights_shadows, 0.02965 /
+//!   0.01193 / 0.02253 at 0.5, 0.02818 / 0.01076 / 0.02210 at 0.6, 0.02758 / 0.01071 /
+//!   0.02201 at 0.7, 0.02726 / 0.01136 / 0.02204 at 0.8, 0.02715 / 0.01336 / 0.02218 at 1.0:
+//!   0.7 is the default. The bins span ±4 σ_y.
 //! - **Samples per pixel**: the AAF sparse pass runs with `sparse_spp` (1 by default: the
 //!   receiver, d1 and r(x)), no adaptive pass, and the light field adds l² (default l = 3, as
 //!   CAMEL's 9 spp, §6); the slopes come from both (§3.1).
@@ -156,6 +160,10 @@ crate::filter_settings! {
         pub depth_tolerance: f32 = 2.0,
         /// Factor on eq. 5's shear eta (1: as settled; 0: axis-aligned; -1: the other sign).
         pub shear: f32 = 1.0,
+        /// Soft shadows: sigma_y of the light's Gaussian weight, in light radii (0.5: the
+        /// disk's per-axis standard deviation). 0.7 gave the lowest error on Grids, Curved
+        /// and two_lights_shadows (results/README.md).
+        pub light_sigma: f32 = 0.7,
         /// What is filtered: "shadows" (the sphere lights'), "dof" (depth of field, needs a
         /// thin lens), "dof-shadows" (both, Yan et al.'s appendix) or "gi" (diffuse indirect
         /// light, a pinhole camera); auto: with a thin lens (lens_radius > 0) "dof-shadows"
@@ -188,6 +196,9 @@ impl ShearedSettings {
             if !(v >= 0.0) {
                 bail!("{name} must be >= 0 (inf: no test), got {v}");
             }
+        }
+        if !(self.light_sigma > 0.0 && self.light_sigma <= 4.0) {
+            bail!("light_sigma is sigma_y in light radii, (0, 4], got {}", self.light_sigma);
         }
         if !self.shear.is_finite() {
             bail!("shear must be finite, got {}", self.shear);
@@ -275,6 +286,10 @@ impl ShearedSettings {
         let mut p = self.params([0.0, 0.0, 0.0, lens_radius], [0.0, 1.0, 0.0], width, height);
         p.axis1 = Float4([1.0, 0.0, 0.0, 0.0]);
         p.axis2 = Float4([0.0, 1.0, 0.0, 0.0]);
+        // The aperture's Gaussian is the lens pass's (kernels/render/lens_field.cl
+        // `lens_weight`, σ = A/2), whatever `light_sigma` says of lights.
+        p.sigma_y = 0.5 * lens_radius;
+        p.range = 2.0 * lens_radius;
         p
     }
 
@@ -301,8 +316,8 @@ impl ShearedSettings {
             height,
             side: self.side,
             bins: self.bins,
-            sigma_y: 0.5 * light[3],
-            range: 2.0 * light[3],
+            sigma_y: self.light_sigma * light[3],
+            range: 4.0 * self.light_sigma * light[3],
             normal_cos,
             depth_tolerance: self.depth_tolerance,
             max_radius: self.max_radius as i32,
