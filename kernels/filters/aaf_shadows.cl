@@ -64,17 +64,21 @@ __kernel void aaf_prepare(__constant const AafShadowParams* p, __global const fl
     visibility[i] = (float4)(v, 0.0f, 0.0f, 0.0f);
 }
 
-// base - the replaced light + r * v at pixel i (base as is when `none`: no receiver); `t` and
-// `px` are the pixel's shadow terms and shadow pixel.
-inline void aaf_compose_at(float3 base, __global const float* t, __global const float* px,
-                           uint i, bool none, float v, __global float4* image) {
+// base - the replaced light + r * v at pixel i (base as is when `none`: no receiver); `t` is
+// the pixel's shadow terms.
+inline void aaf_compose_at(float3 base, __global const float* t, float3 r, uint i, bool none,
+                           float v, __global float4* image) {
     if (none) {
         image[i] = (float4)(base, 0.0f);
         return;
     }
     float3 rest = base - aaf_lane3(t, SHADOW_TERMS_DIRECT);
-    float3 r = aaf_lane3(px, SHADOW_PIXEL_UNSHADOWED) / px[SHADOW_PIXEL_SAMPLES];
     image[i] = (float4)(rest + r * v, 0.0f);
+}
+
+// AAF's r(x): the sparse and adaptive passes' unoccluded term over their receiver points.
+inline float3 aaf_unshadowed(__global const float* px) {
+    return aaf_lane3(px, SHADOW_PIXEL_UNSHADOWED) / px[SHADOW_PIXEL_SAMPLES];
 }
 
 // F, the beauty, at pixel i.
@@ -95,13 +99,14 @@ __kernel void aaf_compose(__constant const AafShadowParams* p, __global const fl
     uint i = y * p->width + x;
     float3 base = chained ? image[i].xyz : aaf_beauty(fv, i);
     aaf_compose_at(base, AAF_PLANE(terms, i, SHADOW_TERMS_FLOATS),
-                   AAF_PLANE(pixels, i, SHADOW_PIXEL_FLOATS), i, guide[3 * i].w == AAF_NONE,
-                   visibility[i].x, image);
+                   aaf_unshadowed(AAF_PLANE(pixels, i, SHADOW_PIXEL_FLOATS)), i,
+                   guide[3 * i].w == AAF_NONE, visibility[i].x, image);
 }
 
 // The sheared filter's (kernels/filters/sheared.cl): one float4 of guide per pixel with the
 // kind in z, one float of visibility; the light of plane `plane`, from F or (`chained`) from
-// the image of the lights before, as aaf_compose. r is the path samples' (ShadowTerms
+// the image of the lights before, as aaf_compose (`pixels` is bound as for aaf_compose but
+// not read). r is the path samples' (ShadowTerms
 // .unshadowed: over the same samples as the replaced `direct`), not the sparse pass's: that
 // pass traces one receiver point per pixel (sparse_spp 1), whose albedo would stand for the
 // whole pixel (textures alias, edges take the receiver's r over the pixel's other objects).
@@ -115,10 +120,6 @@ __kernel void aaf_compose_sheared(__constant const AafShadowParams* p, __global 
     uint i = y * p->width + x;
     float3 base = chained ? image[i].xyz : aaf_beauty(fv, i);
     __global const float* t = AAF_PLANE(terms, i, SHADOW_TERMS_FLOATS);
-    if (guide[i].z == AAF_NONE) {
-        image[i] = (float4)(base, 0.0f);
-        return;
-    }
-    float3 rest = base - aaf_lane3(t, SHADOW_TERMS_DIRECT);
-    image[i] = (float4)(rest + aaf_lane3(t, SHADOW_TERMS_UNSHADOWED) * visibility[i], 0.0f);
+    aaf_compose_at(base, t, aaf_lane3(t, SHADOW_TERMS_UNSHADOWED), i, guide[i].z == AAF_NONE,
+                   visibility[i], image);
 }

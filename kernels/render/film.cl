@@ -53,8 +53,9 @@ typedef struct {
 #if OUTPUT_LENS_SHADOWS
     uint receiver;          // the shadow planes whose receiver's object the first hit is on
                             // (the planes whose shadow_direct it records), a bit each
-    float3 receiver_albedo; // that hit's albedo and shading normal (0 when receiver is 0)
-    float3 receiver_normal;
+    float3 receiver_albedo; // that hit's albedo (0 when receiver is 0)
+    float3 receiver_unshadowed[SHADOW_PLANES]; // and each plane's light's unoccluded term
+                                               // there (shadow_unshadowed), 0 off its receiver
 #endif
 } PathSample;
 
@@ -84,7 +85,7 @@ inline PathSample path_sample_empty(void) {
 #if OUTPUT_LENS_SHADOWS
     ps.receiver = 0u;
     ps.receiver_albedo = (float3)(0.0f);
-    ps.receiver_normal = (float3)(0.0f);
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) ps.receiver_unshadowed[l] = (float3)(0.0f);
 #endif
     return ps;
 }

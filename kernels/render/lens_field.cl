@@ -138,11 +138,9 @@ inline uint lens_field_pixel(const SceneRefs* s, uint x, uint y, uint side,
             ls[LENS_SHADOW_PIXEL_ALBEDO + k] = ps.receiver_albedo.x;
             ls[LENS_SHADOW_PIXEL_ALBEDO_GREEN + k] = ps.receiver_albedo.y;
             ls[LENS_SHADOW_PIXEL_ALBEDO_BLUE + k] = ps.receiver_albedo.z;
-            for (uint q = 0u, light = 0u; q < SHADOW_PLANES; ++q, ++light) {
-                while (light < 32u && ((shadow_lights >> light) & 1u) == 0u) ++light;
-                if (light >= 32u || ((ps.receiver >> q) & 1u) == 0u) continue;
-                unshadowed[q] += shadow_unshadowed(s->lights + light, ps.world1,
-                                                   ps.receiver_normal);
+            for (uint q = 0u; q < SHADOW_PLANES; ++q) {
+                if (((ps.receiver >> q) & 1u) == 0u) continue;
+                unshadowed[q] += ps.receiver_unshadowed[q];
                 on[q] += 1.0f;
             }
 #endif

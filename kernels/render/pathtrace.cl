@@ -126,15 +126,17 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
                 if (object != shadow_objects[l] || light >= params->light_count) continue;
                 on_receiver |= 1u << l;
                 // r of this sample (ShadowTerms.unshadowed), what the filtered term puts back.
-                ps.shadow_unshadowed[l] =
-                    albedo * shadow_unshadowed(s->lights + light, sf.p, sf.ns);
+                float3 u = shadow_unshadowed(s->lights + light, sf.p, sf.ns);
+                ps.shadow_unshadowed[l] = albedo * u;
+#if OUTPUT_LENS_SHADOWS
+                ps.receiver_unshadowed[l] = u;
+#endif
             }
 #if OUTPUT_LENS_SHADOWS
             // The lens pass puts k(x, u) back on the filtered term (Yan et al.'s eq. 16).
             if (on_receiver != 0u) {
                 ps.receiver = on_receiver;
                 ps.receiver_albedo = albedo;
-                ps.receiver_normal = sf.ns;
             }
 #endif
         }

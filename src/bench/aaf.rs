@@ -88,6 +88,22 @@ fn plan(quick: bool) -> Vec<(&'static str, u32, Cell)> {
     }
     v.push(("sheared-no-shear", 3, sheared(3, 0.0)));
     v.push(("sheared-other-sign", 3, sheared(3, -1.0)));
+    if !quick {
+        // The light's sigma_y against the default 0.7 (src/filters/sheared/mod.rs).
+        for (name, light_sigma) in [
+            ("sheared-light-sigma-0.5", 0.5),
+            ("sheared-light-sigma-0.6", 0.6),
+            ("sheared-light-sigma-0.8", 0.8),
+            ("sheared-light-sigma-1.0", 1.0),
+        ] {
+            let s = ShearedSettings {
+                side: 3,
+                light_sigma,
+                ..Default::default()
+            };
+            v.push((name, 3, Cell::Sheared(s)));
+        }
+    }
     v
 }
 

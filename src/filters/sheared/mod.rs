@@ -29,7 +29,8 @@
 //!   Gaussian light, not of the uniform disk. σ_y = `light_sigma` · R: 0.5 is the disk's
 //!   per-axis standard deviation (digest §3.4, the FAITHFUL option), but over the square the
 //!   grid samples, a flatter Gaussian is nearer the uniform disk's penumbra: RMS at l = 3,
-//!   256², `bench --study aaf-shadows` on Grids / Curved / two_lights_shadows, 0.02965 /
+//!   256², `bench --study aaf-shadows` (rows `sheared-light-sigma-*`) on Grids / Curved /
+//!   two_lights_shadows, 0.02965 /
 //!   0.01193 / 0.02253 at 0.5, 0.02818 / 0.01076 / 0.02210 at 0.6, 0.02758 / 0.01071 /
 //!   0.02201 at 0.7, 0.02726 / 0.01136 / 0.02204 at 0.8, 0.02715 / 0.01336 / 0.02218 at 1.0:
 //!   0.7 is the default. The bins span ±4 σ_y.
