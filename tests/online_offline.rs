@@ -26,10 +26,10 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
     let scenes = bundled_scenes();
     assert_eq!(
         scenes.len(),
-        14,
+        15,
         "the five thesis scenes, their DOF variants, Grids, Curved and two_lights_shadows \
-         (the shadow filters' sphere-light scenes) and toasters_dof (sheared shadows with \
-         depth of field)"
+         (the shadow filters' sphere-light scenes), toasters_dof (sheared shadows with \
+         depth of field) and room_gi (sheared GI beside a sphere light)"
     );
     for path in scenes {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
@@ -38,9 +38,15 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
         (o.frame.width, o.frame.height) = (w, h);
         let arrays = SceneArrays::build(&scene, &o.frame).unwrap();
         let info = SceneInfo::new(&scene, &arrays);
-        let configured = registry
-            .configure_all(&FilterRequest::default(), &info)
-            .unwrap();
+        // The scene file's [filter.<name>] tables, as `render` takes them (room_gi asks the
+        // sheared filter for GI beside its sphere light).
+        let request = FilterRequest {
+            scene: scene.filter.settings.clone(),
+            scene_origin: path.display().to_string(),
+            scene_lines: scene.filter.lines.clone(),
+            ..Default::default()
+        };
+        let configured = registry.configure_all(&request, &info).unwrap();
         // One render gathers what every filter and the AOV file need.
         let mut outputs = OutputSet::of(&[Output::Features, Output::Variance]);
         for c in &configured {

@@ -26,7 +26,7 @@
 
 use anyhow::{Context as _, Result, bail};
 
-use super::curves::{loglog_at, loglog_where};
+use super::curves::{MSE, curve, loglog_where, sheared_against_aaf};
 use super::plot::{Chart, Series, line_chart};
 use super::study::{STUDY_SEED, StudyScene, reference_image, sizes};
 use super::table::{ResultTable, num};
@@ -324,62 +324,22 @@ fn sheared_steps(
     Ok(())
 }
 
-/// The sheared rows against adaptive AAF: AAF's light spp and seconds at the row's MSE
-/// (log-log interpolation of the AAF rows, slope −1 beyond them: *), their ratios to the
-/// row's, and AAF's RMS at the row's light spp over the row's RMS (Fig. 9 of Yan et al.).
+/// The sheared rows against adaptive AAF ([`sheared_against_aaf`] on the light samples).
 fn sheared_section(t: &ResultTable, at: (&str, &str)) -> String {
-    let aaf = curve(t, at, "aaf-adaptive", "light_spp");
-    let aaf_time = curve(t, at, "aaf-adaptive", "seconds");
     let mut md = String::from(
         "\n### Sheared filtering against adaptive AAF at equal quality (Yan et al. 2015)\n\n\
          Every sphere light filtered, a light at a time, as in AAF's rows; light spp: 1 (the \
-         sparse pass) + l² per light and receiver, Σ / N².\n\n\
-         | method | l | light spp | RMS | seconds | AAF light spp at equal MSE | sample ratio | \
-         AAF seconds at equal MSE | time ratio | AAF RMS at equal light spp / RMS |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         sparse pass) + l² per light and receiver, Σ / N².\n\n",
     );
-    let star = |ex: bool| if ex { "*" } else { "" };
-    for r in t
-        .records()
-        .iter()
-        .filter(|r| r["scene"] == at.0 && r["size"] == at.1 && r["method"].starts_with("sheared"))
-    {
-        let (Ok(light), Ok(mse), Ok(secs)) = (
-            r["light_spp"].parse::<f64>(),
-            r["mse_rgb"].parse::<f64>(),
-            r["seconds"].parse::<f64>(),
-        ) else {
-            continue;
-        };
-        let spp = loglog_where(&aaf, mse).map_or((String::new(), String::new()), |(x, ex)| {
-            (format!("{x:.1}{}", star(ex)), format!("{:.2}", x / light))
-        });
-        let time = loglog_where(&aaf_time, mse)
-            .map_or((String::new(), String::new()), |(x, ex)| {
-                (format!("{x:.3}{}", star(ex)), format!("{:.2}", x / secs))
-            });
-        let rms = loglog_at(&aaf, light, -1.0).map_or(String::new(), |(m, ex)| {
-            format!("{:.2}{}", (m / mse).sqrt(), star(ex))
-        });
-        md.push_str(&format!(
-            "| {} | {} | {light:.1} | {} | {} | {} | {} | {} | {} | {rms} |\n",
-            r["method"], r["setting"], r["rms"], r["seconds"], spp.0, spp.1, time.0, time.1
-        ));
-    }
+    md.push_str(&sheared_against_aaf(
+        t,
+        at,
+        "aaf-adaptive",
+        "light_spp",
+        "light",
+        &MSE,
+    ));
     md
-}
-
-/// The curves of one method from the table: (x, MSE) by `x_column`, sorted by x.
-fn curve(t: &ResultTable, at: (&str, &str), method: &str, x_column: &str) -> Vec<(f64, f64)> {
-    let (scene, size) = at;
-    let mut v: Vec<(f64, f64)> = t
-        .records()
-        .iter()
-        .filter(|r| r["scene"] == scene && r["size"] == size && r["method"] == method)
-        .filter_map(|r| Some((r[x_column].parse().ok()?, r["mse_rgb"].parse().ok()?)))
-        .collect();
-    v.sort_by(|a, b| a.0.total_cmp(&b.0));
-    v
 }
 
 /// aaf-shadows.md (per scene: the table with Monte Carlo's spp at equal MSE, and the sheared

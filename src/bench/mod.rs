@@ -27,6 +27,9 @@
 //!   re-balancing, and where the filter runs.
 //! - `aaf-shadows` (only when asked): AAF soft shadows against Monte Carlo on Grids, error
 //!   against light samples and against time (Wang 2013 Fig. 3.6), the spp map (`aaf`).
+//! - `aaf-indirect` (only when asked): diffuse indirect light, AAF (Wang 2013 ch. 4) and
+//!   sheared filtering's GI against Monte Carlo and each other at equal quality, on room_gi
+//!   or the pinhole scenes `--scene` names (`aaf_indirect`).
 //! - `aaf-cost` (only when asked): the AAF filters' kernel time against the occluder's
 //!   triangle count (0.2K-200K), beside the sampling passes' and the path tracer's (`aaf_cost`).
 //! - `rpf-readings`, `rpf-scale` (only when asked; hours): RPF's readings against the
@@ -42,6 +45,7 @@
 
 pub mod aaf;
 pub mod aaf_cost;
+pub mod aaf_indirect;
 pub mod accuracy_time;
 pub mod balance;
 pub mod curves;
@@ -87,6 +91,9 @@ pub enum Study {
     /// AAF soft shadows against Monte Carlo on Grids, Wang 2013 Fig. 3.6 (not in the default
     /// set).
     AafShadows,
+    /// Diffuse indirect light: AAF and sheared filtering against Monte Carlo and each other at
+    /// equal quality, on room_gi or the run's pinhole scenes (not in the default set).
+    AafIndirect,
     /// The AAF filters' cost against the triangle count, beside the sampling passes and the
     /// path tracer (not in the default set).
     AafCost,
@@ -287,6 +294,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
                     | Study::Sweep
                     | Study::RpfScale
                     | Study::AafShadows
+                    | Study::AafIndirect
                     | Study::AafCost
                     | Study::Roofline
             )
@@ -329,6 +337,10 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 paths.push(dir.join("grids.toml"));
             }
+            Study::AafIndirect => {
+                let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
+                paths.push(dir.join("room_gi.toml"));
+            }
             Study::RpfReadings => {
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 for name in rpf::THESIS_SCENES {
@@ -368,6 +380,8 @@ pub struct Context {
     pub quick: bool,
     pub quiet: bool,
     pub scenes: Vec<PathBuf>,
+    /// Whether `--scene` chose `scenes` (else they are the bundled ones).
+    pub scenes_named: bool,
     /// The bundled scenes folder, if one was found.
     pub scenes_dir: Option<PathBuf>,
     /// Where ground-truth images are cached.
@@ -463,6 +477,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         quick: args.quick,
         quiet: args.quiet,
         scenes,
+        scenes_named: !args.scene.is_empty(),
         scenes_dir,
         reference_cache: args
             .cache
@@ -492,6 +507,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::PathDensity => path_density::path_density(&ctx, args.fresh)?,
             Study::Balance => balance::balance(&ctx, args.fresh)?,
             Study::AafShadows => aaf::aaf_shadows(&ctx, args.fresh)?,
+            Study::AafIndirect => aaf_indirect::aaf_indirect(&ctx, args.fresh)?,
             Study::AafCost => aaf_cost::aaf_cost(&ctx)?,
             Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
             Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,

@@ -180,16 +180,23 @@ impl StudyScene {
     }
 
     /// The filters compared: every registered denoiser with its defaults (Table 7.2 for the
-    /// thesis's), specialised to this scene, less those that change nothing here (a shadow
-    /// filter without a sphere light): [`Configured::applies`].
+    /// thesis's) and the scene file's `[filter.<name>]` tables (as `render` takes them: room_gi
+    /// asks the sheared filter for its GI effect), specialised to this scene, less those that
+    /// change nothing here (a shadow filter without a sphere light): [`Configured::applies`].
     pub fn methods(&self) -> Result<Vec<Configured>> {
         let r = Registry::builtin();
+        let request = FilterRequest {
+            scene: self.scene.filter.settings.clone(),
+            scene_origin: self.scene.path.display().to_string(),
+            scene_lines: self.scene.filter.lines.clone(),
+            ..Default::default()
+        };
         let mut methods = Vec::new();
         for f in r.filters() {
             if f.purpose() != Purpose::Denoise {
                 continue;
             }
-            let c = r.configure(*f, &FilterRequest::default(), &self.info)?;
+            let c = r.configure(*f, &request, &self.info)?;
             if c.applies() {
                 methods.push(c);
             }
