@@ -210,3 +210,53 @@ fn light_counts_beyond_the_shadow_planes_are_refused_or_capped() {
     assert!(s.validate().is_ok());
     assert!(notes.iter().any(|n| n.contains("8..10")), "{notes:?}");
 }
+
+/// A thin lens: Wang 2013's shadow filter has no depth of field (its filtered shadow is the
+/// lens-centre receiver's), so `render` and `filter` warn and name the sheared filter's
+/// "dof-shadows"; a pinhole scene runs without the warning.
+#[test]
+fn a_thin_lens_scene_gets_a_warning_naming_the_sheared_filter() {
+    let dir = tempdir("aaf-lens-warning");
+    let run = |scene: &str, name: &str| {
+        let aov = dir.join(format!("{name}.exr"));
+        let out = noisefree()
+            .args([
+                "render", scene, "--width", "16", "--height", "12", "--spp", "1",
+            ])
+            .args(["--filter", "aaf-shadows", "--out"])
+            .arg(dir.join(format!("{name}.png")))
+            .arg("--aovs")
+            .arg(&aov)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let offline = noisefree()
+            .arg("filter")
+            .arg(&aov)
+            .args(["--filter", "aaf-shadows", "--out"])
+            .arg(dir.join(format!("{name}-offline.png")))
+            .output()
+            .unwrap();
+        assert!(
+            offline.status.success(),
+            "{}",
+            String::from_utf8_lossy(&offline.stderr)
+        );
+        [out.stderr, offline.stderr].map(|e| String::from_utf8_lossy(&e).into_owned())
+    };
+    for err in run("scenes/toasters_dof.toml", "lens") {
+        assert!(
+            err.contains("warning: aaf-shadows on a thin lens") && err.contains("dof-shadows"),
+            "{err}"
+        );
+    }
+    for err in run("scenes/two_lights_shadows.toml", "pinhole") {
+        assert!(!err.contains("thin lens"), "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -151,6 +151,9 @@ pub fn filter_frame(
         ..Default::default()
     };
     let configured = registry.configure(filter, &request, &frame.info().scene)?;
+    for w in configured.warnings() {
+        eprintln!("{w}");
+    }
     frame
         .require(configured.needs(), &format!("the {name} filter"))
         .with_context(|| {

@@ -361,6 +361,9 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
             );
         }
     }
+    for w in chosen.iter().flat_map(|c| c.warnings()) {
+        eprintln!("{w}");
+    }
     // The outputs are compiled in only when something reads them.
     let mut outputs = OutputSet::colour();
     if let Some(c) = chosen {

@@ -123,6 +123,15 @@ impl Configured {
         &self.notes
     }
 
+    /// The notes a user must see whether or not they ask for `--explain`: those the filter
+    /// wrote as "warning: ..." (it runs, but not as the scene would want).
+    pub fn warnings(&self) -> impl Iterator<Item = &str> {
+        self.notes
+            .iter()
+            .map(String::as_str)
+            .filter(|n| n.starts_with("warning: "))
+    }
+
     /// `key = value` lines of the effective settings, `auto` choices marked, then the notes.
     pub fn describe(&self) -> String {
         let mut s = String::new();
