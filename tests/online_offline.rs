@@ -47,98 +47,123 @@ fn every_filter_on_every_bundled_scene_gives_the_same_bytes_from_its_aov_file() 
             ..Default::default()
         };
         let configured = registry.configure_all(&request, &info).unwrap();
-        // One render gathers what every filter and the AOV file need.
-        let mut outputs = OutputSet::of(&[Output::Features, Output::Variance]);
-        for c in &configured {
-            outputs = outputs.union(c.needs());
-        }
-        o.outputs = outputs;
-        // The shadow output holds a plane for every sphere light some filter reads
-        // (aaf-shadows, stylized-shadows and sheared: all of them).
-        // Without the shadow output, the light field is the one the sheared filter samples
-        // (the lens or, with GI, the v-plane), and the frame records which.
-        let (mut lights, mut gi) = (0, false);
-        for c in &configured {
-            let mut wants = o.clone();
+        // A frame holds one kind of light field: the shadow fields when the shadow output is
+        // gathered, else the lens or v-plane field. The filters that read the v-plane field (the
+        // sheared filter's GI: room_gi asks for it beside a sphere light that aaf-shadows reads)
+        // get a render of their own.
+        let wants_gi = |c: &noisefree::filters::Configured| {
+            let mut wants = RenderOptions::for_scene(&scene);
             c.adjust_render(&mut wants);
-            lights |= wants.shadows.lights.0;
-            gi |= wants.shadows.light_field_gi;
-        }
-        o.shadows.lights = LightPlanes(lights.max(1));
-        o.shadows.light_field_gi = gi;
-        o.sample_capacity = spp;
-        let mut r = Renderer::with_arrays(gpu(), &scene, arrays, &o).unwrap();
-        assert_eq!(r.scene_info, info);
-        r.render_samples(1).unwrap();
-        r.render_samples(spp - 1).unwrap();
-        let frame = r.frame();
-        let record = RenderRecord {
-            scene: Some(r.scene_info.clone()),
-            filter: None,
-            settings: configured
-                .iter()
-                .map(|c| (c.name().to_string(), c.requested().clone()))
-                .collect(),
-            extra: Default::default(),
+            wants.shadows.light_field_gi
         };
-        let aov = dir.join(format!("{name}.exr"));
-        let samples = dir.join(format!("{name}.bin"));
-        noisefree::stats::aov::write_aov_exr(&aov, &frame, &record).unwrap();
-        SampleSet::from_frame(&frame, record.clone())
-            .unwrap()
-            .write(&samples)
-            .unwrap();
-        let (aov_frame, aov_record) = noisefree::stats::aov::read_aov_exr(&aov).unwrap();
-        let set = SampleSet::read(&samples).unwrap();
-        assert_eq!(aov_record, record, "{name}: the AOV header's record");
-        assert_eq!(set.record, record, "{name}: the samples file's record");
-        let samples_frame = set.into_frame().unwrap();
-        for c in &configured {
-            let online = c
-                .prepare(frame.info(), &gpu())
-                .unwrap()
-                .run(&frame)
-                .unwrap()
-                .image;
-            // Offline: the file that holds what the filter reads, configured from the record.
-            let file_frame = if aov_frame.outputs().covers(c.needs()) {
-                &aov_frame
-            } else {
-                &samples_frame
+        let groups: Vec<Vec<&noisefree::filters::Configured>> = [false, true]
+            .into_iter()
+            .map(|gi| {
+                configured
+                    .iter()
+                    .filter(|c| wants_gi(c) == gi)
+                    .collect::<Vec<_>>()
+            })
+            .filter(|g| !g.is_empty())
+            .collect();
+        for (group_index, group) in groups.into_iter().enumerate() {
+            let name = format!("{name}-{group_index}");
+            let mut o = o.clone();
+            let arrays = arrays.clone();
+            // One render gathers what every filter of the group, the AOV file and the samples
+            // file need.
+            let mut outputs = OutputSet::of(&[Output::Features, Output::Variance, Output::Samples]);
+            for c in &group {
+                outputs = outputs.union(c.needs());
+            }
+            o.outputs = outputs;
+            // The shadow output holds a plane for every sphere light some filter reads
+            // (aaf-shadows, stylized-shadows and sheared: all of them).
+            // Without the shadow output, the light field is the one the sheared filter samples
+            // (the lens or, with GI, the v-plane), and the frame records which.
+            let (mut lights, mut gi) = (0, false);
+            for c in &group {
+                let mut wants = o.clone();
+                c.adjust_render(&mut wants);
+                lights |= wants.shadows.lights.0;
+                gi |= wants.shadows.light_field_gi;
+            }
+            o.shadows.lights = LightPlanes(lights.max(1));
+            o.shadows.light_field_gi = gi;
+            o.sample_capacity = spp;
+            let mut r = Renderer::with_arrays(gpu(), &scene, arrays, &o).unwrap();
+            assert_eq!(r.scene_info, info);
+            r.render_samples(1).unwrap();
+            r.render_samples(spp - 1).unwrap();
+            let frame = r.frame();
+            let record = RenderRecord {
+                scene: Some(r.scene_info.clone()),
+                filter: None,
+                settings: configured
+                    .iter()
+                    .map(|c| (c.name().to_string(), c.requested().clone()))
+                    .collect(),
+                extra: Default::default(),
             };
-            assert!(
-                file_frame.outputs().covers(c.needs()),
-                "{name} {}",
-                c.name()
-            );
-            let request = FilterRequest {
-                recorded: aov_record.settings.clone(),
-                ..Default::default()
-            };
-            let offline_config = registry
-                .configure(
-                    registry.get(c.name()).unwrap(),
-                    &request,
-                    &file_frame.info().scene,
-                )
+            let aov = dir.join(format!("{name}.exr"));
+            let samples = dir.join(format!("{name}.bin"));
+            noisefree::stats::aov::write_aov_exr(&aov, &frame, &record).unwrap();
+            SampleSet::from_frame(&frame, record.clone())
+                .unwrap()
+                .write(&samples)
                 .unwrap();
-            assert_eq!(
-                offline_config.effective(),
-                c.effective(),
-                "{name} {}",
-                c.name()
-            );
-            let offline = offline_config
-                .prepare(file_frame.info(), &gpu())
-                .unwrap()
-                .run(file_frame)
-                .unwrap()
-                .image;
-            assert!(
-                bytes(&online) == bytes(&offline),
-                "{name}: the {} filter gives other bytes offline",
-                c.name()
-            );
+            let (aov_frame, aov_record) = noisefree::stats::aov::read_aov_exr(&aov).unwrap();
+            let set = SampleSet::read(&samples).unwrap();
+            assert_eq!(aov_record, record, "{name}: the AOV header's record");
+            assert_eq!(set.record, record, "{name}: the samples file's record");
+            let samples_frame = set.into_frame().unwrap();
+            for c in &group {
+                let online = c
+                    .prepare(frame.info(), &gpu())
+                    .unwrap()
+                    .run(&frame)
+                    .unwrap()
+                    .image;
+                // Offline: the file that holds what the filter reads, configured from the record.
+                let file_frame = if aov_frame.outputs().covers(c.needs()) {
+                    &aov_frame
+                } else {
+                    &samples_frame
+                };
+                assert!(
+                    file_frame.outputs().covers(c.needs()),
+                    "{name} {}",
+                    c.name()
+                );
+                let request = FilterRequest {
+                    recorded: aov_record.settings.clone(),
+                    ..Default::default()
+                };
+                let offline_config = registry
+                    .configure(
+                        registry.get(c.name()).unwrap(),
+                        &request,
+                        &file_frame.info().scene,
+                    )
+                    .unwrap();
+                assert_eq!(
+                    offline_config.effective(),
+                    c.effective(),
+                    "{name} {}",
+                    c.name()
+                );
+                let offline = offline_config
+                    .prepare(file_frame.info(), &gpu())
+                    .unwrap()
+                    .run(file_frame)
+                    .unwrap()
+                    .image;
+                assert!(
+                    bytes(&online) == bytes(&offline),
+                    "{name}: the {} filter gives other bytes offline",
+                    c.name()
+                );
+            }
         }
     }
 }
