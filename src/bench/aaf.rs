@@ -24,18 +24,18 @@
 //! table gives both counts and the Monte Carlo spp of equal MSE for both. Every row has its
 //! kernel time (render, shadow passes and filter), for the error-against-time figure.
 
-use anyhow::{Context as _, Result, bail};
+use anyhow::{Context as _, Result};
 
 use super::curves::{MSE, curve, loglog_where, sheared_against_aaf};
-use super::plot::{Chart, Series, line_chart};
-use super::study::{STUDY_SEED, StudyScene, reference_image, sizes};
+use super::pass_study::{error_figures, render_point, study_scenes};
+use super::study::{StudyScene, reference_image, sizes};
 use super::table::{ResultTable, num};
 use super::{Context, bar};
 use crate::filters::aaf_shadows::{AafShadowSettings, AafShadows};
 use crate::filters::sheared::{STEPS, Sheared, ShearedKernel, ShearedSettings};
 use crate::filters::{Configured, FilterKind};
 use crate::imaging::write_rgb8_png;
-use crate::layout::outputs::{Output, OutputSet};
+use crate::layout::outputs::Output;
 use crate::metrics::mse_rgb;
 
 /// Path samples per pixel of the AAF renders (the rest of the image, and the replaced term).
@@ -124,24 +124,9 @@ const COLUMNS: [&str; 10] = [
 /// Grids and Curved), or Grids when there is none (`--quick` keeps only the Cornell box).
 pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
-    let mut scenes = Vec::new();
-    for path in &ctx.scenes {
-        let study = StudyScene::load(path, &s, STUDY_SEED)?;
-        if !study.info.sphere_lights.is_empty() {
-            scenes.push((path.clone(), study));
-        }
-    }
-    if scenes.is_empty() {
-        let path = ctx.scene_file("grids")?;
-        if !path.exists() {
-            bail!(
-                "the aaf-shadows study renders {}, which is missing",
-                path.display()
-            );
-        }
-        let study = StudyScene::load(&path, &s, STUDY_SEED)?;
-        scenes.push((path, study));
-    }
+    let scenes = study_scenes(ctx, "aaf-shadows", true, "grids", |st| {
+        !st.info.sphere_lights.is_empty()
+    })?;
     let mut t = ctx.table("aaf-shadows", &COLUMNS, 4, fresh)?;
     let size = format!("{}x{}", s.width, s.height);
     for (path, study) in &scenes {
@@ -175,43 +160,37 @@ fn study_scene(
             pb.inc(1);
             continue;
         }
-        let (img, path_spp, light_spp, seconds, spp_map) = if method == "mc" {
-            let mut r = study.renderer(ctx, &s, OutputSet::colour(), setting)?;
-            r.render_samples(setting)?;
-            let img = r.frame().beauty()?;
-            (img, setting, setting as f64, r.kernel_time_total, None)
+        let filter = match cell {
+            _ if method == "mc" => None,
+            Cell::Aaf(a) => Some(Configured::typed::<AafShadows>(a, &study.info)?),
+            Cell::Sheared(sh) => Some(Configured::typed::<Sheared>(sh, &study.info)?),
+        };
+        let spp = if method == "mc" {
+            setting
         } else {
-            let c = match cell {
-                Cell::Aaf(a) => Configured::typed::<AafShadows>(a, &study.info)?,
-                Cell::Sheared(sh) => Configured::typed::<Sheared>(sh, &study.info)?,
-            };
-            let outputs = OutputSet::colour().union(c.needs());
-            debug_assert!(outputs.contains(Output::Shadows));
-            let mut r = study.renderer_for(ctx, &s, outputs, AAF_PATH_SPP, Some(&c))?;
-            r.render_samples(AAF_PATH_SPP)?;
-            let frame = r.frame();
-            // The sparse + adaptive light samples and the light field's l² of every
-            // receiver, over the image (Σ / N²).
-            let light = frame.pass_spp()?;
-            let run = c.prepare(frame.info(), &ctx.gpu)?.run(&frame)?;
-            let filter_time = run.kernel_time.unwrap_or(run.wall_time);
+            AAF_PATH_SPP
+        };
+        let mut spp_map = None;
+        // The light samples of the sparse + adaptive passes and the light field's l² of every
+        // receiver, over the image (Σ / N²), are the point's pass spp.
+        let point = render_point(ctx, study, &s, filter, spp, |frame, filter_time| {
+            debug_assert!(frame.outputs().contains(Output::Shadows));
             // The spp map of one adaptive row (max 100, the default) as a picture, and with
             // several lights what each light spent and the filter's time.
-            let map = if method == "aaf-adaptive" && setting == 100 {
-                let [(_, spp), _] = crate::stats::aov::shadow_pictures(&frame)?;
+            if method == "aaf-adaptive" && setting == 100 {
+                let [(_, spp), _] = crate::stats::aov::shadow_pictures(frame)?;
                 if frame.info().shadow_lights.len() > 1 {
-                    per_light(ctx, &frame, &study.name, filter_time)?;
+                    per_light(ctx, frame, &study.name, filter_time)?;
                 }
-                Some(spp)
-            } else {
-                None
-            };
-            let secs = r.kernel_time_total + filter_time;
-            if method == "sheared" && setting == 3 {
-                sheared_steps(ctx, &frame, &s, &study.name)?;
+                spp_map = Some(spp);
             }
-            (run.image, AAF_PATH_SPP, light, secs, map)
-        };
+            if method == "sheared" && setting == 3 {
+                sheared_steps(ctx, frame, &s, &study.name)?;
+            }
+            Ok(())
+        })?;
+        let (img, path_spp, light_spp, seconds) =
+            (point.image, point.path_spp, point.pass_spp, point.seconds);
         let mse = mse_rgb(&img, &reference)?;
         let mut row = key;
         row.push(path_spp.to_string());
@@ -418,44 +397,23 @@ fn scene_report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Resu
          any pixel took).\n"
     ));
     md.push_str(&sheared_section(t, at));
-    let rms = |c: Vec<(f64, f64)>| c.into_iter().map(|(x, m)| (x, m.sqrt())).collect();
     let methods = [
         ("mc", "Monte Carlo"),
         ("aaf-fixed", "AAF, not adaptive"),
         ("aaf-adaptive", "AAF, adaptive (sparse 9)"),
         ("sheared", "sheared (l = 2, 3, 4)"),
     ];
-    let series = |x: &str| -> Vec<Series> {
-        methods
-            .iter()
-            .map(|(m, label)| Series {
-                label: label.to_string(),
-                points: rms(curve(t, at, m, x)),
-            })
-            .collect()
-    };
-    let chart = |title: &str, x_label: &str| Chart {
-        title: title.into(),
-        x_label: x_label.into(),
-        y_label: "RMS error (linear RGB)".into(),
-        log_x: true,
-        log_y: true,
-    };
-    line_chart(
-        &ctx.out.join(format!("aaf-shadows-{scene}.png")),
-        &chart(
-            &format!("{scene}: error against light samples (Fig. 3.6)"),
+    error_figures(
+        ctx,
+        t,
+        at,
+        "aaf-shadows",
+        &methods,
+        (
+            "light_spp",
             "light samples per pixel",
+            "light samples (Fig. 3.6)",
         ),
-        &series("light_spp"),
-    )?;
-    line_chart(
-        &ctx.out.join(format!("aaf-shadows-time-{scene}.png")),
-        &chart(
-            &format!("{scene}: error against time"),
-            "kernel seconds (render, shadow passes, filter)",
-        ),
-        &series("seconds"),
     )?;
     Ok(md)
 }

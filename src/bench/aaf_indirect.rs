@@ -22,17 +22,16 @@
 //! the area light's penumbrae; its tables compare relMSE as well). Scenes: room_gi, or those
 //! `--scene` names that have a pinhole camera (GI is a pinhole effect).
 
-use anyhow::{Context as _, Result, bail};
+use anyhow::{Context as _, Result};
 
 use super::curves::{MSE, REL_MSE, curve, loglog_where, sheared_against_aaf};
-use super::plot::{Chart, Series, line_chart};
-use super::study::{STUDY_SEED, Sizes, StudyScene, reference_image, sizes};
+use super::pass_study::{error_figures, render_point, study_scenes};
+use super::study::{Sizes, StudyScene, reference_image, sizes};
 use super::table::{ResultTable, num};
 use super::{Context, bar};
 use crate::filters::aaf_indirect::{AafIndirect, AafIndirectSettings};
 use crate::filters::sheared::{DOF_STEPS, DofKernel, Effect, Sheared, ShearedSettings};
 use crate::filters::{Auto, Configured};
-use crate::layout::outputs::OutputSet;
 use crate::metrics;
 
 /// Path samples per pixel of the filtered renders (the direct light and the rest of the image).
@@ -112,26 +111,11 @@ const COLUMNS: [&str; 12] = [
 /// `aaf-indirect` (module docs).
 pub fn aaf_indirect(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
-    let mut scenes = Vec::new();
     // The bundled scenes are not all of the run by default: most have a noisy direct term
     // (area lights) that sets a floor under every filtered row's MSE (module docs).
-    for path in ctx.scenes.iter().filter(|_| ctx.scenes_named) {
-        let study = StudyScene::load(path, &s, STUDY_SEED)?;
-        if study.info.camera.lens_radius <= 0.0 {
-            scenes.push((path.clone(), study));
-        }
-    }
-    if scenes.is_empty() {
-        let path = ctx.scene_file(DEFAULT_SCENE)?;
-        if !path.exists() {
-            bail!(
-                "the aaf-indirect study renders {}, which is missing",
-                path.display()
-            );
-        }
-        let study = StudyScene::load(&path, &s, STUDY_SEED)?;
-        scenes.push((path, study));
-    }
+    let scenes = study_scenes(ctx, "aaf-indirect", false, DEFAULT_SCENE, |st| {
+        st.info.camera.lens_radius <= 0.0
+    })?;
     let mut t = ctx.table("aaf-indirect", &COLUMNS, 4, fresh)?;
     let size = format!("{}x{}", s.width, s.height);
     for (path, study) in &scenes {
@@ -179,33 +163,20 @@ fn study_scene(
             pb.inc(1);
             continue;
         }
-        let (img, path_spp, indirect, seconds) = if method == "mc" {
-            let mut r = study.renderer(ctx, &s, OutputSet::colour(), setting)?;
-            r.render_samples(setting)?;
-            let img = r.frame().beauty()?;
-            (img, setting, setting as f64, r.kernel_time_total)
-        } else {
-            let c = match cell {
-                Cell::Aaf(a) => Configured::typed::<AafIndirect>(a, &study.info)?,
-                Cell::Sheared(sh) => Configured::typed::<Sheared>(sh, &study.info)?,
-            };
-            let outputs = OutputSet::colour().union(c.needs());
-            let mut r = study.renderer_for(ctx, &s, outputs, PATH_SPP, Some(&c))?;
-            r.render_samples(PATH_SPP)?;
-            let frame = r.frame();
-            let indirect = frame.pass_spp()?;
-            let run = c.prepare(frame.info(), &ctx.gpu)?.run(&frame)?;
-            let filter_time = run.kernel_time.unwrap_or(run.wall_time);
-            if method == "sheared" && setting == 3 {
-                sheared_steps(ctx, &frame, &s, &study.name)?;
-            }
-            (
-                run.image,
-                PATH_SPP,
-                indirect,
-                r.kernel_time_total + filter_time,
-            )
+        let filter = match cell {
+            _ if method == "mc" => None,
+            Cell::Aaf(a) => Some(Configured::typed::<AafIndirect>(a, &study.info)?),
+            Cell::Sheared(sh) => Some(Configured::typed::<Sheared>(sh, &study.info)?),
         };
+        let spp = if method == "mc" { setting } else { PATH_SPP };
+        let point = render_point(ctx, study, &s, filter, spp, |frame, _| {
+            if method == "sheared" && setting == 3 {
+                sheared_steps(ctx, frame, &s, &study.name)?;
+            }
+            Ok(())
+        })?;
+        let (img, path_spp, indirect, seconds) =
+            (point.image, point.path_spp, point.pass_spp, point.seconds);
         let m = metrics::compare(&img, &reference)?;
         let mut row = key;
         row.push(path_spp.to_string());
@@ -343,40 +314,17 @@ fn scene_report(ctx: &Context, t: &ResultTable, scene: &str, size: &str) -> Resu
         ("aaf-adaptive", "AAF, adaptive (sparse 9)"),
         ("sheared", "sheared (l = 2, 3, 4)"),
     ];
-    let series = |x: &str| -> Vec<Series> {
-        methods
-            .iter()
-            .map(|(m, label)| Series {
-                label: label.to_string(),
-                points: curve(t, at, m, x)
-                    .into_iter()
-                    .map(|(x, mse)| (x, mse.sqrt()))
-                    .collect(),
-            })
-            .collect()
-    };
-    let chart = |title: String, x_label: &str| Chart {
-        title,
-        x_label: x_label.into(),
-        y_label: "RMS error (linear RGB)".into(),
-        log_x: true,
-        log_y: true,
-    };
-    line_chart(
-        &ctx.out.join(format!("aaf-indirect-{scene}.png")),
-        &chart(
-            format!("{scene}: error against indirect samples"),
+    error_figures(
+        ctx,
+        t,
+        at,
+        "aaf-indirect",
+        &methods,
+        (
+            "indirect_spp",
             "indirect samples per pixel",
+            "indirect samples",
         ),
-        &series("indirect_spp"),
-    )?;
-    line_chart(
-        &ctx.out.join(format!("aaf-indirect-time-{scene}.png")),
-        &chart(
-            format!("{scene}: error against time"),
-            "kernel seconds (render, passes, filter)",
-        ),
-        &series("seconds"),
     )?;
     Ok(md)
 }

@@ -53,6 +53,7 @@ pub mod filter_speed;
 pub mod folders;
 pub mod ground_truth;
 pub mod oidn;
+pub mod pass_study;
 pub mod path_density;
 pub mod plot;
 pub mod quality;
