@@ -88,6 +88,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr.cl"),
     ),
     (
+        "filters/bmfr_fit_packed.cl",
+        include_str!("../kernels/filters/bmfr_fit_packed.cl"),
+    ),
+    (
         "filters/aaf_pass.cl",
         include_str!("../kernels/filters/aaf_pass.cl"),
     ),

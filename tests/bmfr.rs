@@ -60,8 +60,27 @@ fn frame_of(w: u32, h: u32, fv: &[FilterVector], pos: &[Float4]) -> Frame {
 
 fn variants() -> Vec<BmfrSettings> {
     let d = BmfrSettings::default();
+    // The work-group fit (bmfr_fit) beside the packed one (bmfr_fit_packed, auto on PoCL):
+    // both give the reference's bytes.
+    let groups = BmfrSettings {
+        packed_fit: Auto::Set(false),
+        ..d.clone()
+    };
     vec![
         d.clone(),
+        groups.clone(),
+        BmfrSettings {
+            block_size: 16,
+            depth: true,
+            texture: true,
+            texture2: true,
+            ..groups.clone()
+        },
+        BmfrSettings {
+            block_size: 64,
+            noise: 0.0,
+            ..groups.clone()
+        },
         BmfrSettings {
             grids: 1,
             ..d.clone()

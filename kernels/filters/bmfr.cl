@@ -24,6 +24,9 @@
 // bmfr_albedo_prefilter (with `albedo_prefilter`): runs first, on a copy of F that every other
 // kernel then reads (at the end of this file).
 //
+// bmfr_fit_packed (filters/bmfr_fit_packed.cl, included at the end; `packed_fit`, on CPU
+// devices by default): bmfr_fit with one work-item per block on float16 lanes, same bytes.
+//
 // Build options (src/filters/bmfr/device.rs):
 //   BMFR_BLOCK, BMFR_WG, BMFR_GRIDS    block side, work-items per block, shifted grids
 //   BMFR_DEPTH, BMFR_TEXTURE, BMFR_TEXTURE2   0/1: the optional features
@@ -442,3 +445,5 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
     }
     for (int c = 0; c < 3; ++c) out[i].albedo[c] = sum[c] / wsum;
 }
+
+#include "filters/bmfr_fit_packed.cl"

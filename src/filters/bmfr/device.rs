@@ -86,15 +86,22 @@ impl BmfrKernel {
         let weights = gpu.zeroed::<f32>(slots * TARGETS * k, "bmfr weights")?;
         let info = gpu.zeroed::<f32>(slots * INFO_FLOATS, "bmfr block information")?;
         let out = gpu.zeroed::<Float4>(width as usize * height as usize, "bmfr image")?;
+        // One work-item per block on CPU devices (same bytes; bmfr_fit_packed.cl).
+        let packed = s.packed_fit.or(gpu.summary.kind == "CPU");
+        let (fit, items) = if packed {
+            ("bmfr_fit_packed", 1)
+        } else {
+            ("bmfr_fit", wg)
+        };
         let fits = (0..s.grids)
             .map(|g| {
                 let (across, down) = grid_blocks(width, height, b, grid_offset(g, s.grids, b));
                 Kernel::builder()
                     .program(&program)
-                    .name("bmfr_fit")
+                    .name(fit)
                     .queue(gpu.queue.clone())
-                    .global_work_size([(across * down * wg) as usize])
-                    .local_work_size([wg as usize])
+                    .global_work_size([(across * down * items) as usize])
+                    .local_work_size([items as usize])
                     .arg_named("fv", None::<&Buffer<u8>>)
                     .arg_named("positions", None::<&Buffer<u8>>)
                     .arg(width)

@@ -125,6 +125,10 @@ crate::filter_settings! {
         /// 512², 8 spp): radius 1 / 2 / 5 / 7 gave 6.08 / 5.72 / 6.03 / 6.33 on
         /// cornell_diffuse_dof; 3 was 0.2-1.1 % worse than 2 on the four depth-of-field scenes.
         pub albedo_radius: u32 = 2,
+        /// The fit with one work-item per block, its rows on float16 lanes
+        /// (kernels/filters/bmfr_fit_packed.cl): the same bytes as the work-group fit (paper
+        /// Algorithm 1), which PoCL runs on scalar floats. auto: on CPU devices.
+        pub packed_fit: Auto<bool> = Auto::Auto,
     }
 }
 
