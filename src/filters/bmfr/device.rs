@@ -18,9 +18,15 @@ use crate::layout::{FilterVector, Float2, Float4};
 use crate::layout::outputs::{BufferId, OutputSet};
 use crate::render::Frame;
 
+/// Floats either side of each plane of the packed fit's rows (kernels/filters/bmfr_fit_packed.cl
+/// BMFR_PAD).
+const PACKED_PAD: usize = 16;
+
 /// The regression filter, built once for an image size.
 pub struct BmfrKernel {
     gpu: Arc<Gpu>,
+    /// With the packed fit: `bmfr_rows` and the planes it writes for every grid's fit.
+    rows: Option<(Kernel, Buffer<f32>)>,
     fits: Vec<Kernel>,
     apply: Kernel,
     /// With `select`: `bmfr_residuals`, then `bmfr_select` (select.rs).
@@ -86,30 +92,54 @@ impl BmfrKernel {
         let weights = gpu.zeroed::<f32>(slots * TARGETS * k, "bmfr weights")?;
         let info = gpu.zeroed::<f32>(slots * INFO_FLOATS, "bmfr block information")?;
         let out = gpu.zeroed::<Float4>(width as usize * height as usize, "bmfr image")?;
-        // One work-item per block on CPU devices (same bytes; bmfr_fit_packed.cl).
+        // One work-item per block on CPU devices (same bytes; bmfr_fit_packed.cl), over the
+        // pixels' rows of the fit written once by `bmfr_rows` for every grid.
         let packed = s.packed_fit.or(gpu.summary.kind == "CPU");
-        let (fit, items) = if packed {
-            ("bmfr_fit_packed", 1)
+        let rows = if packed {
+            let pixels = width as usize * height as usize;
+            let planes = gpu.zeroed::<f32>(
+                (k + TARGETS) * (pixels + 2 * PACKED_PAD),
+                "bmfr rows of the fit",
+            )?;
+            let kernel = Kernel::builder()
+                .program(&program)
+                .name("bmfr_rows")
+                .queue(gpu.queue.clone())
+                .global_work_size([width as usize, height as usize])
+                .arg_named("fv", None::<&Buffer<u8>>)
+                .arg_named("positions", None::<&Buffer<u8>>)
+                .arg(width)
+                .arg(height)
+                .arg_named("spp", 0f32)
+                .arg(&planes)
+                .build()
+                .context("creating the bmfr rows kernel")?;
+            Some((kernel, planes))
         } else {
-            ("bmfr_fit", wg)
+            None
         };
         let fits = (0..s.grids)
             .map(|g| {
                 let (across, down) = grid_blocks(width, height, b, grid_offset(g, s.grids, b));
-                Kernel::builder()
-                    .program(&program)
-                    .name(fit)
-                    .queue(gpu.queue.clone())
-                    .global_work_size([(across * down * items) as usize])
-                    .local_work_size([items as usize])
-                    .arg_named("fv", None::<&Buffer<u8>>)
-                    .arg_named("positions", None::<&Buffer<u8>>)
-                    .arg(width)
-                    .arg(height)
-                    .arg(g)
-                    .arg(stride)
-                    .arg_named("spp", 0f32)
-                    .arg(&weights)
+                let mut kb = Kernel::builder();
+                kb.program(&program).queue(gpu.queue.clone());
+                if let Some((_, planes)) = &rows {
+                    kb.name("bmfr_fit_packed")
+                        .global_work_size([(across * down) as usize])
+                        .local_work_size([1])
+                        .arg(planes);
+                } else {
+                    kb.name("bmfr_fit")
+                        .global_work_size([(across * down * wg) as usize])
+                        .local_work_size([wg as usize])
+                        .arg_named("fv", None::<&Buffer<u8>>)
+                        .arg_named("positions", None::<&Buffer<u8>>);
+                }
+                kb.arg(width).arg(height).arg(g).arg(stride);
+                if rows.is_none() {
+                    kb.arg_named("spp", 0f32);
+                }
+                kb.arg(&weights)
                     .arg(&info)
                     .build()
                     .context("creating the bmfr fit kernel")
@@ -195,6 +225,7 @@ impl BmfrKernel {
         };
         Ok(BmfrKernel {
             gpu,
+            rows,
             fits,
             apply,
             select,
@@ -229,7 +260,16 @@ impl BmfrKernel {
             events.push(unsafe { enqueue(kernel, "the bmfr albedo prefilter")? });
             fv = copy;
         }
-        for k in self.fits.iter().chain(std::iter::once(&self.apply)) {
+        if let Some((kernel, _)) = &self.rows {
+            kernel.set_arg("fv", fv)?;
+            kernel.set_arg("positions", pos)?;
+            kernel.set_arg("spp", spp)?;
+            // SAFETY: the planes are sized for the image; the in-order queue runs the fits
+            // after this launch, and we wait for every event below.
+            events.push(unsafe { enqueue(kernel, "the bmfr rows")? });
+        }
+        let fits = self.fits.iter().filter(|_| self.rows.is_none());
+        for k in fits.chain(std::iter::once(&self.apply)) {
             k.set_arg("fv", fv)?;
             k.set_arg("positions", pos)?;
             k.set_arg("spp", spp)?;
