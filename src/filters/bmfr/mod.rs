@@ -17,7 +17,9 @@
 //!
 //! The fit is a Householder QR of the block's `pixels × (features + 6)` matrix in local memory,
 //! one work-group per block (paper §3.2, Algorithm 1), then back-substitution per right-hand
-//! side. Sky pixels and pixels outside the image are zero rows (they take no part). A small
+//! side. On CPU devices (`packed_fit`, kernels/filters/bmfr_fit_packed.cl) one work-item per
+//! block does the same float operations with the work-group's work-items as float16 lanes:
+//! the same bytes, 2.4-5.8x faster on PoCL (results/README.md). Sky pixels and pixels outside the image are zero rows (they take no part). A small
 //! noise, uniform in ±`noise`/2 from a counter-based hash of (pixel, feature), is added to the
 //! feature columns before the factorisation (the paper's stochastic regularisation, §3.3): a
 //! block whose features are collinear (a flat wall: constant normal, one position axis
