@@ -129,6 +129,33 @@ inline float bmfr_noise(uint pixel, uint c) {
     return ((float)(h >> 8) * 0x1.0p-24f - 0.5f) * BMFR_NOISE;
 }
 
+// Column j's Householder reflection from its squared norm over rows >= j and its diagonal
+// entry x_j: alpha = -sign(x_j) |x|, v_j = x_j - alpha, |v|^2 (bmfr_fit and bmfr_fit_packed).
+inline void bmfr_reflection(float norm2, float xj, float* alpha, float* vj, float* vnorm2) {
+    float norm = sqrt(norm2);
+    *alpha = xj > 0.0f ? -norm : norm;
+    *vj = xj - *alpha;
+    *vnorm2 = norm2 - xj * xj + *vj * *vj;
+}
+
+// The factor 2 (v . a_c) / |v|^2 that the reflection subtracts times v from column c, from
+// x . a_c (`dot`) and a_c's entry in row j: v . a_c = x . a_c - alpha a_c[j].
+inline float bmfr_factor(float dot, float alpha, float a_cj, float vnorm2) {
+    return vnorm2 > 0.0f ? 2.0f * (dot - alpha * a_cj) / vnorm2 : 0.0f;
+}
+
+// Back-substitution of R w = Q^T b for target t, into o[0..K) (both fits).
+inline void bmfr_back_substitute(__local const float* a, int t, __global float* o) {
+    float w[BMFR_K];
+    for (int j = BMFR_K - 1; j >= 0; --j) {
+        float s = a[(BMFR_K + t) * BMFR_N + j];
+        for (int i = j + 1; i < BMFR_K; ++i) s -= a[i * BMFR_N + j] * w[i];
+        float rjj = a[j * BMFR_N + j];
+        w[j] = fabs(rjj) > BMFR_PIVOT_MIN ? s / rjj : 0.0f;
+        o[j] = w[j];
+    }
+}
+
 __kernel __attribute__((reqd_work_group_size(BMFR_WG, 1, 1)))
 void bmfr_fit(__global const FilterVector* fv,
               __global const float4* positions,
@@ -246,18 +273,13 @@ void bmfr_fit(__global const FilterVector* fv,
         }
         barrier(CLK_LOCAL_MEM_FENCE);
         if (t >= j && t < BMFR_C) {
-            float norm2 = dots[j];
-            float xj = a[j * BMFR_N + j];
-            float norm = sqrt(norm2);
-            float alpha = xj > 0.0f ? -norm : norm;
-            float vj = xj - alpha;
-            float vnorm2 = norm2 - xj * xj + vj * vj;
+            float alpha, vj, vnorm2;
+            bmfr_reflection(dots[j], a[j * BMFR_N + j], &alpha, &vj, &vnorm2);
             if (t == j) {
                 factor[j] = vj;
                 range[0] = alpha;  // the min/max are no longer needed
             } else {
-                factor[t] = vnorm2 > 0.0f ? 2.0f * (dots[t] - alpha * a[t * BMFR_N + j]) / vnorm2
-                                          : 0.0f;
+                factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_N + j], vnorm2);
             }
         }
         barrier(CLK_LOCAL_MEM_FENCE);
@@ -273,17 +295,7 @@ void bmfr_fit(__global const FilterVector* fv,
     }
 
     // Back-substitution, one target per work-item.
-    if (t < 6) {
-        float w[BMFR_K];
-        __global float* o = weights + (slot * 6u + (uint)t) * BMFR_K;
-        for (int j = BMFR_K - 1; j >= 0; --j) {
-            float s = a[(BMFR_K + t) * BMFR_N + j];
-            for (int i = j + 1; i < BMFR_K; ++i) s -= a[i * BMFR_N + j] * w[i];
-            float rjj = a[j * BMFR_N + j];
-            w[j] = fabs(rjj) > BMFR_PIVOT_MIN ? s / rjj : 0.0f;
-            o[j] = w[j];
-        }
-    }
+    if (t < 6) bmfr_back_substitute(a, t, weights + (slot * 6u + (uint)t) * BMFR_K);
 }
 
 // The tent weight of local coordinate l in [0, B): 1 - 1/B next to the centre, 1/B at the edges.

@@ -232,21 +232,10 @@ void bmfr_fit_packed(__global const float* rows,
             for (int u = 0; u < BMFR_WG; ++u) s += partial[c][u];
             dots[c] = s;
         }
-        for (int t = j; t < BMFR_C; ++t) {
-            float norm2 = dots[j];
-            float xj = aj[j];
-            float norm = sqrt(norm2);
-            float al = xj > 0.0f ? -norm : norm;
-            float vj = xj - al;
-            float vnorm2 = norm2 - xj * xj + vj * vj;
-            if (t == j) {
-                factor[j] = vj;
-                alpha = al;
-            } else {
-                factor[t] = vnorm2 > 0.0f ? 2.0f * (dots[t] - al * a[t * BMFR_N + j]) / vnorm2
-                                          : 0.0f;
-            }
-        }
+        float vnorm2;
+        bmfr_reflection(dots[j], aj[j], &alpha, &factor[j], &vnorm2);
+        for (int t = j + 1; t < BMFR_C; ++t)
+            factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_N + j], vnorm2);
         float vj = factor[j];
         for (int q = 0; q < BMFR_ROWS; ++q) {
             for (int m = 0; m < BMFR_CHUNKS; ++m) {
@@ -267,15 +256,6 @@ void bmfr_fit_packed(__global const float* rows,
     }
 
     // Back-substitution, each target in turn (bmfr_fit's).
-    for (int t = 0; t < 6; ++t) {
-        float w[BMFR_K];
-        __global float* ow = weights + (slot * 6u + (uint)t) * BMFR_K;
-        for (int j = BMFR_K - 1; j >= 0; --j) {
-            float s = a[(BMFR_K + t) * BMFR_N + j];
-            for (int i = j + 1; i < BMFR_K; ++i) s -= a[i * BMFR_N + j] * w[i];
-            float rjj = a[j * BMFR_N + j];
-            w[j] = fabs(rjj) > BMFR_PIVOT_MIN ? s / rjj : 0.0f;
-            ow[j] = w[j];
-        }
-    }
+    for (int t = 0; t < 6; ++t)
+        bmfr_back_substitute(a, t, weights + (slot * 6u + (uint)t) * BMFR_K);
 }
