@@ -1,4 +1,4 @@
-// The regression filter's fit for CPU devices (`fit = "packed"`, src/filters/bmfr/device.rs;
+// The regression filter's fit for CPU devices (`packed_fit`, src/filters/bmfr/device.rs;
 // included by filters/bmfr.cl, whose helpers it uses): `bmfr_fit`'s Householder QR with one
 // work-item per block, its row loops written on float16 vectors.
 //
@@ -14,8 +14,9 @@
 // work-items in the same order (t = 0, 1, ...); rows r < j are masked out of the dots and the
 // updates as they are skipped there (adding ±0 to a partial sum leaves its bits; no partial
 // sum is -0). The block's minimum, maximum and count are order-free (min, max; a count of
-// 1s). Every other operation is `bmfr_fit`'s, element by element. tests/bmfr.rs checks both
-// fits against the Rust reference.
+// 1s), but for the sign of a zero: a minimum over +0 and -0 may come out as either, which
+// could only flip the sign of a zero feature or weight. Every other operation is `bmfr_fit`'s,
+// element by element. tests/bmfr.rs checks both fits against the Rust reference.
 //
 // Beyond the vector lanes, two changes of order that keep the bytes: the grid-independent part
 // of bmfr_fit's first loop (which pixels are rows, their raw features and demodulated targets)

@@ -120,8 +120,9 @@ const COLUMNS: [&str; 10] = [
     "seconds",
 ];
 
-/// `aaf-shadows` (module docs): on every scene of the run with a sphere light (the bundled
-/// Grids and Curved), or Grids when there is none (`--quick` keeps only the Cornell box).
+/// `aaf-shadows` (module docs): on every scene of the run with a sphere light (of the bundled
+/// ones Grids, Curved, two_lights_shadows, toasters_dof and room_gi), or Grids when there is
+/// none (`--quick` keeps only the Cornell box).
 pub fn aaf_shadows(ctx: &Context, fresh: bool) -> Result<()> {
     let s = sizes(ctx);
     let scenes = study_scenes(ctx, "aaf-shadows", true, "grids", |st| {

@@ -338,6 +338,8 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 paths.push(dir.join("grids.toml"));
             }
+            // The scenes --scene names (the study keeps the pinhole ones), else room_gi.
+            Study::AafIndirect if !args.scene.is_empty() => paths.extend(args.scene.clone()),
             Study::AafIndirect => {
                 let dir = sel.scenes_dir.as_ref().ok_or_else(no_scenes_dir)?;
                 paths.push(dir.join("room_gi.toml"));
