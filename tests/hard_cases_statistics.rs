@@ -136,7 +136,8 @@ fn zero_variance_features_and_an_all_sky_image() {
     // Identical features everywhere, noisy light: with zero variance the sigmas stay at their
     // full values (eq. 6.10); the output is finite and smoother than the input.
     let mut rng = TestRng(5);
-    let light: Vec<f32> = (0..32 * 32).map(|_| rng.uniform()).collect();
+    // Light uniform in [0, 0.5): the colour differences the default sigmas were measured with.
+    let light: Vec<f32> = (0..32 * 32).map(|_| 0.5 * rng.uniform()).collect();
     let b = Buffers::from_fn(32, 32, 100.0, |x, y| {
         let v = light[(y * 32 + x) as usize];
         FilterVector {

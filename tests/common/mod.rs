@@ -391,8 +391,9 @@ impl TestRng {
             .wrapping_add(1442695040888963407);
         (self.0 >> 33) as u32
     }
+    /// Uniform in [0, 1): the top 24 of `next_u32`'s 31 bits.
     pub fn uniform(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 / (1u32 << 24) as f32
+        (self.next_u32() >> 7) as f32 / (1u32 << 24) as f32
     }
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.uniform()

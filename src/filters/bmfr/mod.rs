@@ -38,10 +38,12 @@
 //! Fitted values are clamped below at 0 (as the paper does), multiplied by the albedo (clamped
 //! below at [`ALBEDO_EPSILON`], the same clamp as the division). Kept as they are, bit for bit,
 //! and no row of any fit (kernels/filters/bmfr.cl `bmfr_kept`): sky; lights seen directly
-//! (their albedo is the emission's chromaticity, largest channel exactly 1; fitted, a light
-//! spread a halo over its blocks: 4 grids on Cornell diffuse at 512², 8 spp, MSE-LUV 1.711
-//! with, 1.534 without); and pixels whose samples did not all hit a surface (hits below the
-//! frame's spp: silhouettes against the sky, out-of-focus edges), whose sky light divided by a
+//! (their albedo is the emission's chromaticity, largest channel exactly 1, and their indirect
+//! light exactly 0, as paths end at emitters; fitted, a light spread a halo over its blocks: 4
+//! grids on Cornell diffuse at 512², 8 spp, MSE-LUV 1.711 with, 1.534 without; surfaces of
+//! albedo 1 in a channel, white texels and clear glass, are fitted); and pixels whose samples
+//! did not all hit a surface (hits below the frame's spp: silhouettes against the sky,
+//! out-of-focus edges), whose sky light divided by a
 //! small mean albedo made outliers of their blocks' fits (outside_dof 512², 8 spp, MSE-LUV:
 //! 34.5 against 20.4 unfiltered before, in the quality study of results/README.md; 12.3
 //! against 20.8 unfiltered after, at `render`'s default seed).

@@ -21,10 +21,11 @@ fn albedo(f: &FilterVector) -> [f32; 3] {
     f.albedo.map(|a| a.max(ALBEDO_EPSILON))
 }
 
-/// kernels/filters/bmfr.cl `bmfr_kept`: sky, a light seen directly, or a pixel whose samples
-/// did not all hit a surface.
+/// kernels/filters/bmfr.cl `bmfr_kept`: sky, a light seen directly (albedo 1 in its largest
+/// channel and no indirect light), or a pixel whose samples did not all hit a surface.
 pub fn kept(f: &FilterVector, p: &Float4, spp: f32) -> bool {
-    f.depth >= SKY_DEPTH || f.albedo[0].max(f.albedo[1].max(f.albedo[2])) >= 1.0 || p.0[3] < spp
+    let light = f.albedo[0].max(f.albedo[1].max(f.albedo[2])) >= 1.0 && f.indirect == [0.0; 3];
+    f.depth >= SKY_DEPTH || light || p.0[3] < spp
 }
 
 fn raw(f: &FilterVector, p: &Float4) -> [f32; 4] {
