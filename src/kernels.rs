@@ -92,6 +92,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_fit_packed.cl"),
     ),
     (
+        "filters/bmfr_nlm.cl",
+        include_str!("../kernels/filters/bmfr_nlm.cl"),
+    ),
+    (
         "filters/aaf_pass.cl",
         include_str!("../kernels/filters/aaf_pass.cl"),
     ),

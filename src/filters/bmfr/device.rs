@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
 
+use super::nlm::{NLM_EPSILON, NLM_TILE};
 use super::prefilter::{PREFILTER_EPSILON, PREFILTER_K};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
@@ -22,6 +23,14 @@ use crate::render::Frame;
 /// BMFR_PAD).
 const PACKED_PAD: usize = 16;
 
+/// Which of the frame's arguments (set per frame) a selection kernel takes.
+#[derive(Clone, Copy)]
+struct FrameArgs {
+    positions: bool,
+    odd_halves: bool,
+    spp: bool,
+}
+
 /// The regression filter, built once for an image size.
 pub struct BmfrKernel {
     gpu: Arc<Gpu>,
@@ -29,8 +38,10 @@ pub struct BmfrKernel {
     rows: Option<(Kernel, Buffer<f32>)>,
     fits: Vec<Kernel>,
     apply: Kernel,
-    /// With `select`: `bmfr_residuals`, then `bmfr_select` (select.rs).
-    select: Option<(Kernel, Kernel)>,
+    /// With `select`: `bmfr_residuals`, then `bmfr_select` (select.rs); with `nlm` too,
+    /// `bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`, `bmfr_residuals_nlm` and
+    /// `bmfr_select_nlm` (nlm.rs). In launch order, each with the frame arguments it takes.
+    select: Vec<(Kernel, FrameArgs)>,
     /// With `albedo_prefilter`: `bmfr_albedo_prefilter` and the copy of F it writes, which
     /// the other kernels then read (prefilter.rs).
     prefilter: Option<(Kernel, Buffer<u8>)>,
@@ -82,6 +93,10 @@ impl BmfrKernel {
             ("BMFR_SELECT_SCALE", format!("{:e}f", s.select_scale as f32)),
             ("BMFR_PREFILTER_K", format!("{PREFILTER_K:e}f")),
             ("BMFR_PREFILTER_EPSILON", format!("{PREFILTER_EPSILON:e}f")),
+            ("BMFR_NLM_RADIUS", s.nlm_radius.to_string()),
+            ("BMFR_NLM_K", format!("{:e}f", s.nlm_k as f32)),
+            ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
+            ("BMFR_NLM_TILE", NLM_TILE.to_string()),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -161,42 +176,82 @@ impl BmfrKernel {
             .arg(&out)
             .build()
             .context("creating the bmfr apply kernel")?;
-        let select = if s.select {
-            let residuals = gpu.zeroed::<Float2>(
-                width as usize * height as usize,
-                "bmfr selection residuals",
-            )?;
-            let residual = Kernel::builder()
-                .program(&program)
-                .name("bmfr_residuals")
+        let pixels = width as usize * height as usize;
+        // A kernel over the pixels with the frame's F first, then the frame arguments `frame`
+        // names (set per frame), width and height; the caller adds the fixed ones.
+        let per_pixel = |name: &'static str, frame: FrameArgs| {
+            let mut kb = Kernel::builder();
+            kb.program(&program)
+                .name(name)
                 .queue(gpu.queue.clone())
                 .global_work_size([width as usize, height as usize])
-                .arg_named("fv", None::<&Buffer<u8>>)
-                .arg_named("positions", None::<&Buffer<u8>>)
-                .arg_named("odd_halves", None::<&Buffer<u8>>)
-                .arg(width)
-                .arg(height)
-                .arg_named("spp", 0f32)
-                .arg(&out)
-                .arg(&residuals)
-                .build()
-                .context("creating the bmfr residuals kernel")?;
-            let blend = Kernel::builder()
-                .program(&program)
-                .name("bmfr_select")
-                .queue(gpu.queue.clone())
-                .global_work_size([width as usize, height as usize])
-                .arg_named("fv", None::<&Buffer<u8>>)
-                .arg(width)
-                .arg(height)
-                .arg(&residuals)
-                .arg(&out)
-                .build()
-                .context("creating the bmfr select kernel")?;
-            Some((residual, blend))
-        } else {
-            None
+                .arg_named("fv", None::<&Buffer<u8>>);
+            if frame.positions {
+                kb.arg_named("positions", None::<&Buffer<u8>>);
+            }
+            if frame.odd_halves {
+                kb.arg_named("odd_halves", None::<&Buffer<u8>>);
+            }
+            kb.arg(width).arg(height);
+            if frame.spp {
+                kb.arg_named("spp", 0f32);
+            }
+            kb
         };
+        let built = |kb: ocl::builders::KernelBuilder, frame: FrameArgs| -> Result<(Kernel, FrameArgs)> {
+            Ok((kb.build().context("creating a bmfr selection kernel")?, frame))
+        };
+        let all = FrameArgs {
+            positions: true,
+            odd_halves: true,
+            spp: true,
+        };
+        let no_positions = FrameArgs {
+            positions: false,
+            ..all
+        };
+        let none = FrameArgs {
+            positions: false,
+            odd_halves: false,
+            spp: false,
+        };
+        let mut select = Vec::new();
+        if s.uses_nlm() {
+            let raw = gpu.zeroed::<Float4>(pixels, "bmfr nlm variance samples")?;
+            let nlm_in = gpu.zeroed::<Float4>(4 * pixels, "bmfr nlm inputs")?;
+            let nlm_out = gpu.zeroed::<Float4>(3 * pixels, "bmfr nlm outputs")?;
+            let residuals = gpu.zeroed::<Float4>(pixels, "bmfr selection residuals")?;
+            let mut kb = per_pixel("bmfr_nlm_prep", all);
+            kb.arg(&raw);
+            select.push(built(kb, all)?);
+            let mut kb = per_pixel("bmfr_nlm_inputs", no_positions);
+            kb.arg(&raw).arg(&nlm_in);
+            select.push(built(kb, no_positions)?);
+            let mut kb = per_pixel("bmfr_nlm", no_positions);
+            let tile = NLM_TILE as usize;
+            kb.global_work_size([
+                (width as usize).next_multiple_of(tile),
+                (height as usize).next_multiple_of(tile),
+            ])
+            .local_work_size([tile, tile])
+            .arg(&nlm_in)
+            .arg(&nlm_out);
+            select.push(built(kb, no_positions)?);
+            let mut kb = per_pixel("bmfr_residuals_nlm", all);
+            kb.arg(&out).arg(&nlm_out).arg(&residuals);
+            select.push(built(kb, all)?);
+            let mut kb = per_pixel("bmfr_select_nlm", none);
+            kb.arg(&residuals).arg(&nlm_out).arg(&out);
+            select.push(built(kb, none)?);
+        } else if s.select {
+            let residuals = gpu.zeroed::<Float2>(pixels, "bmfr selection residuals")?;
+            let mut kb = per_pixel("bmfr_residuals", all);
+            kb.arg(&out).arg(&residuals);
+            select.push(built(kb, all)?);
+            let mut kb = per_pixel("bmfr_select", none);
+            kb.arg(&residuals).arg(&out);
+            select.push(built(kb, none)?);
+        }
         let prefilter = if s.prefilters_albedo() {
             let pixels = width as usize * height as usize;
             let copy = gpu.zeroed::<u8>(
@@ -274,18 +329,23 @@ impl BmfrKernel {
             k.set_arg("positions", pos)?;
             k.set_arg("spp", spp)?;
         }
-        if let Some((residual, blend)) = &self.select {
-            residual.set_arg("fv", fv)?;
-            residual.set_arg("positions", pos)?;
-            residual.set_arg("odd_halves", frame.device(&self.gpu, BufferId::OddHalves)?)?;
-            residual.set_arg("spp", spp)?;
-            blend.set_arg("fv", fv)?;
+        for (k, args) in &self.select {
+            k.set_arg("fv", fv)?;
+            if args.positions {
+                k.set_arg("positions", pos)?;
+            }
+            if args.odd_halves {
+                k.set_arg("odd_halves", frame.device(&self.gpu, BufferId::OddHalves)?)?;
+            }
+            if args.spp {
+                k.set_arg("spp", spp)?;
+            }
         }
-        let selection = self.select.iter().flat_map(|(r, b)| [r, b]);
+        let selection = self.select.iter().map(|(k, _)| k);
         for k in self.fits.iter().chain(std::iter::once(&self.apply)).chain(selection) {
             // SAFETY: every buffer outlives its launch (we wait for all of them below) and is
             // sized for the image and the grids the kernels were built for; the in-order queue
-            // runs the blend after the fits, and the selection after the blend.
+            // runs the blend after the fits, and the selection's steps after the blend in turn.
             events.push(unsafe { enqueue(k, "a bmfr filter kernel")? });
         }
         let mut kernel_time = Duration::ZERO;

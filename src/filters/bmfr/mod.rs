@@ -51,7 +51,10 @@
 //! Selection (`select`, select.rs): each pixel is then blended between the fit and its
 //! unfiltered light by the fit's error and the light's variance, both estimated over a small
 //! window from the residual and the two half buffers (even and odd samples, NFOR), so that
-//! where the fit is biased the output follows the samples as they converge.
+//! where the fit is biased the output follows the samples as they converge. With `nlm`
+//! (nlm.rs) a third candidate joins the blend: non-local means of the light, whose error is
+//! estimated by filtering each half buffer alone, so that where the fit is biased the output
+//! follows a smoothed light rather than the noisy samples.
 //!
 //! Albedo prefilter (`albedo_prefilter`, prefilter.rs; on with a thin lens): before the fit,
 //! each pixel's mean albedo is averaged with the neighbours' whose albedo differs by no more
@@ -59,6 +62,7 @@
 //! multiplied back into the output unfiltered.
 
 mod device;
+pub mod nlm;
 pub mod prefilter;
 mod reference;
 pub mod select;
@@ -72,6 +76,7 @@ use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{FrameInfo, SceneInfo};
 pub use device::BmfrKernel;
+pub use nlm::MAX_NLM_RADIUS;
 pub use prefilter::MAX_ALBEDO_RADIUS;
 pub use reference::reference;
 
@@ -118,9 +123,18 @@ crate::filter_settings! {
         /// half buffers estimate (select.rs), so the error keeps falling with spp.
         pub select: bool = true,
         /// Half width of the window the selection's estimates are summed over, pixels.
-        pub select_radius: u32 = 2,
-        /// κ, the trust in the fit: the blend weight is min(1, κ V / R) (select.rs).
+        pub select_radius: u32 = 4,
+        /// κ, the trust in the fit: the blend weight is min(1, κ V / R) (select.rs); with
+        /// `nlm`, the fit's error estimate is divided by κ (nlm.rs).
         pub select_scale: f64 = 2.0,
+        /// A third candidate of the selection: non-local means of the light, its error
+        /// estimated by filtering each half buffer alone (nlm.rs).
+        pub nlm: bool = true,
+        /// Half width of the non-local means' search window, pixels.
+        pub nlm_radius: u32 = 5,
+        /// k of the non-local means' patch distance: how many standard deviations of a
+        /// difference count as noise.
+        pub nlm_k: f64 = 0.7,
         /// Filter each pixel's mean albedo by the neighbours whose albedo differs by no more
         /// than its noise explains, before the fit (prefilter.rs): out of focus each lens
         /// sample sees another texel. auto: on when the camera has a thin lens.
@@ -147,6 +161,11 @@ impl BmfrSettings {
             outputs.push(Output::Variance);
         }
         OutputSet::of(&outputs)
+    }
+
+    /// Whether the non-local means candidate runs (it is part of the selection).
+    pub fn uses_nlm(&self) -> bool {
+        self.select && self.nlm
     }
 
     /// Whether the albedo prefilter runs (`auto` reads as off until specialised).
@@ -179,6 +198,18 @@ impl BmfrSettings {
             bail!(
                 "the bmfr select_scale must be a number in [1, 100], got {}",
                 self.select_scale
+            );
+        }
+        if self.nlm_radius > MAX_NLM_RADIUS {
+            bail!(
+                "the bmfr nlm_radius must be at most {MAX_NLM_RADIUS} pixels, got {}",
+                self.nlm_radius
+            );
+        }
+        if !(self.nlm_k > 0.0 && self.nlm_k <= 100.0) {
+            bail!(
+                "the bmfr nlm_k must be a number in (0, 100], got {}",
+                self.nlm_k
             );
         }
         if self.albedo_radius > MAX_ALBEDO_RADIUS {

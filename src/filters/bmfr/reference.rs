@@ -6,7 +6,7 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::prefilter::prefilter;
-use super::select;
+use super::{nlm, select};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
     grid_blocks, grid_offset,
@@ -279,7 +279,24 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
             sum.map(|v| v / wsum)
         })
         .collect::<Vec<[f32; 3]>>();
-    let pixels = if s.select {
+    let pixels = if s.uses_nlm() {
+        let odd: &[Float4] = frame.host_slice(BufferId::OddHalves)?;
+        let (r, k) = (s.nlm_radius, s.nlm_k as f32);
+        let smooth = nlm::nlm(fv, pos, odd, (w, h), spp, r, k);
+        let residuals: Vec<[f32; 3]> = (0..pixels.len())
+            .into_par_iter()
+            .map(|i| nlm::residual(&fv[i], &pos[i], &odd[i], spp, pixels[i], &smooth[i]))
+            .collect();
+        (0..pixels.len())
+            .into_par_iter()
+            .map(|i| {
+                let xy = ((i as u32 % w) as i32, (i as u32 / w) as i32);
+                let r = s.select_radius as i32;
+                let scale = s.select_scale as f32;
+                nlm::select(&fv[i], &residuals, (w, h), xy, r, scale, pixels[i], smooth[i][0])
+            })
+            .collect()
+    } else if s.select {
         let odd: &[Float4] = frame.host_slice(BufferId::OddHalves)?;
         let residuals: Vec<[f32; 2]> = (0..pixels.len())
             .into_par_iter()

@@ -1,0 +1,267 @@
+// The third candidate of bmfr's selection (`nlm`, src/filters/bmfr/nlm.rs has the reasons and
+// the measurements): non-local means of the albedo-demodulated light (Rousselle, Knaus,
+// Zwicker, "Adaptive rendering with non-local means filtering", SIGGRAPH Asia 2012, eq. 4 with
+// 3 x 3 patches), run on the full image and, for the selection's error estimate, on each of
+// the two half buffers (NFOR's cross-filtering, Bitterli et al. 2016 §4: a half filtered alone
+// is independent of the other half, so its squared distance to the other half estimates its
+// error). Included at the end of filters/bmfr.cl; the Rust reference does the same float
+// operations in the same order.
+//
+// A pixel takes part ("surface") when it is not kept (bmfr_kept) and both halves hold samples.
+
+inline bool bmfr_surface(__global const FilterVector* f, __global const float4* pos,
+                         float4 odd, float spp) {
+    return !bmfr_kept(f, pos, spp) && odd.w >= 1.0f && spp - odd.w >= 1.0f;
+}
+
+inline float3 bmfr_beauty(__global const FilterVector* f) {
+    return (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
+                    f->direct[2] + f->indirect[2]);
+}
+
+// The even samples' mean from the frame's mean and the odd samples' (the beauty itself when
+// there are no even samples).
+inline float3 bmfr_even(float3 beauty, float4 odd, float spp) {
+    float n_even = spp - odd.w;
+    return n_even >= 1.0f ? (spp * beauty - odd.w * odd.xyz) / n_even : beauty;
+}
+
+// bmfr_nlm_prep: per surface pixel, (o - e)^2 n_o n_e / n^2, one sample of the variance of the
+// frame's mean per channel (E[(o - e)^2] = s^2 (1/n_o + 1/n_e)), and w = 1; 0 elsewhere.
+__kernel void bmfr_nlm_prep(__global const FilterVector* fv,
+                            __global const float4* positions,
+                            __global const float4* odd_halves,
+                            uint width, uint height, float spp,
+                            __global float4* raw) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    __global const FilterVector* f = fv + i;
+    float4 odd = odd_halves[i];
+    if (!bmfr_surface(f, positions + i, odd, spp)) {
+        raw[i] = (float4)(0.0f);
+        return;
+    }
+    float3 d = odd.xyz - bmfr_even(bmfr_beauty(f), odd, spp);
+    raw[i] = (float4)(d * d * (odd.w * (spp - odd.w) / (spp * spp)), 1.0f);
+}
+
+// bmfr_nlm_inputs: four float4 per pixel: the demodulated frame mean (w: 1 for a surface
+// pixel), odd half and even half, and the variance of the demodulated frame mean: the mean of
+// `raw` over the surface pixels of the 3 x 3 window (one sample is too noisy to normalise a
+// distance by), over the albedo squared.
+__kernel void bmfr_nlm_inputs(__global const FilterVector* fv,
+                              __global const float4* odd_halves,
+                              uint width, uint height, float spp,
+                              __global const float4* raw,
+                              __global float4* nlm_in) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    __global const FilterVector* f = fv + i;
+    float3 al = bmfr_albedo(f);
+    float3 beauty = bmfr_beauty(f);
+    float4 odd = odd_halves[i];
+    float3 sum = (float3)(0.0f);
+    float count = 0.0f;
+    for (int yy = max(y - 1, 0); yy <= min(y + 1, (int)height - 1); ++yy) {
+        for (int xx = max(x - 1, 0); xx <= min(x + 1, (int)width - 1); ++xx) {
+            float4 r = raw[(uint)yy * width + (uint)xx];
+            if (r.w == 0.0f) continue;
+            sum += r.xyz;
+            count += 1.0f;
+        }
+    }
+    float3 v = count > 0.0f ? sum / count / (al * al) : (float3)(0.0f);
+    nlm_in[4 * i] = (float4)(beauty / al, raw[i].w);
+    nlm_in[4 * i + 1] = (float4)(odd.xyz / al, 0.0f);
+    nlm_in[4 * i + 2] = (float4)(bmfr_even(beauty, odd, spp) / al, 0.0f);
+    nlm_in[4 * i + 3] = (float4)(v, 0.0f);
+}
+
+// bmfr_nlm: for each surface pixel p, the weighted mean over the surface pixels q of the
+// (2 BMFR_NLM_RADIUS + 1)^2 window, w = exp(-max(0, d^2)), d^2 the mean over the 3 x 3 patch
+// taps t with p + t and q + t inside the image, and over the channels, of
+//   ((u(p + t) - u(q + t))^2 - (v_a + min(v_a, v_b))) / (eps + k^2 (v_a + v_b))
+// for the frame (variance v), and of the same with the variances doubled for each half (a half
+// holds half the samples), ε doubled too so that one reciprocal serves the three:
+//   (((u(p + t) - u(q + t))^2 / 2 - (v_a + min(v_a, v_b))) / (eps + k^2 (v_a + v_b)),
+// then remodulated. Three float4 out per pixel: frame, odd half, even half; a pixel
+// that is not a surface gives its inputs back.
+//
+// Work-groups of BMFR_NLM_TILE^2 pixels. A tap's distance depends only on the pixel a = p + t
+// and the offset q - p, so for each offset the group writes the distances of its tile and a
+// one-pixel border to local memory once and each pixel sums its nine from there: about 1.3
+// distance evaluations per pixel and offset instead of 9 (the same floats in the same order;
+// an invalid tap adds 0 to the sum and 0 to the count). The tile's own inputs are read into
+// local memory once.
+#define BMFR_NLM_SIDE (BMFR_NLM_TILE + 2)
+#define BMFR_NLM_LOCAL (BMFR_NLM_SIDE * BMFR_NLM_SIDE)
+
+__kernel __attribute__((reqd_work_group_size(BMFR_NLM_TILE, BMFR_NLM_TILE, 1)))
+void bmfr_nlm(__global const FilterVector* fv,
+              __global const float4* odd_halves,
+              uint width, uint height, float spp,
+              __global const float4* nlm_in,
+              __global float4* nlm_out) {
+    __local float4 tile[BMFR_NLM_LOCAL * 4];
+    __local float4 dist[BMFR_NLM_LOCAL];
+    int lx = get_local_id(0), ly = get_local_id(1);
+    int x = get_global_id(0), y = get_global_id(1);
+    int x0 = (int)get_group_id(0) * BMFR_NLM_TILE - 1;
+    int y0 = (int)get_group_id(1) * BMFR_NLM_TILE - 1;
+    int w = (int)width, h = (int)height;
+    int first = ly * BMFR_NLM_TILE + lx;
+    for (int e = first; e < BMFR_NLM_LOCAL; e += BMFR_NLM_TILE * BMFR_NLM_TILE) {
+        int ax = x0 + e % BMFR_NLM_SIDE, ay = y0 + e / BMFR_NLM_SIDE;
+        bool in = ax >= 0 && ax < w && ay >= 0 && ay < h;
+        for (int m = 0; m < 4; ++m)
+            tile[4 * e + m] = in ? nlm_in[4 * ((uint)ay * width + (uint)ax) + m] : (float4)(0.0f);
+    }
+    bool inside = x < w && y < h;
+    uint i = inside ? (uint)y * width + (uint)x : 0u;
+    bool active = inside && nlm_in[4 * i].w != 0.0f;
+    float k2 = BMFR_NLM_K * BMFR_NLM_K;
+    float3 acc[3] = {(float3)(0.0f), (float3)(0.0f), (float3)(0.0f)};
+    float wsum[3] = {0.0f, 0.0f, 0.0f};
+    for (int dy = -BMFR_NLM_RADIUS; dy <= BMFR_NLM_RADIUS; ++dy) {
+        for (int dx = -BMFR_NLM_RADIUS; dx <= BMFR_NLM_RADIUS; ++dx) {
+            barrier(CLK_LOCAL_MEM_FENCE);
+            for (int e = first; e < BMFR_NLM_LOCAL; e += BMFR_NLM_TILE * BMFR_NLM_TILE) {
+                int ax = x0 + e % BMFR_NLM_SIDE, ay = y0 + e / BMFR_NLM_SIDE;
+                int bx = ax + dx, by = ay + dy;
+                float4 t = (float4)(0.0f);
+                if (ax >= 0 && ax < w && ay >= 0 && ay < h && bx >= 0 && bx < w && by >= 0
+                    && by < h) {
+                    __local const float4* a = tile + 4 * e;
+                    __global const float4* b = nlm_in + 4 * ((uint)by * width + (uint)bx);
+                    float3 va = a[3].xyz, vb = b[3].xyz;
+                    float3 s = va + fmin(va, vb);
+                    float3 inv = 1.0f / (BMFR_NLM_EPSILON + k2 * (va + vb));
+                    float d[3];
+                    for (int m = 0; m < 3; ++m) {
+                        float3 diff = a[m].xyz - b[m].xyz;
+                        float3 q = m == 0 ? (diff * diff - s) * inv
+                                          : (0.5f * (diff * diff) - s) * inv;
+                        d[m] = q.x + q.y + q.z;
+                    }
+                    t = (float4)(d[0], d[1], d[2], 1.0f);
+                }
+                dist[e] = t;
+            }
+            barrier(CLK_LOCAL_MEM_FENCE);
+            int qx = x + dx, qy = y + dy;
+            if (!active || qx < 0 || qx >= w || qy < 0 || qy >= h) continue;
+            uint j = (uint)qy * width + (uint)qx;
+            if (nlm_in[4 * j].w == 0.0f) continue;
+            float d2[3] = {0.0f, 0.0f, 0.0f};
+            float taps = 0.0f;
+            for (int ty = 0; ty < 3; ++ty) {
+                for (int tx = 0; tx < 3; ++tx) {
+                    float4 t = dist[(ly + ty) * BMFR_NLM_SIDE + lx + tx];
+                    d2[0] += t.x;
+                    d2[1] += t.y;
+                    d2[2] += t.z;
+                    taps += 3.0f * t.w;
+                }
+            }
+            for (int m = 0; m < 3; ++m) {
+                float wt = exp(-fmax(d2[m] / taps, 0.0f));
+                acc[m] += wt * nlm_in[4 * j + m].xyz;
+                wsum[m] += wt;
+            }
+        }
+    }
+    if (!inside) return;
+    __global const FilterVector* f = fv + i;
+    float3 al = bmfr_albedo(f);
+    if (!active) {
+        float4 odd = odd_halves[i];
+        float3 beauty = bmfr_beauty(f);
+        nlm_out[3 * i] = (float4)(beauty, 0.0f);
+        nlm_out[3 * i + 1] = (float4)(odd.xyz, 0.0f);
+        nlm_out[3 * i + 2] = (float4)(bmfr_even(beauty, odd, spp), 0.0f);
+        return;
+    }
+    // The pixel is its own neighbour (d^2 <= 0, weight 1), so every wsum >= 1.
+    for (int m = 0; m < 3; ++m) nlm_out[3 * i + m] = (float4)(acc[m] / wsum[m] * al, 0.0f);
+}
+
+// bmfr_residuals_nlm: per surface pixel, summed over the channels, (V, R, N, 0): V the variance
+// of the frame's mean (as bmfr_residuals), R = (f - y)^2 the fit's residual, and N the
+// cross-half estimate of the non-local means' squared error at half the samples,
+// ((nlm(o) - e)^2 - v_e + (nlm(e) - o)^2 - v_o) / 2, with v_o = (o - e)^2 n_e / n and
+// v_e = (o - e)^2 n_o / n the variances of the halves' means.
+__kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
+                                 __global const float4* positions,
+                                 __global const float4* odd_halves,
+                                 uint width, uint height, float spp,
+                                 __global const float4* fitted,
+                                 __global const float4* nlm_out,
+                                 __global float4* residuals) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    __global const FilterVector* f = fv + i;
+    float4 odd = odd_halves[i];
+    if (!bmfr_surface(f, positions + i, odd, spp)) {
+        residuals[i] = (float4)(0.0f);
+        return;
+    }
+    float n_odd = odd.w, n_even = spp - odd.w;
+    float3 beauty = bmfr_beauty(f);
+    float3 even = bmfr_even(beauty, odd, spp);
+    float3 r = fitted[i].xyz - beauty;
+    float3 d = beauty - odd.xyz;
+    float3 v = d * d * (n_odd / n_even);
+    float3 oe = odd.xyz - even;
+    float3 v_odd = oe * oe * (n_even / spp);
+    float3 v_even = oe * oe * (n_odd / spp);
+    float3 no = nlm_out[3 * i + 1].xyz - even;
+    float3 ne = nlm_out[3 * i + 2].xyz - odd.xyz;
+    float3 n = 0.5f * ((no * no - v_even) + (ne * ne - v_odd));
+    residuals[i] = (float4)(v.x + v.y + v.z, r.x * r.x + r.y * r.y + r.z * r.z,
+                            n.x + n.y + n.z, 0.0f);
+}
+
+// bmfr_select_nlm: the window sums V, R, N over the (2 r + 1)^2 pixels around, the three
+// candidates' error estimates E_y = V (the unfiltered light), E_f = (R - V) / kappa (the fit,
+// trusted kappa times more than its estimate, as in bmfr_select) and E_n = N / 2 (the non-local
+// means of the whole frame: N is measured at half the samples, and the variance halves with
+// twice the samples), each relative to V and floored at 1e-6, and the blend of the three with
+// weights 1 / E^2. A window with V = 0 keeps the light where R > 0 and the fit where R = 0
+// too (only kept pixels, or one sample: no estimate).
+__kernel void bmfr_select_nlm(__global const FilterVector* fv,
+                              uint width, uint height,
+                              __global const float4* residuals,
+                              __global const float4* nlm_out,
+                              __global float4* fitted) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    float3 sum = (float3)(0.0f);
+    for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) {
+        int yy = y + dy;
+        if (yy < 0 || yy >= (int)height) continue;
+        for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
+            int xx = x + dx;
+            if (xx < 0 || xx >= (int)width) continue;
+            sum += residuals[(uint)yy * width + (uint)xx].xyz;
+        }
+    }
+    float3 beauty = bmfr_beauty(fv + i);
+    if (!(sum.x > 0.0f)) {
+        // No variance: with a residual the light is noise-free and the fit is off (a light
+        // whose albedo is not exactly 1, seen in a reflection), so keep the light, as
+        // bmfr_select's lambda = 0 does; with none either, there is no estimate.
+        if (sum.y > 0.0f) fitted[i] = (float4)(beauty, 0.0f);
+        return;
+    }
+    float e_y = 1.0f;
+    float e_f = fmax((sum.y - sum.x) / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
+    float e_n = fmax(0.5f * sum.z / sum.x, 1.0e-6f);
+    float w_y = 1.0f / (e_y * e_y), w_f = 1.0f / (e_f * e_f), w_n = 1.0f / (e_n * e_n);
+    float3 out = (w_y * beauty + w_f * fitted[i].xyz + w_n * nlm_out[3 * i].xyz)
+        / (w_y + w_f + w_n);
+    fitted[i] = (float4)(out, 0.0f);
+}

@@ -1,0 +1,298 @@
+//! The selection's third candidate (`nlm`): non-local means of the light, with its error
+//! estimated by cross-filtering the two half buffers. The plain Rust reference of
+//! kernels/filters/bmfr_nlm.cl, the same float operations in the same order.
+//!
+//! Why. The fit has a bias where its features do not explain the light (a glossy reflection,
+//! glass, a defocused edge), and there the two-way selection (select.rs) can only fall back to
+//! the unfiltered, noisy light: on Cornell glossy (512², 8 spp) the pixels with no direct light
+//! held 5.6 of bmfr's MSE-LUV of 7.46, against OIDN-high's 1.8. Non-local means (Rousselle,
+//! Knaus, Zwicker, SIGGRAPH Asia 2012) average pixels whose 3 × 3 patches of light agree up to
+//! their noise, whatever the features say, so they smooth a reflection without blurring it
+//! into its surroundings.
+//!
+//! The error estimate is what makes a third candidate pay. A smoother's output depends on the
+//! pixel's own samples, so its residual against the frame's mean misses the noise it keeps (a
+//! prototype that estimated à-trous' error that way made Outside and Cornell glossy worse,
+//! results/README.md). NFOR's answer (Bitterli et al., EGSR 2016 §4): filter each half buffer
+//! alone; nlm(o) is independent of the even half e, so
+//! E[(nlm(o) − e)²] = E[(nlm(o) − μ)²] + var(e), and subtracting var(e) leaves the error of
+//! the filter run on half the samples. N averages that over both halves (`residual`). The
+//! frame's own non-local means, which is the candidate, has about half that variance and the
+//! same bias: E_n = N / 2.
+//!
+//! The blend (`select`): over the selection window, E_y = V (the unfiltered light's variance),
+//! E_f = (R − V) / κ (the fit's, trusted κ times more, as in select.rs) and E_n, each relative
+//! to V and floored at 1e-6, weighted 1 / E². The choices were measured on one 8-spp 512² AOV
+//! file per scene with a host prototype of these equations (not in the repository; the
+//! filter's figures are in results/README.md), MSE-LUV of Cornell glossy / Outside /
+//! Cornell plane DOF / Cornell diffuse against the current two-way selection's 7.46 / 3.59 /
+//! 8.63 / 1.49:
+//! - weights 1 / E² rather than 1 / E: 5.25 / 2.28 / 8.09 / 1.53 against 5.38 / 2.31 / 8.16 /
+//!   1.61 (window radius 3);
+//! - the fit's estimate from its residual (one fit, as select.rs) rather than from fitting each
+//!   half too: 5.25 / 2.28 / 8.09 / 1.53 against 5.11 / 2.38 / 8.09 / 1.43, without a second
+//!   and third fit;
+//! - each half filtered with its own weights rather than the frame's weights applied to both
+//!   halves (a third of the cost): with shared weights the estimate sees less than the
+//!   filter's noise and picks it too often (Cornell diffuse 1.70);
+//! - search radius 5 and k 0.7 (`nlm_radius`, `nlm_k`). The frame's nlm alone, Cornell
+//!   glossy / Outside / Cornell plane DOF / Cornell diffuse: radius 3, k 0.7: 8.50 / 2.60 /
+//!   10.17 / 2.39; radius 5, k 0.7: 6.67 / 2.42 / 8.85 / 1.91; radius 7, k 0.7: 6.40 / 2.49 /
+//!   8.83 / 1.86; radius 5, k 1.0: 6.10 / 2.68 / 8.38 / 1.88; radius 7, k 0.45 (the 2012
+//!   paper's): 9.20 / 2.50 / 10.54 / 2.45. Radius 5 is 121 offsets against radius 7's 225.
+//!   (The prototype's non-local means equal this reference's to 2.4e-6, relative.)
+//! - the selection window radius 4 (`select_radius`; the two-way blend's best was 2): with
+//!   this filter, radius 2 / 3 / 4 gave Cornell glossy 5.60 / 5.25 / 5.10, Outside 2.30 /
+//!   2.28 / 2.28, Cornell plane DOF 6.44 / 6.28 / 6.29, Cornell diffuse 1.61 / 1.53 / 1.50
+//!   (`noisefree filter a.exr --filter bmfr --bmfr-select-radius R` on the same files).
+//!
+//! Cost: `bmfr_nlm` shares each tap's distance within a work-group through local memory, but
+//! it is still 121 offsets × 3 images per pixel: 0.69 s of bmfr's 0.76 s on PoCL (2 cores,
+//! 512², `noisefree filter a.exr --filter bmfr --repeat 5`, 72 ms with `--bmfr-nlm-radius 0`).
+//! `--bmfr-nlm=false` gives the two-way blend back (with `--bmfr-select-radius 2`).
+
+use rayon::prelude::*;
+
+use super::reference::kept;
+use crate::layout::{FilterVector, Float4};
+
+/// ε of the patch distance (as the albedo prefilter's): noise-free pixels (v = 0) are only
+/// averaged with patches of exactly the same light.
+pub const NLM_EPSILON: f32 = 1.0e-10;
+
+/// Side of the non-local means kernel's square work-groups (kernels/filters/bmfr_nlm.cl
+/// `bmfr_nlm`): the tile whose tap distances are shared through local memory.
+pub const NLM_TILE: u32 = 16;
+
+/// The largest search window half width (a 21 × 21 window).
+pub const MAX_NLM_RADIUS: u32 = 10;
+
+fn albedo(f: &FilterVector) -> [f32; 3] {
+    f.albedo.map(|a| a.max(super::ALBEDO_EPSILON))
+}
+
+fn beauty(f: &FilterVector) -> [f32; 3] {
+    std::array::from_fn(|c| f.direct[c] + f.indirect[c])
+}
+
+/// kernels/filters/bmfr_nlm.cl `bmfr_surface`: not kept, and both halves hold samples.
+pub fn surface(f: &FilterVector, p: &Float4, odd: &Float4, spp: f32) -> bool {
+    !kept(f, p, spp) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0
+}
+
+/// kernels/filters/bmfr_nlm.cl `bmfr_even`.
+fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
+    let n_even = spp - odd.0[3];
+    if n_even >= 1.0 {
+        std::array::from_fn(|c| (spp * beauty[c] - odd.0[3] * odd.0[c]) / n_even)
+    } else {
+        beauty
+    }
+}
+
+/// The non-local means of the frame, the odd half and the even half, per pixel
+/// (`bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`).
+pub fn nlm(
+    fv: &[FilterVector],
+    pos: &[Float4],
+    odd: &[Float4],
+    (w, h): (u32, u32),
+    spp: f32,
+    radius: u32,
+    k: f32,
+) -> Vec<[[f32; 3]; 3]> {
+    let n = fv.len();
+    let raw: Vec<[f32; 4]> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if !surface(&fv[i], &pos[i], &odd[i], spp) {
+                return [0.0; 4];
+            }
+            let e = even(beauty(&fv[i]), &odd[i], spp);
+            let factor = odd[i].0[3] * (spp - odd[i].0[3]) / (spp * spp);
+            let d: [f32; 3] = std::array::from_fn(|c| odd[i].0[c] - e[c]);
+            [d[0] * d[0] * factor, d[1] * d[1] * factor, d[2] * d[2] * factor, 1.0]
+        })
+        .collect();
+    let (wi, hi) = (w as i32, h as i32);
+    // Per pixel: demodulated frame mean, odd half, even half, variance; and the surface flag.
+    let inputs: Vec<([[f32; 3]; 4], bool)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
+            let al = albedo(&fv[i]);
+            let b = beauty(&fv[i]);
+            let mut sum = [0f32; 3];
+            let mut count = 0f32;
+            for yy in (y - 1).max(0)..=(y + 1).min(hi - 1) {
+                for xx in (x - 1).max(0)..=(x + 1).min(wi - 1) {
+                    let r = raw[(yy as u32 * w + xx as u32) as usize];
+                    if r[3] == 0.0 {
+                        continue;
+                    }
+                    for c in 0..3 {
+                        sum[c] += r[c];
+                    }
+                    count += 1.0;
+                }
+            }
+            let v: [f32; 3] = std::array::from_fn(|c| {
+                if count > 0.0 {
+                    sum[c] / count / (al[c] * al[c])
+                } else {
+                    0.0
+                }
+            });
+            let e = even(b, &odd[i], spp);
+            let u = [
+                std::array::from_fn(|c| b[c] / al[c]),
+                std::array::from_fn(|c| odd[i].0[c] / al[c]),
+                std::array::from_fn(|c| e[c] / al[c]),
+                v,
+            ];
+            (u, raw[i][3] != 0.0)
+        })
+        .collect();
+    let k2 = k * k;
+    let r = radius as i32;
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
+            let al = albedo(&fv[i]);
+            let b = beauty(&fv[i]);
+            if !inputs[i].1 {
+                let o = [odd[i].0[0], odd[i].0[1], odd[i].0[2]];
+                return [b, o, even(b, &odd[i], spp)];
+            }
+            let mut acc = [[0f32; 3]; 3];
+            let mut wsum = [0f32; 3];
+            for qy in (y - r)..=(y + r) {
+                if qy < 0 || qy >= hi {
+                    continue;
+                }
+                for qx in (x - r)..=(x + r) {
+                    if qx < 0 || qx >= wi {
+                        continue;
+                    }
+                    let j = (qy as u32 * w + qx as u32) as usize;
+                    if !inputs[j].1 {
+                        continue;
+                    }
+                    let mut d2 = [0f32; 3];
+                    let mut taps = 0f32;
+                    for ty in -1..=1 {
+                        let (ay, by) = (y + ty, qy + ty);
+                        if ay < 0 || ay >= hi || by < 0 || by >= hi {
+                            continue;
+                        }
+                        for tx in -1..=1 {
+                            let (ax, bx) = (x + tx, qx + tx);
+                            if ax < 0 || ax >= wi || bx < 0 || bx >= wi {
+                                continue;
+                            }
+                            let a = &inputs[(ay as u32 * w + ax as u32) as usize].0;
+                            let bb = &inputs[(by as u32 * w + bx as u32) as usize].0;
+                            let (va, vb) = (a[3], bb[3]);
+                            let s: [f32; 3] = std::array::from_fn(|c| va[c] + va[c].min(vb[c]));
+                            let inv: [f32; 3] = std::array::from_fn(|c| {
+                                1.0 / (NLM_EPSILON + k2 * (va[c] + vb[c]))
+                            });
+                            for m in 0..3 {
+                                let t: [f32; 3] = std::array::from_fn(|c| {
+                                    let diff = a[m][c] - bb[m][c];
+                                    if m == 0 {
+                                        (diff * diff - s[c]) * inv[c]
+                                    } else {
+                                        (0.5 * (diff * diff) - s[c]) * inv[c]
+                                    }
+                                });
+                                d2[m] += t[0] + t[1] + t[2];
+                            }
+                            taps += 3.0;
+                        }
+                    }
+                    for m in 0..3 {
+                        let wt = (-(d2[m] / taps).max(0.0)).exp();
+                        for c in 0..3 {
+                            acc[m][c] += wt * inputs[j].0[m][c];
+                        }
+                        wsum[m] += wt;
+                    }
+                }
+            }
+            std::array::from_fn(|m| std::array::from_fn(|c| acc[m][c] / wsum[m] * al[c]))
+        })
+        .collect()
+}
+
+/// kernels/filters/bmfr_nlm.cl `bmfr_residuals_nlm` for one pixel: (V, R, N).
+pub fn residual(
+    f: &FilterVector,
+    pos: &Float4,
+    odd: &Float4,
+    spp: f32,
+    fit: [f32; 3],
+    nlm: &[[f32; 3]; 3],
+) -> [f32; 3] {
+    if !surface(f, pos, odd, spp) {
+        return [0.0; 3];
+    }
+    let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
+    let b = beauty(f);
+    let e = even(b, odd, spp);
+    let mut out = [0f32; 3];
+    let mut terms = [[0f32; 3]; 3];
+    for c in 0..3 {
+        let r = fit[c] - b[c];
+        let d = b[c] - odd.0[c];
+        let oe = odd.0[c] - e[c];
+        let (v_odd, v_even) = (oe * oe * (n_even / spp), oe * oe * (n_odd / spp));
+        let (no, ne) = (nlm[1][c] - e[c], nlm[2][c] - odd.0[c]);
+        terms[0][c] = d * d * (n_odd / n_even);
+        terms[1][c] = r * r;
+        terms[2][c] = 0.5 * ((no * no - v_even) + (ne * ne - v_odd));
+    }
+    for (o, t) in out.iter_mut().zip(&terms) {
+        *o = t[0] + t[1] + t[2];
+    }
+    out
+}
+
+/// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` for pixel (x, y).
+#[allow(clippy::too_many_arguments)]
+pub fn select(
+    f: &FilterVector,
+    residuals: &[[f32; 3]],
+    (width, height): (u32, u32),
+    (x, y): (i32, i32),
+    radius: i32,
+    scale: f32,
+    fit: [f32; 3],
+    nlm: [f32; 3],
+) -> [f32; 3] {
+    let mut sum = [0f32; 3];
+    for yy in (y - radius)..=(y + radius) {
+        if yy < 0 || yy >= height as i32 {
+            continue;
+        }
+        for xx in (x - radius)..=(x + radius) {
+            if xx < 0 || xx >= width as i32 {
+                continue;
+            }
+            let e = residuals[(yy as u32 * width + xx as u32) as usize];
+            for c in 0..3 {
+                sum[c] += e[c];
+            }
+        }
+    }
+    let b = beauty(f);
+    if !(sum[0] > 0.0) {
+        return if sum[1] > 0.0 { b } else { fit };
+    }
+    let e_y = 1f32;
+    let e_f = ((sum[1] - sum[0]) / scale / sum[0]).max(1.0e-6);
+    let e_n = (0.5 * sum[2] / sum[0]).max(1.0e-6);
+    let (w_y, w_f, w_n) = (1.0 / (e_y * e_y), 1.0 / (e_f * e_f), 1.0 / (e_n * e_n));
+    std::array::from_fn(|c| (w_y * b[c] + w_f * fit[c] + w_n * nlm[c]) / (w_y + w_f + w_n))
+}
