@@ -89,6 +89,12 @@ inline bool bmfr_kept(__global const FilterVector* f, __global const float4* pos
     return f->depth >= SKY_DEPTH || light || (*pos).w < spp;
 }
 
+// The pixel's unfiltered light, direct + indirect.
+inline float3 bmfr_beauty(__global const FilterVector* f) {
+    return (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
+                    f->direct[2] + f->indirect[2]);
+}
+
 inline float3 bmfr_albedo(__global const FilterVector* f) {
     return fmax((float3)(f->albedo[0], f->albedo[1], f->albedo[2]), (float3)(BMFR_ALBEDO_EPSILON));
 }
@@ -320,8 +326,7 @@ __kernel void bmfr_apply(__global const FilterVector* fv,
     if (x >= (int)width || y >= (int)height) return;
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
-    float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
-                             f->direct[2] + f->indirect[2]);
+    float3 beauty = bmfr_beauty(f);
     if (bmfr_kept(f, positions + i, spp)) {
         out[i] = (float4)(beauty, 0.0f);
         return;
@@ -376,8 +381,7 @@ __kernel void bmfr_residuals(__global const FilterVector* fv,
         residuals[i] = (float2)(0.0f);
         return;
     }
-    float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
-                             f->direct[2] + f->indirect[2]);
+    float3 beauty = bmfr_beauty(f);
     float3 r = fitted[i].xyz - beauty;
     float3 d = beauty - odd.xyz;
     float3 v = d * d * (n_odd / n_even);
@@ -407,9 +411,7 @@ __kernel void bmfr_select(__global const FilterVector* fv,
         }
     }
     float lambda = sum_r > 0.0f ? fmin(1.0f, BMFR_SELECT_SCALE * sum_v / sum_r) : 1.0f;
-    __global const FilterVector* f = fv + i;
-    float3 beauty = (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
-                             f->direct[2] + f->indirect[2]);
+    float3 beauty = bmfr_beauty(fv + i);
     float3 fit = fitted[i].xyz;
     fitted[i] = (float4)(beauty + lambda * (fit - beauty), 0.0f);
 }

@@ -14,11 +14,6 @@ inline bool bmfr_surface(__global const FilterVector* f, __global const float4* 
     return !bmfr_kept(f, pos, spp) && odd.w >= 1.0f && spp - odd.w >= 1.0f;
 }
 
-inline float3 bmfr_beauty(__global const FilterVector* f) {
-    return (float3)(f->direct[0] + f->indirect[0], f->direct[1] + f->indirect[1],
-                    f->direct[2] + f->indirect[2]);
-}
-
 // The even samples' mean from the frame's mean and the odd samples' (the beauty itself when
 // there are no even samples).
 inline float3 bmfr_even(float3 beauty, float4 odd, float spp) {

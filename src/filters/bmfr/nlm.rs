@@ -53,7 +53,7 @@
 
 use rayon::prelude::*;
 
-use super::reference::kept;
+use super::reference::{albedo, kept};
 use crate::layout::{FilterVector, Float4};
 
 /// ε of the patch distance (as the albedo prefilter's): noise-free pixels (v = 0) are only
@@ -66,10 +66,6 @@ pub const NLM_TILE: u32 = 16;
 
 /// The largest search window half width (a 21 × 21 window).
 pub const MAX_NLM_RADIUS: u32 = 10;
-
-fn albedo(f: &FilterVector) -> [f32; 3] {
-    f.albedo.map(|a| a.max(super::ALBEDO_EPSILON))
-}
 
 fn beauty(f: &FilterVector) -> [f32; 3] {
     std::array::from_fn(|c| f.direct[c] + f.indirect[c])
@@ -271,21 +267,7 @@ pub fn select(
     fit: [f32; 3],
     nlm: [f32; 3],
 ) -> [f32; 3] {
-    let mut sum = [0f32; 3];
-    for yy in (y - radius)..=(y + radius) {
-        if yy < 0 || yy >= height as i32 {
-            continue;
-        }
-        for xx in (x - radius)..=(x + radius) {
-            if xx < 0 || xx >= width as i32 {
-                continue;
-            }
-            let e = residuals[(yy as u32 * width + xx as u32) as usize];
-            for c in 0..3 {
-                sum[c] += e[c];
-            }
-        }
-    }
+    let sum = super::select::window_sum(residuals, (width, height), (x, y), radius);
     let b = beauty(f);
     if !(sum[0] > 0.0) {
         return if sum[1] > 0.0 { b } else { fit };

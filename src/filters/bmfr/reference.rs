@@ -17,7 +17,8 @@ use crate::layout::{FilterVector, Float4, SKY_DEPTH};
 use crate::render::Frame;
 use crate::render::cpu::rng::hash_u32;
 
-fn albedo(f: &FilterVector) -> [f32; 3] {
+/// kernels/filters/bmfr.cl `bmfr_albedo`: the albedo clamped below at [`ALBEDO_EPSILON`].
+pub(super) fn albedo(f: &FilterVector) -> [f32; 3] {
     f.albedo.map(|a| a.max(ALBEDO_EPSILON))
 }
 

@@ -69,6 +69,32 @@ pub fn residual(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32, fit: [f3
     [r[0] * r[0] + r[1] * r[1] + r[2] * r[2], v[0] + v[1] + v[2]]
 }
 
+/// The per-pixel estimates summed over the (2 radius + 1)² window around (x, y) inside the
+/// image, row by row, as the kernels' selection loops do.
+pub fn window_sum<const N: usize>(
+    estimates: &[[f32; N]],
+    (width, height): (u32, u32),
+    (x, y): (i32, i32),
+    radius: i32,
+) -> [f32; N] {
+    let mut sum = [0f32; N];
+    for yy in (y - radius)..=(y + radius) {
+        if yy < 0 || yy >= height as i32 {
+            continue;
+        }
+        for xx in (x - radius)..=(x + radius) {
+            if xx < 0 || xx >= width as i32 {
+                continue;
+            }
+            let e = &estimates[(yy as u32 * width + xx as u32) as usize];
+            for (s, v) in sum.iter_mut().zip(e) {
+                *s += v;
+            }
+        }
+    }
+    sum
+}
+
 /// kernels/filters/bmfr.cl `bmfr_select` for pixel (x, y): the window sums, then the blend.
 pub fn select(
     f: &FilterVector,
@@ -79,20 +105,7 @@ pub fn select(
     scale: f32,
     fit: [f32; 3],
 ) -> [f32; 3] {
-    let (mut sum_r, mut sum_v) = (0f32, 0f32);
-    for yy in (y - radius)..=(y + radius) {
-        if yy < 0 || yy >= height as i32 {
-            continue;
-        }
-        for xx in (x - radius)..=(x + radius) {
-            if xx < 0 || xx >= width as i32 {
-                continue;
-            }
-            let e = residuals[(yy as u32 * width + xx as u32) as usize];
-            sum_r += e[0];
-            sum_v += e[1];
-        }
-    }
+    let [sum_r, sum_v] = window_sum(residuals, (width, height), (x, y), radius);
     let lambda = if sum_r > 0.0 {
         1f32.min(scale * sum_v / sum_r)
     } else {
