@@ -96,6 +96,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_nlm.cl"),
     ),
     (
+        "filters/bmfr_nlm_packed.cl",
+        include_str!("../kernels/filters/bmfr_nlm_packed.cl"),
+    ),
+    (
         "filters/aaf_pass.cl",
         include_str!("../kernels/filters/aaf_pass.cl"),
     ),

@@ -41,17 +41,13 @@ __kernel void bmfr_nlm_prep(__global const FilterVector* fv,
     raw[i] = (float4)(d * d * (odd.w * (spp - odd.w) / (spp * spp)), 1.0f);
 }
 
-// bmfr_nlm_inputs: four float4 per pixel: the demodulated frame mean (w: 1 for a surface
-// pixel), odd half and even half, and the variance of the demodulated frame mean: the mean of
-// `raw` over the surface pixels of the 3 x 3 window (one sample is too noisy to normalise a
-// distance by), over the albedo squared.
-__kernel void bmfr_nlm_inputs(__global const FilterVector* fv,
-                              __global const float4* odd_halves,
-                              uint width, uint height, float spp,
-                              __global const float4* raw,
-                              __global float4* nlm_in) {
-    int x = get_global_id(0), y = get_global_id(1);
-    if (x >= (int)width || y >= (int)height) return;
+// The inputs of the non-local means for pixel (x, y): the demodulated frame mean (w: 1 for a
+// surface pixel), odd half and even half, and the variance of the demodulated frame mean: the
+// mean of `raw` over the surface pixels of the 3 x 3 window (one sample is too noisy to
+// normalise a distance by), over the albedo squared.
+inline void bmfr_nlm_pixel(__global const FilterVector* fv, __global const float4* odd_halves,
+                           int x, int y, uint width, uint height, float spp,
+                           __global const float4* raw, float4 u[4]) {
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
     float3 al = bmfr_albedo(f);
@@ -68,10 +64,23 @@ __kernel void bmfr_nlm_inputs(__global const FilterVector* fv,
         }
     }
     float3 v = count > 0.0f ? sum / count / (al * al) : (float3)(0.0f);
-    nlm_in[4 * i] = (float4)(beauty / al, raw[i].w);
-    nlm_in[4 * i + 1] = (float4)(odd.xyz / al, 0.0f);
-    nlm_in[4 * i + 2] = (float4)(bmfr_even(beauty, odd, spp) / al, 0.0f);
-    nlm_in[4 * i + 3] = (float4)(v, 0.0f);
+    u[0] = (float4)(beauty / al, raw[i].w);
+    u[1] = (float4)(odd.xyz / al, 0.0f);
+    u[2] = (float4)(bmfr_even(beauty, odd, spp) / al, 0.0f);
+    u[3] = (float4)(v, 0.0f);
+}
+
+// bmfr_nlm_inputs: bmfr_nlm_pixel's four float4 per pixel, for bmfr_nlm.
+__kernel void bmfr_nlm_inputs(__global const FilterVector* fv,
+                              __global const float4* odd_halves,
+                              uint width, uint height, float spp,
+                              __global const float4* raw,
+                              __global float4* nlm_in) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    float4 u[4];
+    bmfr_nlm_pixel(fv, odd_halves, x, y, width, height, spp, raw, u);
+    for (int m = 0; m < 4; ++m) nlm_in[4 * ((uint)y * width + (uint)x) + m] = u[m];
 }
 
 // bmfr_nlm: for each surface pixel p, the weighted mean over the surface pixels q of the
@@ -81,7 +90,8 @@ __kernel void bmfr_nlm_inputs(__global const FilterVector* fv,
 // for the frame (variance v), and of the same with the variances doubled for each half (a half
 // holds half the samples), ε doubled too so that one reciprocal serves the three:
 //   (((u(p + t) - u(q + t))^2 / 2 - (v_a + min(v_a, v_b))) / (eps + k^2 (v_a + v_b)),
-// then remodulated. Three float4 out per pixel: frame, odd half, even half; a pixel
+// then remodulated. The nine tap distances are summed per patch row, then the rows in order.
+// Three float4 out per pixel: frame, odd half, even half; a pixel
 // that is not a surface gives its inputs back.
 //
 // Work-groups of BMFR_NLM_TILE^2 pixels. A tap's distance depends only on the pixel a = p + t
@@ -149,17 +159,14 @@ void bmfr_nlm(__global const FilterVector* fv,
             if (!active || qx < 0 || qx >= w || qy < 0 || qy >= h) continue;
             uint j = (uint)qy * width + (uint)qx;
             if (nlm_in[4 * j].w == 0.0f) continue;
-            float d2[3] = {0.0f, 0.0f, 0.0f};
-            float taps = 0.0f;
+            // Each patch row's three taps first, then the rows (bmfr_nlm_packed's order).
+            float4 t = (float4)(0.0f);
             for (int ty = 0; ty < 3; ++ty) {
-                for (int tx = 0; tx < 3; ++tx) {
-                    float4 t = dist[(ly + ty) * BMFR_NLM_SIDE + lx + tx];
-                    d2[0] += t.x;
-                    d2[1] += t.y;
-                    d2[2] += t.z;
-                    taps += 3.0f * t.w;
-                }
+                __local const float4* row = dist + (ly + ty) * BMFR_NLM_SIDE + lx;
+                t += (row[0] + row[1]) + row[2];
             }
+            float d2[3] = {t.x, t.y, t.z};
+            float taps = 3.0f * t.w;
             for (int m = 0; m < 3; ++m) {
                 float wt = exp(-fmax(d2[m] / taps, 0.0f));
                 acc[m] += wt * nlm_in[4 * j + m].xyz;

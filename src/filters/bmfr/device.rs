@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
 
-use super::nlm::{NLM_EPSILON, NLM_TILE};
+use super::nlm::{NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE};
 use super::prefilter::{PREFILTER_EPSILON, PREFILTER_K};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
@@ -97,6 +97,7 @@ impl BmfrKernel {
             ("BMFR_NLM_K", format!("{:e}f", s.nlm_k as f32)),
             ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
             ("BMFR_NLM_TILE", NLM_TILE.to_string()),
+            ("BMFR_NLM_ROWS", NLM_PACKED_ROWS.to_string()),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -218,25 +219,49 @@ impl BmfrKernel {
         let mut select = Vec::new();
         if s.uses_nlm() {
             let raw = gpu.zeroed::<Float4>(pixels, "bmfr nlm variance samples")?;
-            let nlm_in = gpu.zeroed::<Float4>(4 * pixels, "bmfr nlm inputs")?;
             let nlm_out = gpu.zeroed::<Float4>(3 * pixels, "bmfr nlm outputs")?;
             let residuals = gpu.zeroed::<Float4>(pixels, "bmfr selection residuals")?;
             let mut kb = per_pixel("bmfr_nlm_prep", all);
             kb.arg(&raw);
             select.push(built(kb, all)?);
-            let mut kb = per_pixel("bmfr_nlm_inputs", no_positions);
-            kb.arg(&raw).arg(&nlm_in);
-            select.push(built(kb, no_positions)?);
-            let mut kb = per_pixel("bmfr_nlm", no_positions);
-            let tile = NLM_TILE as usize;
-            kb.global_work_size([
-                (width as usize).next_multiple_of(tile),
-                (height as usize).next_multiple_of(tile),
-            ])
-            .local_work_size([tile, tile])
-            .arg(&nlm_in)
-            .arg(&nlm_out);
-            select.push(built(kb, no_positions)?);
+            // Packed on CPU devices (nlm.rs `packed_nlm`): the inputs as lines of floats,
+            // padded either side and zeroed once (kernels/filters/bmfr_nlm_packed.cl).
+            if s.packed_nlm.or(gpu.summary.kind == "CPU") {
+                let pack = 16;
+                let stride = NLM_PACKED_PAD + width.next_multiple_of(pack) + NLM_PACKED_PAD;
+                let lines = gpu.zeroed::<f32>(
+                    (NLM_PACKED_LINES * stride) as usize * height as usize,
+                    "bmfr nlm input lines",
+                )?;
+                let mut kb = per_pixel("bmfr_nlm_inputs_lines", no_positions);
+                kb.arg(&raw).arg(stride).arg(&lines);
+                select.push(built(kb, no_positions)?);
+                let mut kb = per_pixel("bmfr_nlm_packed", no_positions);
+                kb.global_work_size([
+                    width.div_ceil(pack) as usize,
+                    height.div_ceil(NLM_PACKED_ROWS) as usize,
+                ])
+                .local_work_size([1, 1])
+                .arg(&lines)
+                .arg(stride)
+                .arg(&nlm_out);
+                select.push(built(kb, no_positions)?);
+            } else {
+                let nlm_in = gpu.zeroed::<Float4>(4 * pixels, "bmfr nlm inputs")?;
+                let mut kb = per_pixel("bmfr_nlm_inputs", no_positions);
+                kb.arg(&raw).arg(&nlm_in);
+                select.push(built(kb, no_positions)?);
+                let mut kb = per_pixel("bmfr_nlm", no_positions);
+                let tile = NLM_TILE as usize;
+                kb.global_work_size([
+                    (width as usize).next_multiple_of(tile),
+                    (height as usize).next_multiple_of(tile),
+                ])
+                .local_work_size([tile, tile])
+                .arg(&nlm_in)
+                .arg(&nlm_out);
+                select.push(built(kb, no_positions)?);
+            }
             let mut kb = per_pixel("bmfr_residuals_nlm", all);
             kb.arg(&out).arg(&nlm_out).arg(&residuals);
             select.push(built(kb, all)?);

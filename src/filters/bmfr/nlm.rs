@@ -46,9 +46,19 @@
 //!   2.28 / 2.28, Cornell plane DOF 6.44 / 6.28 / 6.29, Cornell diffuse 1.61 / 1.53 / 1.50
 //!   (`noisefree filter a.exr --filter bmfr --bmfr-select-radius R` on the same files).
 //!
-//! Cost: `bmfr_nlm` shares each tap's distance within a work-group through local memory, but
-//! it is still 121 offsets × 3 images per pixel: 0.69 s of bmfr's 0.76 s on PoCL (2 cores,
-//! 512², `noisefree filter a.exr --filter bmfr --repeat 5`, 72 ms with `--bmfr-nlm-radius 0`).
+//! Cost: 121 offsets × 3 images per pixel, most of bmfr's time on a CPU. Two kernels do the
+//! same float operations in the same order (each patch row's three taps summed first, then the
+//! rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16 work-groups share each tap's
+//! distance through local memory) and, on CPU devices (`packed_nlm`), `bmfr_nlm_packed`
+//! (bmfr_nlm_packed.cl; one work-item per 16 × 16 pixels on float16 lanes, the taps shifted
+//! between lanes by `shuffle2`, three row sums slid down the rows). On PoCL (2 cores, Cornell
+//! glossy 512², 8 spp) the work-group kernel took 0.69 s of bmfr's 0.76 s (72 ms with
+//! `--bmfr-nlm-radius 0`), the packed one 125 ms of 175 ms (`noisefree filter a.exr --filter
+//! bmfr --repeat 5`, `--bmfr-packed-nlm=false` for the former; the split from the kernels'
+//! profiling events). Through private memory instead of `shuffle2` the shifts cost 50 ms more;
+//! 4, 8, 16 or 32 rows per work-item were within 5 %. Radius 4 would take a third less and
+//! measured 1-4 % more MSE-LUV on Cornell glossy, Outside, Cornell plane DOF and Cornell
+//! diffuse (5.80 / 2.32 / 6.58 / 1.67 against 5.59 / 2.30 / 6.44 / 1.61).
 //! `--bmfr-nlm=false` gives the two-way blend back (with `--bmfr-select-radius 2`).
 
 use rayon::prelude::*;
@@ -63,6 +73,18 @@ pub const NLM_EPSILON: f32 = 1.0e-10;
 /// Side of the non-local means kernel's square work-groups (kernels/filters/bmfr_nlm.cl
 /// `bmfr_nlm`): the tile whose tap distances are shared through local memory.
 pub const NLM_TILE: u32 = 16;
+
+/// Rows of pixels per work-item of the packed non-local means (kernels/filters/
+/// bmfr_nlm_packed.cl BMFR_NLM_ROWS); its lanes are 16 pixels of each row.
+pub const NLM_PACKED_ROWS: u32 = 16;
+
+/// Floats of padding left of every line of the packed non-local means' input and at least
+/// right of the image (bmfr_nlm_packed.cl BMFR_NLM_PAD and BMFR_NLM_PACK).
+pub const NLM_PACKED_PAD: u32 = 16;
+
+/// Lines per image row of the packed non-local means' input (bmfr_nlm_packed.cl
+/// BMFR_NLM_LINES).
+pub const NLM_PACKED_LINES: u32 = 14;
 
 /// The largest search window half width (a 21 × 21 window).
 pub const MAX_NLM_RADIUS: u32 = 10;
@@ -182,6 +204,8 @@ pub fn nlm(
                         if ay < 0 || ay >= hi || by < 0 || by >= hi {
                             continue;
                         }
+                        // Each patch row's taps first, then the rows (bmfr_nlm's order).
+                        let mut row = [0f32; 3];
                         for tx in -1..=1 {
                             let (ax, bx) = (x + tx, qx + tx);
                             if ax < 0 || ax >= wi || bx < 0 || bx >= wi {
@@ -203,9 +227,12 @@ pub fn nlm(
                                         (0.5 * (diff * diff) - s[c]) * inv[c]
                                     }
                                 });
-                                d2[m] += t[0] + t[1] + t[2];
+                                row[m] += t[0] + t[1] + t[2];
                             }
                             taps += 3.0;
+                        }
+                        for m in 0..3 {
+                            d2[m] += row[m];
                         }
                     }
                     for m in 0..3 {

@@ -1,0 +1,185 @@
+// bmfr's non-local means on CPU devices (`packed_nlm`, src/filters/bmfr/nlm.rs): the equations
+// of bmfr_nlm (filters/bmfr_nlm.cl, included before this file) with one work-item filtering
+// BMFR_NLM_PACK (16) adjacent pixels of BMFR_NLM_ROWS rows, every operation written on float16
+// vectors whose lane i is pixel x0 + i.
+//
+// Why: PoCL runs bmfr_nlm's work-groups as loops over the work-items between barriers, on
+// scalar floats with a scalar exp (as it does the a-trous filter's taps, filters/
+// atrous_packed.cl). Here the packing is explicit, and the tap distances are shared without
+// local memory: a tap's distance depends only on the pixel a = p + t and the offset q - p, so
+// for one offset the work-item evaluates each of its rows' distances once (16 lanes and the
+// two edge pixels), sums each row's three taps by shifting the lanes, and slides a window of
+// three such row sums down its rows: (ROWS + 2) / ROWS row evaluations per output row and
+// offset, against 3 × 3 without sharing.
+//
+// Layout ("lines", as the a-trous filter's): bmfr_nlm_inputs_lines writes every image row as
+// BMFR_NLM_LINES lines of `stride` floats: lines 0-2 the frame's light (rgb), 3-5 the odd
+// half's, 6-8 the even half's, 9-11 the variance, 12 a 1 (inside the image), 13 the surface
+// flag. Pixel (x, y), line k sits at (y * LINES + k) * stride + BMFR_NLM_PAD + x. The BMFR_NLM_PAD
+// floats left of every line and the ones right of the image (stride = PAD + width rounded up
+// to PACK + PAD) are never written, so they stay 0 (the buffer is zeroed once): a tap that
+// reaches past the image's left or right edge reads an "inside" of 0 and counts as invalid, as
+// bmfr_nlm's bounds test makes it. Rows above and below the image are skipped (the same for
+// every lane).
+//
+// The same float operations in the same order as bmfr_nlm and the Rust reference (offsets in
+// order; per patch row the taps x - 1, x, x + 1, then the rows y - 1, y, y + 1; FP_CONTRACT
+// OFF from bmfr.cl). Measured against the reference: tests/bmfr.rs.
+
+#define BMFR_NLM_PACK 16
+#define BMFR_NLM_PAD 16
+#define BMFR_NLM_LINES 14
+#if BMFR_NLM_RADIUS + 1 > BMFR_NLM_PAD
+#error "noisefree: BMFR_NLM_RADIUS must be below BMFR_NLM_PAD (src/filters/bmfr/nlm.rs)"
+#endif
+
+// Where line 0 of pixel (x, y) lies.
+inline size_t bmfr_nlm_line_at(int x, int y, uint stride) {
+    return (size_t)y * BMFR_NLM_LINES * stride + BMFR_NLM_PAD + x;
+}
+
+// bmfr_nlm_inputs into lines. Global size: width x height.
+__kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
+                                    __global const float4* odd_halves,
+                                    uint width, uint height, float spp,
+                                    __global const float4* raw,
+                                    uint stride,
+                                    __global float* lines) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    float4 u[4];
+    bmfr_nlm_pixel(fv, odd_halves, x, y, width, height, spp, raw, u);
+    __global float* at = lines + bmfr_nlm_line_at(x, y, stride);
+    for (int m = 0; m < 4; ++m) {
+        at[(3 * m) * (size_t)stride] = u[m].x;
+        at[(3 * m + 1) * (size_t)stride] = u[m].y;
+        at[(3 * m + 2) * (size_t)stride] = u[m].z;
+    }
+    at[12 * (size_t)stride] = 1.0f;
+    at[13 * (size_t)stride] = u[0].w;
+}
+
+// The distances of one tap for the frame (d0) and the two halves (d1, d2), bmfr_nlm's
+// expressions channel by channel, 0 where the tap is invalid (either pixel outside the image).
+// T is float16 (LOAD = vload16) for the work-item's lanes, float (LOAD = *) for an edge pixel.
+#define BMFR_NLM_TAP(T, LOAD, a, b, stride, d0, d1, d2, valid)                              \
+    {                                                                                      \
+        T q_[3][3];                                                                        \
+        for (int c = 0; c < 3; ++c) {                                                      \
+            T va = LOAD((a) + (9 + c) * (size_t)(stride));                                 \
+            T vb = LOAD((b) + (9 + c) * (size_t)(stride));                                 \
+            T s = va + fmin(va, vb);                                                       \
+            T inv = 1.0f / (BMFR_NLM_EPSILON + k2 * (va + vb));                            \
+            for (int m = 0; m < 3; ++m) {                                                  \
+                T diff = LOAD((a) + (3 * m + c) * (size_t)(stride))                        \
+                       - LOAD((b) + (3 * m + c) * (size_t)(stride));                       \
+                q_[m][c] = m == 0 ? (diff * diff - s) * inv                                \
+                                  : (0.5f * (diff * diff) - s) * inv;                      \
+            }                                                                              \
+        }                                                                                  \
+        valid = LOAD((a) + 12 * (size_t)(stride)) * LOAD((b) + 12 * (size_t)(stride));     \
+        d0 = valid != 0.0f ? (q_[0][0] + q_[0][1]) + q_[0][2] : (T)(0.0f);                \
+        d1 = valid != 0.0f ? (q_[1][0] + q_[1][1]) + q_[1][2] : (T)(0.0f);                \
+        d2 = valid != 0.0f ? (q_[2][0] + q_[2][1]) + q_[2][2] : (T)(0.0f);                \
+    }
+#define BMFR_NLM_LOAD16(p) vload16(0, p)
+// The two edge pixels of a work-item's row, x0 - 1 and x0 + 16.
+#define BMFR_NLM_LOAD_EDGES(p) ((float2)((p)[-1], (p)[BMFR_NLM_PACK]))
+
+// One patch row's sum for the lanes x0 .. x0 + 15 of row ay, against row by shifted by dx:
+// per lane (D(x - 1) + D(x)) + D(x + 1), for the three images (h[0..2]) and the valid taps
+// (h[3]).
+inline void bmfr_nlm_row(__global const float* lines, uint stride, int x0, int ay, int by,
+                         int dx, float k2, float16 h[4]) {
+    __global const float* a = lines + bmfr_nlm_line_at(x0, ay, stride);
+    __global const float* b = lines + bmfr_nlm_line_at(x0 + dx, by, stride);
+    float16 d[4];
+    float2 e[4];
+    BMFR_NLM_TAP(float16, BMFR_NLM_LOAD16, a, b, stride, d[0], d[1], d[2], d[3]);
+    BMFR_NLM_TAP(float2, BMFR_NLM_LOAD_EDGES, a, b, stride, e[0], e[1], e[2], e[3]);
+    for (int m = 0; m < 4; ++m) {
+        // The lanes shifted by one pixel either way, the edge pixels shifted in.
+        float16 edges = (float16)(e[m], e[m], e[m], e[m], e[m], e[m], e[m], e[m]);
+        float16 left = shuffle2(d[m], edges,
+                                (uint16)(16, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14));
+        float16 right = shuffle2(d[m], edges,
+                                 (uint16)(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 17));
+        h[m] = (left + d[m]) + right;
+    }
+}
+
+// bmfr_nlm on BMFR_NLM_PACK x BMFR_NLM_ROWS pixels. Global size: ceil(width / PACK) x
+// ceil(height / ROWS), work-groups of 1.
+__kernel void bmfr_nlm_packed(__global const FilterVector* fv,
+                              __global const float4* odd_halves,
+                              uint width, uint height, float spp,
+                              __global const float* lines,
+                              uint stride,
+                              __global float4* nlm_out) {
+    int x0 = get_global_id(0) * BMFR_NLM_PACK, y0 = get_global_id(1) * BMFR_NLM_ROWS;
+    int w = (int)width, h = (int)height;
+    if (x0 >= w || y0 >= h) return;
+    float k2 = BMFR_NLM_K * BMFR_NLM_K;
+    // Per row: the weighted sums of the three images' rgb (3 m + c) and their weights.
+    float16 acc[BMFR_NLM_ROWS][9], wsum[BMFR_NLM_ROWS][3];
+    for (int row = 0; row < BMFR_NLM_ROWS; ++row) {
+        for (int k = 0; k < 9; ++k) acc[row][k] = (float16)(0.0f);
+        for (int m = 0; m < 3; ++m) wsum[row][m] = (float16)(0.0f);
+    }
+    for (int dy = -BMFR_NLM_RADIUS; dy <= BMFR_NLM_RADIUS; ++dy) {
+        for (int dx = -BMFR_NLM_RADIUS; dx <= BMFR_NLM_RADIUS; ++dx) {
+            if (x0 + dx + BMFR_NLM_PACK - 1 < 0 || x0 + dx >= w) continue;  // no q inside
+            // The row sums of rows r - 2, r - 1 and r: the patch rows of output row r - 1.
+            float16 h0[4], h1[4], h2[4];
+            for (int r = -1; r <= BMFR_NLM_ROWS; ++r) {
+                int ay = y0 + r, by = ay + dy;
+                if (ay >= 0 && ay < h && by >= 0 && by < h) {
+                    bmfr_nlm_row(lines, stride, x0, ay, by, dx, k2, h2);
+                } else {
+                    for (int m = 0; m < 4; ++m) h2[m] = (float16)(0.0f);
+                }
+                int row = r - 1, py = y0 + row, qy = py + dy;
+                if (row >= 0 && py < h && qy >= 0 && qy < h) {
+                    __global const float* q = lines + bmfr_nlm_line_at(x0 + dx, qy, stride);
+                    int16 surface = BMFR_NLM_LOAD16(q + 13 * (size_t)stride) != 0.0f;
+                    float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
+                    for (int m = 0; m < 3; ++m) {
+                        float16 d2 = (h0[m] + h1[m]) + h2[m];
+                        float16 wt = surface ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
+                        for (int c = 0; c < 3; ++c)
+                            acc[row][3 * m + c] +=
+                                wt * BMFR_NLM_LOAD16(q + (3 * m + c) * (size_t)stride);
+                        wsum[row][m] += wt;
+                    }
+                }
+                for (int m = 0; m < 4; ++m) {
+                    h0[m] = h1[m];
+                    h1[m] = h2[m];
+                }
+            }
+        }
+    }
+    for (int row = 0; row < BMFR_NLM_ROWS && y0 + row < h; ++row) {
+        int y = y0 + row;
+        float mean[9][BMFR_NLM_PACK];
+        for (int k = 0; k < 9; ++k) vstore16(acc[row][k] / wsum[row][k / 3], 0, mean[k]);
+        __global const float* p = lines + bmfr_nlm_line_at(x0, y, stride);
+        for (int lane = 0; lane < BMFR_NLM_PACK && x0 + lane < w; ++lane) {
+            uint i = (uint)y * width + (uint)(x0 + lane);
+            __global const FilterVector* f = fv + i;
+            if (p[13 * (size_t)stride + lane] == 0.0f) {
+                // Not a surface: its inputs back, as bmfr_nlm.
+                float4 odd = odd_halves[i];
+                float3 beauty = bmfr_beauty(f);
+                nlm_out[3 * i] = (float4)(beauty, 0.0f);
+                nlm_out[3 * i + 1] = (float4)(odd.xyz, 0.0f);
+                nlm_out[3 * i + 2] = (float4)(bmfr_even(beauty, odd, spp), 0.0f);
+                continue;
+            }
+            float3 al = bmfr_albedo(f);
+            for (int m = 0; m < 3; ++m)
+                nlm_out[3 * i + m] = (float4)((float3)(mean[3 * m][lane], mean[3 * m + 1][lane],
+                                                       mean[3 * m + 2][lane]) * al, 0.0f);
+        }
+    }
+}
