@@ -100,6 +100,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_nlm_packed.cl"),
     ),
     (
+        "filters/bmfr_prefilter_packed.cl",
+        include_str!("../kernels/filters/bmfr_prefilter_packed.cl"),
+    ),
+    (
         "filters/aaf_pass.cl",
         include_str!("../kernels/filters/aaf_pass.cl"),
     ),

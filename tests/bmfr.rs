@@ -60,8 +60,9 @@ fn frame_of(w: u32, h: u32, fv: &[FilterVector], pos: &[Float4]) -> Frame {
 
 fn variants() -> Vec<BmfrSettings> {
     let d = BmfrSettings::default();
-    // The work-group fit (bmfr_fit) and non-local means (bmfr_nlm) beside the packed ones
-    // (bmfr_fit_packed, bmfr_nlm_packed, auto on PoCL).
+    // The work-group fit (bmfr_fit) and non-local means (bmfr_nlm, bmfr_albedo_prefilter)
+    // beside the packed ones (bmfr_fit_packed, bmfr_nlm_packed, bmfr_albedo_prefilter_packed,
+    // auto on PoCL).
     let groups = BmfrSettings {
         packed_fit: Auto::Set(false),
         packed_nlm: Auto::Set(false),
@@ -129,6 +130,11 @@ fn variants() -> Vec<BmfrSettings> {
         BmfrSettings {
             albedo_prefilter: Auto::Set(true),
             ..d.clone()
+        },
+        // The prefilter's kernel with one work-item per pixel (bmfr_albedo_prefilter).
+        BmfrSettings {
+            albedo_prefilter: Auto::Set(true),
+            ..groups.clone()
         },
         BmfrSettings {
             albedo_prefilter: Auto::Set(true),

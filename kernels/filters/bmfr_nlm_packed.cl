@@ -33,9 +33,10 @@
 #error "noisefree: BMFR_NLM_RADIUS must be below BMFR_NLM_PAD (src/filters/bmfr/nlm.rs)"
 #endif
 
-// Where line 0 of pixel (x, y) lies.
-inline size_t bmfr_nlm_line_at(int x, int y, uint stride) {
-    return (size_t)y * BMFR_NLM_LINES * stride + BMFR_NLM_PAD + x;
+// Where line 0 of pixel (x, y) lies in a buffer of `lines` lines per row (this layout, also
+// the packed albedo prefilter's, filters/bmfr_prefilter_packed.cl).
+inline size_t bmfr_line_at(int x, int y, int lines, uint stride) {
+    return (size_t)y * lines * stride + BMFR_NLM_PAD + x;
 }
 
 // bmfr_nlm_inputs into lines. Global size: width x height.
@@ -49,7 +50,7 @@ __kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
     if (x >= (int)width || y >= (int)height) return;
     float4 u[4];
     bmfr_nlm_pixel(fv, odd_halves, x, y, width, height, spp, raw, u);
-    __global float* at = lines + bmfr_nlm_line_at(x, y, stride);
+    __global float* at = lines + bmfr_line_at(x, y, BMFR_NLM_LINES, stride);
     for (int m = 0; m < 4; ++m) {
         at[(3 * m) * (size_t)stride] = u[m].x;
         at[(3 * m + 1) * (size_t)stride] = u[m].y;
@@ -91,8 +92,8 @@ __kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
 // (h[3]).
 inline void bmfr_nlm_row(__global const float* lines, uint stride, int x0, int ay, int by,
                          int dx, float k2, float16 h[4]) {
-    __global const float* a = lines + bmfr_nlm_line_at(x0, ay, stride);
-    __global const float* b = lines + bmfr_nlm_line_at(x0 + dx, by, stride);
+    __global const float* a = lines + bmfr_line_at(x0, ay, BMFR_NLM_LINES, stride);
+    __global const float* b = lines + bmfr_line_at(x0 + dx, by, BMFR_NLM_LINES, stride);
     float16 d[4];
     float2 e[4];
     BMFR_NLM_TAP(float16, BMFR_NLM_LOAD16, a, b, stride, d[0], d[1], d[2], d[3]);
@@ -140,7 +141,8 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
                 }
                 int row = r - 1, py = y0 + row, qy = py + dy;
                 if (row >= 0 && py < h && qy >= 0 && qy < h) {
-                    __global const float* q = lines + bmfr_nlm_line_at(x0 + dx, qy, stride);
+                    __global const float* q =
+                        lines + bmfr_line_at(x0 + dx, qy, BMFR_NLM_LINES, stride);
                     int16 surface = BMFR_NLM_LOAD16(q + 13 * (size_t)stride) != 0.0f;
                     float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
                     for (int m = 0; m < 3; ++m) {
@@ -163,7 +165,7 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
         int y = y0 + row;
         float mean[9][BMFR_NLM_PACK];
         for (int k = 0; k < 9; ++k) vstore16(acc[row][k] / wsum[row][k / 3], 0, mean[k]);
-        __global const float* p = lines + bmfr_nlm_line_at(x0, y, stride);
+        __global const float* p = lines + bmfr_line_at(x0, y, BMFR_NLM_LINES, stride);
         for (int lane = 0; lane < BMFR_NLM_PACK && x0 + lane < w; ++lane) {
             uint i = (uint)y * width + (uint)(x0 + lane);
             __global const FilterVector* f = fv + i;

@@ -7,8 +7,10 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
 
-use super::nlm::{NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE};
-use super::prefilter::{PREFILTER_EPSILON, PREFILTER_K};
+use super::nlm::{
+    MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
+};
+use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, PREFILTER_PACKED_LINES};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
     grid_blocks, grid_offset,
@@ -31,6 +33,29 @@ struct FrameArgs {
     spp: bool,
 }
 
+/// The albedo prefilter's launches and the copy of F they write, which the other kernels then
+/// read (prefilter.rs).
+struct Prefilter {
+    /// Takes the frame's buffers: `bmfr_albedo_prefilter`, or with the packed kernel
+    /// `bmfr_prefilter_lines`, which writes its input lines.
+    inputs: Kernel,
+    /// `bmfr_albedo_prefilter_packed` and its input lines (`packed_nlm`).
+    packed: Option<(Kernel, Buffer<f32>)>,
+    copy: Buffer<u8>,
+}
+
+/// Floats per line of the packed kernels' inputs (kernels/filters/bmfr_nlm_packed.cl): the
+/// padding either side of the image's width rounded up to the lanes.
+fn line_stride(width: u32) -> u32 {
+    NLM_PACKED_PAD + width.next_multiple_of(PACK) + NLM_PACKED_PAD
+}
+
+/// Lanes of the packed kernels (bmfr_nlm_packed.cl BMFR_NLM_PACK).
+const PACK: u32 = 16;
+
+// The packed kernels' reads reach the search window's radius past the lanes, into the padding.
+const _: () = assert!(MAX_NLM_RADIUS < NLM_PACKED_PAD && MAX_ALBEDO_RADIUS < NLM_PACKED_PAD);
+
 /// The regression filter, built once for an image size.
 pub struct BmfrKernel {
     gpu: Arc<Gpu>,
@@ -42,9 +67,8 @@ pub struct BmfrKernel {
     /// `bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`, `bmfr_residuals_nlm` and
     /// `bmfr_select_nlm` (nlm.rs). In launch order, each with the frame arguments it takes.
     select: Vec<(Kernel, FrameArgs)>,
-    /// With `albedo_prefilter`: `bmfr_albedo_prefilter` and the copy of F it writes, which
-    /// the other kernels then read (prefilter.rs).
-    prefilter: Option<(Kernel, Buffer<u8>)>,
+    /// With `albedo_prefilter` (prefilter.rs).
+    prefilter: Option<Prefilter>,
     needs: OutputSet,
     _weights: Buffer<f32>,
     _info: Buffer<f32>,
@@ -227,8 +251,7 @@ impl BmfrKernel {
             // Packed on CPU devices (nlm.rs `packed_nlm`): the inputs as lines of floats,
             // padded either side and zeroed once (kernels/filters/bmfr_nlm_packed.cl).
             if s.packed_nlm.or(gpu.summary.kind == "CPU") {
-                let pack = 16;
-                let stride = NLM_PACKED_PAD + width.next_multiple_of(pack) + NLM_PACKED_PAD;
+                let stride = line_stride(width);
                 let lines = gpu.zeroed::<f32>(
                     (NLM_PACKED_LINES * stride) as usize * height as usize,
                     "bmfr nlm input lines",
@@ -238,7 +261,7 @@ impl BmfrKernel {
                 select.push(built(kb, no_positions)?);
                 let mut kb = per_pixel("bmfr_nlm_packed", no_positions);
                 kb.global_work_size([
-                    width.div_ceil(pack) as usize,
+                    width.div_ceil(PACK) as usize,
                     height.div_ceil(NLM_PACKED_ROWS) as usize,
                 ])
                 .local_work_size([1, 1])
@@ -278,14 +301,24 @@ impl BmfrKernel {
             select.push(built(kb, none)?);
         }
         let prefilter = if s.prefilters_albedo() {
-            let pixels = width as usize * height as usize;
             let copy = gpu.zeroed::<u8>(
                 pixels * std::mem::size_of::<FilterVector>(),
                 "bmfr prefiltered F",
             )?;
-            let kernel = Kernel::builder()
-                .program(&program)
-                .name("bmfr_albedo_prefilter")
+            // On CPU devices the packed kernel (bmfr_prefilter_packed.cl) over its inputs as
+            // lines; elsewhere one work-item per pixel.
+            let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
+            let stride = line_stride(width);
+            let lines = if packed {
+                Some(gpu.zeroed::<f32>(
+                    (PREFILTER_PACKED_LINES * stride) as usize * height as usize,
+                    "bmfr albedo prefilter lines",
+                )?)
+            } else {
+                None
+            };
+            let mut kb = Kernel::builder();
+            kb.program(&program)
                 .queue(gpu.queue.clone())
                 .global_work_size([width as usize, height as usize])
                 .arg_named("fv", None::<&Buffer<u8>>)
@@ -294,12 +327,41 @@ impl BmfrKernel {
                 .arg(width)
                 .arg(height)
                 .arg_named("spp", 0f32)
-                .arg_named("factor", 0f32)
-                .arg(s.albedo_radius)
-                .arg(&copy)
+                .arg_named("factor", 0f32);
+            if let Some(lines) = &lines {
+                kb.name("bmfr_prefilter_lines").arg(stride).arg(lines);
+            } else {
+                kb.name("bmfr_albedo_prefilter").arg(s.albedo_radius).arg(&copy);
+            }
+            let inputs = kb
                 .build()
                 .context("creating the bmfr albedo prefilter kernel")?;
-            Some((kernel, copy))
+            let packed = match lines {
+                Some(lines) => {
+                    let kernel = Kernel::builder()
+                        .program(&program)
+                        .name("bmfr_albedo_prefilter_packed")
+                        .queue(gpu.queue.clone())
+                        .global_work_size([width.div_ceil(PACK) as usize, height as usize])
+                        .local_work_size([1, 1])
+                        .arg_named("fv", None::<&Buffer<u8>>)
+                        .arg(width)
+                        .arg(height)
+                        .arg(&lines)
+                        .arg(stride)
+                        .arg(s.albedo_radius)
+                        .arg(&copy)
+                        .build()
+                        .context("creating the packed bmfr albedo prefilter kernel")?;
+                    Some((kernel, lines))
+                }
+                None => None,
+            };
+            Some(Prefilter {
+                inputs,
+                packed,
+                copy,
+            })
         } else {
             None
         };
@@ -329,16 +391,22 @@ impl BmfrKernel {
         let pos = frame.device(&self.gpu, BufferId::Positions)?;
         let spp = frame.info().spp as f32;
         let mut events = Vec::with_capacity(self.fits.len() + 4);
-        if let Some((kernel, copy)) = &self.prefilter {
-            kernel.set_arg("fv", fv)?;
-            kernel.set_arg("sums", frame.device(&self.gpu, BufferId::WelfordSums)?)?;
-            kernel.set_arg("positions", pos)?;
-            kernel.set_arg("spp", spp)?;
-            kernel.set_arg("factor", frame.variance_factor())?;
-            // SAFETY: the buffers are sized for the image; the in-order queue runs the fits
-            // on the copy after this launch, and we wait for every event below.
-            events.push(unsafe { enqueue(kernel, "the bmfr albedo prefilter")? });
-            fv = copy;
+        if let Some(p) = &self.prefilter {
+            p.inputs.set_arg("fv", fv)?;
+            p.inputs
+                .set_arg("sums", frame.device(&self.gpu, BufferId::WelfordSums)?)?;
+            p.inputs.set_arg("positions", pos)?;
+            p.inputs.set_arg("spp", spp)?;
+            p.inputs.set_arg("factor", frame.variance_factor())?;
+            // SAFETY: the buffers are sized for the image; the in-order queue runs the packed
+            // kernel after its lines, and the fits on the copy after both; we wait for every
+            // event below.
+            events.push(unsafe { enqueue(&p.inputs, "the bmfr albedo prefilter")? });
+            if let Some((kernel, _)) = &p.packed {
+                kernel.set_arg("fv", fv)?;
+                events.push(unsafe { enqueue(kernel, "the packed bmfr albedo prefilter")? });
+            }
+            fv = &p.copy;
         }
         if let Some((kernel, _)) = &self.rows {
             kernel.set_arg("fv", fv)?;

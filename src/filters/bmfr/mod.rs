@@ -147,10 +147,11 @@ crate::filter_settings! {
         /// (kernels/filters/bmfr_fit_packed.cl): the same bytes as the work-group fit (paper
         /// Algorithm 1), which PoCL runs on scalar floats. auto: on CPU devices.
         pub packed_fit: Auto<bool> = Auto::Auto,
-        /// The non-local means with one work-item per 16 × 16 pixels on float16 lanes
-        /// (kernels/filters/bmfr_nlm_packed.cl), the same equations in the same order as the
-        /// work-group kernel (16 × 16 tiles sharing the tap distances through local memory),
-        /// which PoCL runs on scalar floats. auto: on CPU devices.
+        /// The non-local means (the selection's candidate and the albedo prefilter) on float16
+        /// lanes, one work-item per 16 × 16 or 16 × 1 pixels (kernels/filters/
+        /// bmfr_nlm_packed.cl, bmfr_prefilter_packed.cl): the same float operations in the
+        /// same order as the kernels with one work-item per pixel, which PoCL runs on scalar
+        /// floats. auto: on CPU devices.
         pub packed_nlm: Auto<bool> = Auto::Auto,
     }
 }

@@ -1,0 +1,84 @@
+// bmfr's albedo prefilter on CPU devices (`packed_nlm`, src/filters/bmfr/prefilter.rs): the
+// equations of bmfr_albedo_prefilter (filters/bmfr.cl) with one work-item filtering
+// BMFR_NLM_PACK (16) adjacent pixels of a row on float16 lanes, over "lines" of floats as the
+// packed non-local means (filters/bmfr_nlm_packed.cl, included before this file, which has the
+// layout and the padding's reasons): BMFR_PREFILTER_LINES lines per row, 0-2 the mean albedo,
+// 3-5 its variance (bmfr_albedo_variance), 6 a 1 for a pixel that takes part (not kept).
+//
+// Why: bmfr_albedo_prefilter loops over its window per work-item, so PoCL runs it on scalar
+// floats with a scalar exp (40-56 ms of bmfr's time at 512^2 on the depth-of-field scenes).
+// The taps in the same order with the same float operations (FP_CONTRACT OFF); a tap outside
+// the image or on a kept pixel has weight 0 here where the scalar kernel skips it (0 x a
+// finite albedo adds nothing). Measured against the Rust reference: tests/bmfr.rs.
+
+#define BMFR_PREFILTER_LINES 7
+
+// bmfr_albedo_prefilter's inputs into lines. Global size: width x height.
+__kernel void bmfr_prefilter_lines(__global const FilterVector* fv,
+                                   __global const WelfordSums* sums,
+                                   __global const float4* positions,
+                                   uint width, uint height, float spp, float factor,
+                                   uint stride,
+                                   __global float* lines) {
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= (int)width || y >= (int)height) return;
+    uint i = (uint)y * width + (uint)x;
+    __global const FilterVector* f = fv + i;
+    float3 v = bmfr_albedo_variance(sums + i, factor, spp);
+    __global float* at = lines + bmfr_line_at(x, y, BMFR_PREFILTER_LINES, stride);
+    for (int c = 0; c < 3; ++c) at[c * (size_t)stride] = f->albedo[c];
+    at[3 * (size_t)stride] = v.x;
+    at[4 * (size_t)stride] = v.y;
+    at[5 * (size_t)stride] = v.z;
+    at[6 * (size_t)stride] = bmfr_kept(f, positions + i, spp) ? 0.0f : 1.0f;
+}
+
+// bmfr_albedo_prefilter on BMFR_NLM_PACK pixels of a row. Global size: ceil(width / PACK) x
+// height, work-groups of 1.
+__kernel void bmfr_albedo_prefilter_packed(__global const FilterVector* fv,
+                                           uint width, uint height,
+                                           __global const float* lines,
+                                           uint stride, uint radius,
+                                           __global FilterVector* out) {
+    int x0 = get_global_id(0) * BMFR_NLM_PACK, y = get_global_id(1);
+    int w = (int)width, h = (int)height, r = (int)radius;
+    if (x0 >= w || y >= h) return;
+    float k2 = BMFR_PREFILTER_K * BMFR_PREFILTER_K;
+    __global const float* p = lines + bmfr_line_at(x0, y, BMFR_PREFILTER_LINES, stride);
+    float16 ai[3], vi[3];
+    for (int c = 0; c < 3; ++c) {
+        ai[c] = vload16(0, p + c * (size_t)stride);
+        vi[c] = vload16(0, p + (3 + c) * (size_t)stride);
+    }
+    float16 sum[3] = {(float16)(0.0f), (float16)(0.0f), (float16)(0.0f)};
+    float16 wsum = (float16)(0.0f);
+    for (int yy = max(y - r, 0); yy <= min(y + r, h - 1); ++yy) {
+        for (int dx = -r; dx <= r; ++dx) {
+            if (x0 + dx + BMFR_NLM_PACK - 1 < 0 || x0 + dx >= w) continue;  // no lane inside
+            __global const float* q = lines + bmfr_line_at(x0 + dx, yy, BMFR_PREFILTER_LINES,
+                                                           stride);
+            float16 aj[3];
+            float16 d2 = (float16)(0.0f);
+            for (int c = 0; c < 3; ++c) {
+                aj[c] = vload16(0, q + c * (size_t)stride);
+                float16 vj = vload16(0, q + (3 + c) * (size_t)stride);
+                float16 diff = ai[c] - aj[c];
+                d2 += (diff * diff - (vi[c] + fmin(vi[c], vj)))
+                    / (BMFR_PREFILTER_EPSILON + k2 * (vi[c] + vj));
+            }
+            int16 part = vload16(0, q + 6 * (size_t)stride) != 0.0f;
+            float16 wt = part ? exp(-fmax(d2 / 3.0f, 0.0f)) : (float16)(0.0f);
+            for (int c = 0; c < 3; ++c) sum[c] += wt * aj[c];
+            wsum += wt;
+        }
+    }
+    float mean[3][BMFR_NLM_PACK];
+    for (int c = 0; c < 3; ++c) vstore16(sum[c] / wsum, 0, mean[c]);
+    for (int lane = 0; lane < BMFR_NLM_PACK && x0 + lane < w; ++lane) {
+        uint i = (uint)y * width + (uint)(x0 + lane);
+        out[i] = fv[i];
+        // A kept pixel keeps its albedo (its own weight is 0: no mean).
+        if (p[6 * (size_t)stride + lane] == 0.0f) continue;
+        for (int c = 0; c < 3; ++c) out[i].albedo[c] = mean[c][lane];
+    }
+}
