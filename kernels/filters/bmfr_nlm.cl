@@ -83,6 +83,15 @@ __kernel void bmfr_nlm_inputs(__global const FilterVector* fv,
     for (int m = 0; m < 4; ++m) nlm_in[4 * ((uint)y * width + (uint)x) + m] = u[m];
 }
 
+// The output of a pixel that is not a surface: its frame, odd and even means as they are.
+inline void bmfr_nlm_pass_through(__global const FilterVector* f, float4 odd, float spp,
+                                  __global float4* out) {
+    float3 beauty = bmfr_beauty(f);
+    out[0] = (float4)(beauty, 0.0f);
+    out[1] = (float4)(odd.xyz, 0.0f);
+    out[2] = (float4)(bmfr_even(beauty, odd, spp), 0.0f);
+}
+
 // bmfr_nlm: for each surface pixel p, the weighted mean over the surface pixels q of the
 // (2 BMFR_NLM_RADIUS + 1)^2 window, w = exp(-max(0, d^2)), d^2 the mean over the 3 x 3 patch
 // taps t with p + t and q + t inside the image, and over the channels, of
@@ -178,11 +187,7 @@ void bmfr_nlm(__global const FilterVector* fv,
     __global const FilterVector* f = fv + i;
     float3 al = bmfr_albedo(f);
     if (!active) {
-        float4 odd = odd_halves[i];
-        float3 beauty = bmfr_beauty(f);
-        nlm_out[3 * i] = (float4)(beauty, 0.0f);
-        nlm_out[3 * i + 1] = (float4)(odd.xyz, 0.0f);
-        nlm_out[3 * i + 2] = (float4)(bmfr_even(beauty, odd, spp), 0.0f);
+        bmfr_nlm_pass_through(f, odd_halves[i], spp, nlm_out + 3 * i);
         return;
     }
     // The pixel is its own neighbour (d^2 <= 0, weight 1), so every wsum >= 1.

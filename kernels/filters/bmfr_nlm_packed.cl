@@ -170,12 +170,7 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
             uint i = (uint)y * width + (uint)(x0 + lane);
             __global const FilterVector* f = fv + i;
             if (p[13 * (size_t)stride + lane] == 0.0f) {
-                // Not a surface: its inputs back, as bmfr_nlm.
-                float4 odd = odd_halves[i];
-                float3 beauty = bmfr_beauty(f);
-                nlm_out[3 * i] = (float4)(beauty, 0.0f);
-                nlm_out[3 * i + 1] = (float4)(odd.xyz, 0.0f);
-                nlm_out[3 * i + 2] = (float4)(bmfr_even(beauty, odd, spp), 0.0f);
+                bmfr_nlm_pass_through(f, odd_halves[i], spp, nlm_out + 3 * i);
                 continue;
             }
             float3 al = bmfr_albedo(f);
