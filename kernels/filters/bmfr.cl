@@ -336,7 +336,8 @@ __kernel void bmfr_apply(__global const FilterVector* fv,
     float3 sum = (float3)(0.0f);
     float wsum = 0.0f;
     // Unrolled (every trip count is a -D constant), the kernel has no loops left, and PoCL
-    // packs its work-items into SIMD lanes: 20 -> 8.5 ms at 512^2, 4 grids, the same bytes.
+    // packs its work-items into SIMD lanes: 20 -> 8.5 ms at 512^2, 4 grids, the same bytes
+    // (profiling events before and after the pragmas, stop 33; the loop version is gone).
     #pragma unroll
     for (uint g = 0; g < BMFR_GRIDS; ++g) {
         int2 off = bmfr_grid_offset(g);
@@ -366,6 +367,22 @@ __kernel void bmfr_apply(__global const FilterVector* fv,
     out[i] = (float4)(sum / wsum, 0.0f);
 }
 
+// A pixel the selection estimates errors for: not kept, and both halves hold samples.
+inline bool bmfr_surface(__global const FilterVector* f, __global const float4* pos,
+                         float4 odd, float spp) {
+    return !bmfr_kept(f, pos, spp) && odd.w >= 1.0f && spp - odd.w >= 1.0f;
+}
+
+// Summed over the channels, (R, V): the fit's squared residual (f - y)^2 and the variance of
+// the frame's mean y estimated from the half buffers, (y - odd)^2 n_odd / n_even
+// (bmfr_residuals, bmfr_residuals_nlm).
+inline float2 bmfr_fit_error(float3 beauty, float3 fitted, float4 odd, float spp) {
+    float3 r = fitted - beauty;
+    float3 d = beauty - odd.xyz;
+    float3 v = d * d * (odd.w / (spp - odd.w));
+    return (float2)(r.x * r.x + r.y * r.y + r.z * r.z, v.x + v.y + v.z);
+}
+
 // Per-pixel selection between the fit and the unfiltered light (src/filters/bmfr/select.rs).
 // bmfr_residuals: per pixel, over the three channels, the squared residual of the fit
 // (f - y)^2 and the variance of y estimated from the half buffers, (y - odd)^2 n_odd / n_even;
@@ -381,16 +398,8 @@ __kernel void bmfr_residuals(__global const FilterVector* fv,
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
     float4 odd = odd_halves[i];
-    float n_odd = odd.w, n_even = spp - odd.w;
-    if (bmfr_kept(f, positions + i, spp) || n_odd < 1.0f || n_even < 1.0f) {
-        residuals[i] = (float2)(0.0f);
-        return;
-    }
-    float3 beauty = bmfr_beauty(f);
-    float3 r = fitted[i].xyz - beauty;
-    float3 d = beauty - odd.xyz;
-    float3 v = d * d * (n_odd / n_even);
-    residuals[i] = (float2)(r.x * r.x + r.y * r.y + r.z * r.z, v.x + v.y + v.z);
+    residuals[i] = bmfr_surface(f, positions + i, odd, spp)
+        ? bmfr_fit_error(bmfr_beauty(f), fitted[i].xyz, odd, spp) : (float2)(0.0f);
 }
 
 // bmfr_select: the window sums R (residuals) and V (variances) over the (2 r + 1)^2 pixels

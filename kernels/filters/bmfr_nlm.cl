@@ -7,12 +7,7 @@
 // error). Included at the end of filters/bmfr.cl; the Rust reference does the same float
 // operations in the same order.
 //
-// A pixel takes part ("surface") when it is not kept (bmfr_kept) and both halves hold samples.
-
-inline bool bmfr_surface(__global const FilterVector* f, __global const float4* pos,
-                         float4 odd, float spp) {
-    return !bmfr_kept(f, pos, spp) && odd.w >= 1.0f && spp - odd.w >= 1.0f;
-}
+// A pixel takes part when bmfr_surface (filters/bmfr.cl) says so.
 
 // The even samples' mean from the frame's mean and the odd samples' (the beauty itself when
 // there are no even samples).
@@ -218,17 +213,14 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
     float n_odd = odd.w, n_even = spp - odd.w;
     float3 beauty = bmfr_beauty(f);
     float3 even = bmfr_even(beauty, odd, spp);
-    float3 r = fitted[i].xyz - beauty;
-    float3 d = beauty - odd.xyz;
-    float3 v = d * d * (n_odd / n_even);
+    float2 fit = bmfr_fit_error(beauty, fitted[i].xyz, odd, spp);
     float3 oe = odd.xyz - even;
     float3 v_odd = oe * oe * (n_even / spp);
     float3 v_even = oe * oe * (n_odd / spp);
     float3 no = nlm_out[3 * i + 1].xyz - even;
     float3 ne = nlm_out[3 * i + 2].xyz - odd.xyz;
     float3 n = 0.5f * ((no * no - v_even) + (ne * ne - v_odd));
-    residuals[i] = (float4)(v.x + v.y + v.z, r.x * r.x + r.y * r.y + r.z * r.z,
-                            n.x + n.y + n.z, 0.0f);
+    residuals[i] = (float4)(fit.y, fit.x, n.x + n.y + n.z, 0.0f);
 }
 
 // bmfr_select_nlm: the window sums V, R, N over the (2 r + 1)^2 pixels around, the three

@@ -52,18 +52,20 @@
 //! distance through local memory) and, on CPU devices (`packed_nlm`), `bmfr_nlm_packed`
 //! (bmfr_nlm_packed.cl; one work-item per 16 × 16 pixels on float16 lanes, the taps shifted
 //! between lanes by `shuffle2`, three row sums slid down the rows). On PoCL (2 cores, Cornell
-//! glossy 512², 8 spp) the work-group kernel took 0.69 s of bmfr's 0.76 s (72 ms with
-//! `--bmfr-nlm-radius 0`), the packed one 125 ms of 175 ms (`noisefree filter a.exr --filter
-//! bmfr --repeat 5`, `--bmfr-packed-nlm=false` for the former; the split from the kernels'
-//! profiling events). Through private memory instead of `shuffle2` the shifts cost 50 ms more;
-//! 4, 8, 16 or 32 rows per work-item were within 5 %. Radius 4 would take a third less and
+//! glossy 512², 8 spp, `noisefree filter a.exr --filter bmfr --repeat 5`, medians): bmfr takes
+//! 190 ms with the packed kernel, 839 ms with the work-group one (`--bmfr-packed-nlm=false`)
+//! and 72 ms with `--bmfr-nlm-radius 0` (one offset), so the other 120 offsets cost about
+//! 120 ms packed and 770 ms in work-groups. On variants of the packed kernel not kept in the
+//! repository, shifting the lanes through private memory instead of `shuffle2` cost 50 ms more;
+//! 4, 8, 16 or 32 rows per work-item (`NLM_PACKED_ROWS`) were within 5 %. Radius 4 would take a third less and
 //! measured 1-4 % more MSE-LUV on Cornell glossy, Outside, Cornell plane DOF and Cornell
 //! diffuse (5.80 / 2.32 / 6.58 / 1.67 against 5.59 / 2.30 / 6.44 / 1.61).
 //! `--bmfr-nlm=false` gives the two-way blend back (with `--bmfr-select-radius 2`).
 
 use rayon::prelude::*;
 
-use super::reference::{albedo, kept};
+use super::reference::albedo;
+use super::select::surface;
 use crate::layout::{FilterVector, Float4};
 
 /// ε of the patch distance (as the albedo prefilter's): noise-free pixels (v = 0) are only
@@ -93,10 +95,6 @@ fn beauty(f: &FilterVector) -> [f32; 3] {
     std::array::from_fn(|c| f.direct[c] + f.indirect[c])
 }
 
-/// kernels/filters/bmfr_nlm.cl `bmfr_surface`: not kept, and both halves hold samples.
-pub fn surface(f: &FilterVector, p: &Float4, odd: &Float4, spp: f32) -> bool {
-    !kept(f, p, spp) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0
-}
 
 /// kernels/filters/bmfr_nlm.cl `bmfr_even`.
 fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
@@ -261,25 +259,16 @@ pub fn residual(
     if !surface(f, pos, odd, spp) {
         return [0.0; 3];
     }
+    let [r, v] = super::select::residual(f, pos, odd, spp, fit);
     let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
-    let b = beauty(f);
-    let e = even(b, odd, spp);
-    let mut out = [0f32; 3];
-    let mut terms = [[0f32; 3]; 3];
-    for c in 0..3 {
-        let r = fit[c] - b[c];
-        let d = b[c] - odd.0[c];
+    let e = even(beauty(f), odd, spp);
+    let n: [f32; 3] = std::array::from_fn(|c| {
         let oe = odd.0[c] - e[c];
         let (v_odd, v_even) = (oe * oe * (n_even / spp), oe * oe * (n_odd / spp));
         let (no, ne) = (nlm[1][c] - e[c], nlm[2][c] - odd.0[c]);
-        terms[0][c] = d * d * (n_odd / n_even);
-        terms[1][c] = r * r;
-        terms[2][c] = 0.5 * ((no * no - v_even) + (ne * ne - v_odd));
-    }
-    for (o, t) in out.iter_mut().zip(&terms) {
-        *o = t[0] + t[1] + t[2];
-    }
-    out
+        0.5 * ((no * no - v_even) + (ne * ne - v_odd))
+    });
+    [v, r, n[0] + n[1] + n[2]]
 }
 
 /// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` for pixel (x, y).

@@ -56,10 +56,10 @@ use crate::layout::{FilterVector, Float4};
 
 /// kernels/filters/bmfr.cl `bmfr_residuals` for one pixel: (Σ_c (f − y)², Σ_c v).
 pub fn residual(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32, fit: [f32; 3]) -> [f32; 2] {
-    let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
-    if kept(f, pos, spp) || n_odd < 1.0 || n_even < 1.0 {
+    if !surface(f, pos, odd, spp) {
         return [0.0, 0.0];
     }
+    let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
     let beauty: [f32; 3] = std::array::from_fn(|c| f.direct[c] + f.indirect[c]);
     let r: [f32; 3] = std::array::from_fn(|c| fit[c] - beauty[c]);
     let v: [f32; 3] = std::array::from_fn(|c| {
@@ -67,6 +67,11 @@ pub fn residual(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32, fit: [f3
         d * d * (n_odd / n_even)
     });
     [r[0] * r[0] + r[1] * r[1] + r[2] * r[2], v[0] + v[1] + v[2]]
+}
+
+/// kernels/filters/bmfr.cl `bmfr_surface`: not kept, and both halves hold samples.
+pub fn surface(f: &FilterVector, p: &Float4, odd: &Float4, spp: f32) -> bool {
+    !kept(f, p, spp) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0
 }
 
 /// The per-pixel estimates summed over the (2 radius + 1)² window around (x, y) inside the
