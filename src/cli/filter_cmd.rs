@@ -10,7 +10,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::Args;
 
 use crate::filters::{FilterRequest, Registry};
-use crate::gpu::Gpu;
+use crate::gpu::{Gpu, profile};
 use crate::imaging;
 use crate::render::Frame;
 use crate::stats::RenderRecord;
@@ -38,6 +38,10 @@ pub struct FilterCommandArgs {
     /// Run the filter this many times and print min / median / max time.
     #[arg(long, default_value_t = 1)]
     pub repeat: u32,
+    /// Also print each kernel's launches and time per run (median over the runs, from the
+    /// OpenCL profiling events).
+    #[arg(long)]
+    pub profile: bool,
     #[arg(long, short)]
     pub quiet: bool,
     /// The filter settings given on the command line, per filter.
@@ -90,7 +94,11 @@ pub fn run(args: &FilterCommandArgs, registry: &Registry) -> Result<()> {
             .map(|f| f.name().to_string())
             .with_context(|| format!("{input}: no filter can run on what this file holds"))?,
     };
-    let (image, timings) = filter_frame(
+    let Filtered {
+        image,
+        times: timings,
+        kernels,
+    } = filter_frame(
         &frame,
         &record,
         &FilterChoice {
@@ -99,11 +107,15 @@ pub fn run(args: &FilterCommandArgs, registry: &Registry) -> Result<()> {
             device: args.device,
             quiet: args.quiet,
             repeat: args.repeat,
+            profile: args.profile,
         },
         registry,
     )
     .with_context(|| input.clone())?;
     super::print_timings(&format!("{name} filter time"), &timings);
+    if args.profile {
+        print_profile(&kernels);
+    }
     if let Some(p) = &args.out {
         imaging::write_png(p, &image, args.exposure)?;
     }
@@ -129,6 +141,17 @@ pub struct FilterChoice<'a> {
     pub quiet: bool,
     /// Runs, for timings.
     pub repeat: u32,
+    /// Record each run's kernels ([`crate::gpu::profile`]).
+    pub profile: bool,
+}
+
+/// A frame filtered by [`filter_frame`].
+pub struct Filtered {
+    pub image: imaging::RgbImage,
+    /// Each run's time.
+    pub times: Vec<std::time::Duration>,
+    /// Each run's kernels, when [`FilterChoice::profile`] asked for them.
+    pub kernels: Vec<Vec<profile::KernelTime>>,
 }
 
 /// The image of a frame read from a file (AOV, samples or merged partial renders) filtered as
@@ -139,10 +162,14 @@ pub fn filter_frame(
     record: &RenderRecord,
     choice: &FilterChoice,
     registry: &Registry,
-) -> Result<(imaging::RgbImage, Vec<std::time::Duration>)> {
+) -> Result<Filtered> {
     let name = choice.name;
     if name == "none" {
-        return Ok((frame.beauty()?, Vec::new()));
+        return Ok(Filtered {
+            image: frame.beauty()?,
+            times: Vec::new(),
+            kernels: Vec::new(),
+        });
     }
     let filter = registry.get(name)?;
     let request = FilterRequest {
@@ -166,12 +193,62 @@ pub fn filter_frame(
     let gpu = Gpu::open(choice.device)?;
     let mut prepared = configured.prepare(frame.info(), &gpu)?;
     prepared.show_progress(!choice.quiet);
-    let mut times = Vec::new();
+    let (mut times, mut kernels) = (Vec::new(), Vec::new());
     let mut image = None;
     for _ in 0..choice.repeat.max(1) {
+        if choice.profile {
+            profile::start();
+        }
         let out = prepared.run(frame).context("filtering")?;
+        if choice.profile {
+            kernels.push(profile::finish()?);
+        }
         times.push(out.time());
         image = Some(out.image);
     }
-    Ok((image.expect("at least one run"), times))
+    Ok(Filtered {
+        image: image.expect("at least one run"),
+        times,
+        kernels,
+    })
+}
+
+/// Each kernel's launches and median time per run over `runs`, with its share of the
+/// median run's summed kernel time.
+fn print_profile(runs: &[Vec<profile::KernelTime>]) {
+    let Some(first) = runs.first() else { return };
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let totals: Vec<f64> = runs
+        .iter()
+        .map(|r| r.iter().map(|k| k.time.as_secs_f64() * 1e3).sum())
+        .collect();
+    let total = median(totals);
+    println!("kernels per run (median over {} run(s)):", runs.len());
+    println!(
+        "  {:<40} {:>8} {:>11} {:>7}",
+        "kernel", "launches", "ms", "share"
+    );
+    for k in first {
+        let ms = median(
+            runs.iter()
+                .map(|r| {
+                    r.iter()
+                        .find(|o| o.kernel == k.kernel)
+                        .map_or(0.0, |o| o.time.as_secs_f64() * 1e3)
+                })
+                .collect(),
+        );
+        let share = if total > 0.0 { 100.0 * ms / total } else { 0.0 };
+        println!(
+            "  {:<40} {:>8} {:>11.3} {:>6.1}%",
+            k.kernel, k.launches, ms, share
+        );
+    }
+    println!(
+        "  {:<40} {:>8} {:>11.3}",
+        "all kernels (median run)", "", total
+    );
 }

@@ -99,8 +99,9 @@ pub fn run(args: &MergeArgs, registry: &Registry) -> Result<()> {
         device: args.device,
         quiet: args.quiet,
         repeat: 1,
+        profile: false,
     };
-    let (image, _) = filter_frame(&merged.frame, &merged.record, &choice, registry)?;
+    let image = filter_frame(&merged.frame, &merged.record, &choice, registry)?.image;
     // Everything is computed: now the files, each through a temporary name.
     if let Some(p) = &args.partial {
         plan.write_bundle(p)?;

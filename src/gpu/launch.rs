@@ -34,6 +34,7 @@ pub unsafe fn enqueue(kernel: &ocl::Kernel, what: &str) -> Result<Event> {
             .enq()
             .with_context(|| format!("launching {what}"))?;
     }
+    super::profile::record(kernel, &event);
     Ok(event)
 }
 
@@ -80,6 +81,7 @@ pub unsafe fn enqueue_rows(
     unsafe {
         cmd.enq().with_context(|| format!("launching {what}"))?;
     }
+    super::profile::record(kernel, &event);
     Ok(event)
 }
 

@@ -21,6 +21,7 @@ pub use launch::{
 };
 
 mod launch;
+pub mod profile;
 
 /// What the user is told when no OpenCL platform is installed.
 pub const NO_PLATFORM_HELP: &str = "no OpenCL platform found. noisefree needs an OpenCL driver; \
