@@ -81,8 +81,14 @@ inline floatP sum_sq3_p(const floatP* a, const floatP* b) {
 }
 
 // ddf_neighbour on DDF_PACK neighbours at once; `inside` (-1 per lane) says which count.
-inline void ddf_neighbour_p(__constant const DdfParams* p, DdfPacked* c, const floatP* n,
-                            const floatP* n_direction, intP inside) {
+// Always inlined: PoCL's LLVM judged it too big (two float16 exponentials) and called it per
+// tap, so the accumulators in `c` went through memory on every tap; inlined, they stay in
+// registers and a constant `inside` folds the selects away (ddf_filter's interior work-items).
+// Same bytes, 0.91x of the time (results/README.md, "Data-driven filter speed").
+__attribute__((always_inline)) inline void ddf_neighbour_p(__constant const DdfParams* p,
+                                                           DdfPacked* c, const floatP* n,
+                                                           const floatP* n_direction,
+                                                           intP inside) {
     floatP e_dc = p->sigma2_dc * sum_sq3_p(c->f, n);                         // eq. 6.11
     floatP e_ic = p->sigma2_ic * sum_sq3_p(c->f + 3, n + 3);                 // eq. 6.12
     floatP dd = (c->f[6] - n[6]) * p->depth_scale;
@@ -154,17 +160,24 @@ __kernel void ddf_filter(__constant const DdfParams* p,
 
     floatP n[16];
     floatP n_direction[3];
+    // A work-item whose every tap of every lane lies inside the image (all but the first
+    // and last of a row) needs no per-lane test: select(0, w, -1) is w, the same bits.
+    bool interior = x0 - r >= 0 && x0 + DDF_PACK - 1 + r < w;
     for (int dy = -r; dy <= r; dy += p->step) {
         int ny = y + dy;
         if (ny < 0 || ny >= h) continue;           // the same for every lane
         __global const float* row = lines + (size_t)ny * DDF_LINES * stride + r + x0;
         for (int dx = -r; dx <= r; dx += p->step) {
-            intP nx = (intP)(x0 + dx) + LANE_IDS;
-            intP inside = nx >= 0 && nx < w;      // out-of-image neighbours weigh 0
             for (int k = 0; k < 16; ++k) n[k] = vloadP(0, row + (size_t)k * stride + dx);
             for (int k = 0; k < DDF_DIRECTION_LINES; ++k)
                 n_direction[k] = vloadP(0, row + (size_t)(16 + k) * stride + dx);
-            ddf_neighbour_p(p, &c, n, n_direction, inside);
+            if (interior) {
+                ddf_neighbour_p(p, &c, n, n_direction, (intP)(-1));
+            } else {
+                intP nx = (intP)(x0 + dx) + LANE_IDS;
+                intP inside = nx >= 0 && nx < w;      // out-of-image neighbours weigh 0
+                ddf_neighbour_p(p, &c, n, n_direction, inside);
+            }
         }
     }
     if (ddf_centre_off_grid(p)) ddf_neighbour_p(p, &c, c.f, c.direction, (intP)(-1));
