@@ -75,43 +75,55 @@ typedef struct {
     floatP c_fd[3], c_fi[3], tw_d, tw_i;  // eqs. 6.17-6.20, accumulating
 } DdfPacked;
 
-inline floatP sum_sq3_p(const floatP* a, const floatP* b) {
-    floatP d0 = a[0] - b[0], d1 = a[1] - b[1], d2 = a[2] - b[2];
-    return d0 * d0 + d1 * d1 + d2 * d2;               // sum_sq3's order
+// Lane k of F of the 16 neighbours whose lane 0 is at `q` (a line of the padded copy).
+#define DDF_NEIGHBOUR(q, stride, k) vloadP(0, (q) + (size_t)(k) * (stride))
+
+// sum_sq3's order, the centre's lanes a[0..2] against the neighbours' lines k .. k + 2.
+inline floatP sum_sq3_p(const floatP* a, __global const float* q, uint stride, int k) {
+    floatP d0 = a[0] - DDF_NEIGHBOUR(q, stride, k), d1 = a[1] - DDF_NEIGHBOUR(q, stride, k + 1),
+           d2 = a[2] - DDF_NEIGHBOUR(q, stride, k + 2);
+    return d0 * d0 + d1 * d1 + d2 * d2;
 }
 
-// ddf_neighbour on DDF_PACK neighbours at once; `inside` (-1 per lane) says which count.
-// Always inlined: PoCL's LLVM judged it too big (two float16 exponentials) and called it per
-// tap, so the accumulators in `c` went through memory on every tap; inlined, they stay in
-// registers and a constant `inside` folds the selects away (ddf_filter's interior work-items).
-// Same bytes, 0.91x of the time (results/README.md, "Data-driven filter speed").
+// ddf_neighbour on the DDF_PACK neighbours whose lines start at `q`; `inside` (-1 per lane)
+// says which count. Written for PoCL's code generator, with the same float operations:
+// - always inlined: PoCL's LLVM judged it too big (two float16 exponentials) and called it
+//   per tap, so the accumulators in `c` went through memory on every tap; inlined, they
+//   stay in registers, and a constant `inside` folds the selects away (ddf_filter's
+//   interior work-items);
+// - each neighbour lane read from the lines where it is used, not first copied into an
+//   array: PoCL keeps a private array of float16s on the stack unless its loop is unrolled,
+//   and unrolled, 16 live float16s spill;
+// - the three-colour loop unrolled, for the same reason.
+// Same bytes; results/README.md ("Data-driven filter speed") has the times.
 __attribute__((always_inline)) inline void ddf_neighbour_p(__constant const DdfParams* p,
-                                                           DdfPacked* c, const floatP* n,
-                                                           const floatP* n_direction,
-                                                           intP inside) {
-    floatP e_dc = p->sigma2_dc * sum_sq3_p(c->f, n);                         // eq. 6.11
-    floatP e_ic = p->sigma2_ic * sum_sq3_p(c->f + 3, n + 3);                 // eq. 6.12
-    floatP dd = (c->f[6] - n[6]) * p->depth_scale;
+                                                           DdfPacked* c,
+                                                           __global const float* q,
+                                                           uint stride, intP inside) {
+    floatP e_dc = p->sigma2_dc * sum_sq3_p(c->f, q, stride, 0);              // eq. 6.11
+    floatP e_ic = p->sigma2_ic * sum_sq3_p(c->f + 3, q, stride, 3);          // eq. 6.12
+    floatP dd = (c->f[6] - DDF_NEIGHBOUR(q, stride, 6)) * p->depth_scale;
     floatP e_fd = c->sigma2_f[0] * dd * dd                                   // eq. 6.13
-                + c->sigma2_f[1] * sum_sq3_p(c->f + 7, n + 7)
-                + c->sigma2_f[2] * sum_sq3_p(c->f + 10, n + 10);
+                + c->sigma2_f[1] * sum_sq3_p(c->f + 7, q, stride, 7)
+                + c->sigma2_f[2] * sum_sq3_p(c->f + 10, q, stride, 10);
     floatP e_fi = e_fd;                                                      // eq. 6.14
 #if DDF_TEXTURE2
-    e_fi += c->sigma2_f[4] * sum_sq3_p(c->f + 13, n + 13);
+    e_fi += c->sigma2_f[4] * sum_sq3_p(c->f + 13, q, stride, 13);
 #endif
 #if DDF_DIRECTION == 1
-    e_fi += c->sigma2_f[3] * sum_sq3_p(c->direction, n_direction);
+    e_fi += c->sigma2_f[3] * sum_sq3_p(c->direction, q, stride, 16);
 #elif DDF_DIRECTION == 2
-    e_fi += n_direction[0];                    // the neighbour's own sigma2_f,3
+    e_fi += DDF_NEIGHBOUR(q, stride, 16);     // the neighbour's own sigma2_f,3
 #else
     e_fi += c->sigma2_f[3];                    // as printed; cancels in eq. 6.21
 #endif
     floatP zero = (floatP)(0.0f);
     floatP w_d = select(zero, DDF_EXP(-(e_dc + e_fd)), inside);              // eq. 6.15
     floatP w_i = select(zero, DDF_EXP(-(e_ic + e_fi)), inside);              // eq. 6.16
+    #pragma unroll
     for (int k = 0; k < 3; ++k) {
-        c->c_fd[k] += w_d * n[k];                                            // eq. 6.17
-        c->c_fi[k] += w_i * n[3 + k];                                        // eq. 6.18
+        c->c_fd[k] += w_d * DDF_NEIGHBOUR(q, stride, k);                     // eq. 6.17
+        c->c_fi[k] += w_i * DDF_NEIGHBOUR(q, stride, 3 + k);                 // eq. 6.18
     }
     c->tw_d += w_d;                                                          // eq. 6.19
     c->tw_i += w_i;                                                          // eq. 6.20
@@ -158,8 +170,6 @@ __kernel void ddf_filter(__constant const DdfParams* p,
     }
 #endif
 
-    floatP n[16];
-    floatP n_direction[3];
     // A work-item whose every tap of every lane lies inside the image (all but the first
     // and last of a row) needs no per-lane test: select(0, w, -1) is w, the same bits.
     bool interior = x0 - r >= 0 && x0 + DDF_PACK - 1 + r < w;
@@ -168,19 +178,16 @@ __kernel void ddf_filter(__constant const DdfParams* p,
         if (ny < 0 || ny >= h) continue;           // the same for every lane
         __global const float* row = lines + (size_t)ny * DDF_LINES * stride + r + x0;
         for (int dx = -r; dx <= r; dx += p->step) {
-            for (int k = 0; k < 16; ++k) n[k] = vloadP(0, row + (size_t)k * stride + dx);
-            for (int k = 0; k < DDF_DIRECTION_LINES; ++k)
-                n_direction[k] = vloadP(0, row + (size_t)(16 + k) * stride + dx);
             if (interior) {
-                ddf_neighbour_p(p, &c, n, n_direction, (intP)(-1));
+                ddf_neighbour_p(p, &c, row + dx, stride, (intP)(-1));
             } else {
                 intP nx = (intP)(x0 + dx) + LANE_IDS;
                 intP inside = nx >= 0 && nx < w;      // out-of-image neighbours weigh 0
-                ddf_neighbour_p(p, &c, n, n_direction, inside);
+                ddf_neighbour_p(p, &c, row + dx, stride, inside);
             }
         }
     }
-    if (ddf_centre_off_grid(p)) ddf_neighbour_p(p, &c, c.f, c.direction, (intP)(-1));
+    if (ddf_centre_off_grid(p)) ddf_neighbour_p(p, &c, centre, stride, (intP)(-1));
 
     // eq. 6.21 (ddf_output), lane by lane; sky centres keep their colour (§6.3.4).
     float rgb[3][DDF_PACK];
