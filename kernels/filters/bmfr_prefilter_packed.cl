@@ -59,6 +59,9 @@ __kernel void bmfr_albedo_prefilter_packed(__global const FilterVector* fv,
                                                            stride);
             float16 aj[3];
             float16 d2 = (float16)(0.0f);
+            // Unrolled, as the sums below: PoCL keeps private float16 arrays on the stack
+            // unless their loops are unrolled.
+            #pragma unroll
             for (int c = 0; c < 3; ++c) {
                 aj[c] = vload16(0, q + c * (size_t)stride);
                 float16 vj = vload16(0, q + (3 + c) * (size_t)stride);
@@ -68,6 +71,7 @@ __kernel void bmfr_albedo_prefilter_packed(__global const FilterVector* fv,
             }
             int16 part = vload16(0, q + 6 * (size_t)stride) != 0.0f;
             float16 wt = part ? exp(-fmax(d2 / 3.0f, 0.0f)) : (float16)(0.0f);
+            #pragma unroll
             for (int c = 0; c < 3; ++c) sum[c] += wt * aj[c];
             wsum += wt;
         }
