@@ -110,7 +110,8 @@ __kernel void atrous_pass_packed(__constant const AtrousParams* p,
                 size_t cq_at = atrous_line_at(x0 + dx, ny, ATROUS_COLOUR_LINES, stride);
                 size_t gq_at = atrous_line_at(x0 + dx, ny, ATROUS_GUIDE_LINES, stride);
                 // Unrolled, as the accumulation below: PoCL keeps a private array of
-                // float16s on the stack unless its loop is unrolled (0.77x of the time).
+                // float16s on the stack unless its loop is unrolled (results/README.md,
+                // "PoCL's code for the packed kernels").
                 #pragma unroll
                 for (int k = 0; k < 3; ++k) {
                     cq[k] = vloadP(0, in + cq_at + k * (size_t)stride);

@@ -95,7 +95,7 @@ inline floatP sum_sq3_p(const floatP* a, __global const float* q, uint stride, i
 //   array: PoCL keeps a private array of float16s on the stack unless its loop is unrolled,
 //   and unrolled, 16 live float16s spill;
 // - the three-colour loop unrolled, for the same reason.
-// Same bytes; results/README.md ("Data-driven filter speed") has the times.
+// Same bytes; results/README.md ("PoCL's code for the packed kernels") has the times.
 __attribute__((always_inline)) inline void ddf_neighbour_p(__constant const DdfParams* p,
                                                            DdfPacked* c,
                                                            __global const float* q,
