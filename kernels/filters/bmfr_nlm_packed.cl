@@ -1,23 +1,27 @@
 // bmfr's non-local means on CPU devices (`packed_nlm`, src/filters/bmfr/nlm.rs): the equations
 // of bmfr_nlm (filters/bmfr_nlm.cl, included before this file) with one work-item filtering
-// BMFR_NLM_PACK (16) adjacent pixels of BMFR_NLM_ROWS rows, every operation written on float16
-// vectors whose lane i is pixel x0 + i.
+// BMFR_NLM_STEP (14) adjacent pixels x0 .. x0 + 13 of BMFR_NLM_ROWS rows, every operation
+// written on float16 vectors whose lane i is pixel x0 - 1 + i: lanes 0 and 15 are the left and
+// right neighbours that a patch's horizontal taps need, computed and never written.
 //
 // Why: PoCL runs bmfr_nlm's work-groups as loops over the work-items between barriers, on
 // scalar floats with a scalar exp (as it does the a-trous filter's taps, filters/
 // atrous_packed.cl). Here the packing is explicit, and the tap distances are shared without
 // local memory: a tap's distance depends only on the pixel a = p + t and the offset q - p, so
-// for one offset the work-item evaluates each of its rows' distances once (16 lanes and the
-// two edge pixels), sums each row's three taps by shifting the lanes, and slides a window of
-// three such row sums down its rows: (ROWS + 2) / ROWS row evaluations per output row and
-// offset, against 3 × 3 without sharing.
+// for one offset the work-item evaluates each of its rows' distances once (16 lanes), sums each
+// row's three taps by shifting the lanes, and slides a window of three such row sums down its
+// rows: (ROWS + 2) / ROWS row evaluations per output row and offset, against 3 × 3 without
+// sharing. Overlapping the work-items by two pixels costs 16 / 14 of the lanes; it replaced
+// evaluating the two edge pixels of 16 output lanes on float2s, and measured 2 % faster with
+// the same bytes (Cornell diffuse 512², `noisefree filter --profile`, binaries alternating
+// four times: 109.5-110.8 ms -> 106.8-109.4 ms) and is the simpler code.
 //
 // Layout ("lines", as the a-trous filter's): bmfr_nlm_inputs_lines writes every image row as
 // BMFR_NLM_LINES lines of `stride` floats: lines 0-2 the frame's light (rgb), 3-5 the odd
 // half's, 6-8 the even half's, 9-11 the variance, 12 a 1 (inside the image), 13 the surface
 // flag. Pixel (x, y), line k sits at (y * LINES + k) * stride + BMFR_NLM_PAD + x. The BMFR_NLM_PAD
 // floats left of every line and the ones right of the image (stride = PAD + width rounded up
-// to PACK + PAD) are never written, so they stay 0 (the buffer is zeroed once): a tap that
+// to PACK + 2 PAD) are never written, so they stay 0 (the buffer is zeroed once): a tap that
 // reaches past the image's left or right edge reads an "inside" of 0 and counts as invalid, as
 // bmfr_nlm's bounds test makes it. Rows above and below the image are skipped (the same for
 // every lane).
@@ -27,6 +31,7 @@
 // OFF from bmfr.cl). Measured against the reference: tests/bmfr.rs.
 
 #define BMFR_NLM_PACK 16
+#define BMFR_NLM_STEP (BMFR_NLM_PACK - 2)
 #define BMFR_NLM_PAD 16
 #define BMFR_NLM_LINES 14
 #if BMFR_NLM_RADIUS + 1 > BMFR_NLM_PAD
@@ -60,59 +65,51 @@ __kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
     at[13 * (size_t)stride] = u[0].w;
 }
 
-// The distances of one tap for the frame (d0) and the two halves (d1, d2), bmfr_nlm's
-// expressions channel by channel, 0 where the tap is invalid (either pixel outside the image).
-// T is float16 (LOAD = vload16) for the work-item's lanes, float (LOAD = *) for an edge pixel.
-#define BMFR_NLM_TAP(T, LOAD, a, b, stride, d0, d1, d2, valid)                              \
-    {                                                                                      \
-        T q_[3][3];                                                                        \
-        _Pragma("unroll") for (int c = 0; c < 3; ++c) {                                    \
-            T va = LOAD((a) + (9 + c) * (size_t)(stride));                                 \
-            T vb = LOAD((b) + (9 + c) * (size_t)(stride));                                 \
-            T s = va + fmin(va, vb);                                                       \
-            T inv = 1.0f / (BMFR_NLM_EPSILON + k2 * (va + vb));                            \
-            _Pragma("unroll") for (int m = 0; m < 3; ++m) {                                \
-                T diff = LOAD((a) + (3 * m + c) * (size_t)(stride))                        \
-                       - LOAD((b) + (3 * m + c) * (size_t)(stride));                       \
-                q_[m][c] = m == 0 ? (diff * diff - s) * inv                                \
-                                  : (0.5f * (diff * diff) - s) * inv;                      \
-            }                                                                              \
-        }                                                                                  \
-        valid = LOAD((a) + 12 * (size_t)(stride)) * LOAD((b) + 12 * (size_t)(stride));     \
-        d0 = valid != 0.0f ? (q_[0][0] + q_[0][1]) + q_[0][2] : (T)(0.0f);                \
-        d1 = valid != 0.0f ? (q_[1][0] + q_[1][1]) + q_[1][2] : (T)(0.0f);                \
-        d2 = valid != 0.0f ? (q_[2][0] + q_[2][1]) + q_[2][2] : (T)(0.0f);                \
-    }
 #define BMFR_NLM_LOAD16(p) vload16(0, p)
-// The two edge pixels of a work-item's row, x0 - 1 and x0 + 16.
-#define BMFR_NLM_LOAD_EDGES(p) ((float2)((p)[-1], (p)[BMFR_NLM_PACK]))
 
-// One patch row's sum for the lanes x0 .. x0 + 15 of row ay, against row by shifted by dx:
+// One patch row's sum for the lanes xv .. xv + 15 of row ay, against row by shifted by dx:
 // per lane (D(x - 1) + D(x)) + D(x + 1), for the three images (h[0..2]) and the valid taps
-// (h[3]). Always inlined, and every small loop over private float16 arrays here and in the
-// kernel unrolled: PoCL called it per row and kept those arrays on the stack (same bytes;
-// Cornell diffuse 512² 124 -> 113 ms, `noisefree filter --profile`, binaries alternating).
-__attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* lines, uint stride, int x0, int ay, int by,
-                         int dx, float k2, float16 h[4]) {
-    __global const float* a = lines + bmfr_line_at(x0, ay, BMFR_NLM_LINES, stride);
-    __global const float* b = lines + bmfr_line_at(x0 + dx, by, BMFR_NLM_LINES, stride);
+// (h[3]); right only in lanes 1 .. 14 (lanes 0 and 15 lack a neighbour). Always inlined, and
+// every small loop over private float16 arrays here and in the kernel unrolled: PoCL called it
+// per row and kept those arrays on the stack (same bytes; Cornell diffuse 512² 124 -> 113 ms,
+// `noisefree filter --profile`, binaries alternating).
+__attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* lines,
+                                                        uint stride, int xv, int ay, int by,
+                                                        int dx, float k2, float16 h[4]) {
+    __global const float* a = lines + bmfr_line_at(xv, ay, BMFR_NLM_LINES, stride);
+    __global const float* b = lines + bmfr_line_at(xv + dx, by, BMFR_NLM_LINES, stride);
+    // The distances of the tap for the frame (d[0]) and the two halves (d[1], d[2]),
+    // bmfr_nlm's expressions channel by channel, 0 where the tap is invalid (either pixel
+    // outside the image: d[3]).
+    float16 q[3][3];
+    #pragma unroll
+    for (int c = 0; c < 3; ++c) {
+        float16 va = BMFR_NLM_LOAD16(a + (9 + c) * (size_t)stride);
+        float16 vb = BMFR_NLM_LOAD16(b + (9 + c) * (size_t)stride);
+        float16 s = va + fmin(va, vb);
+        float16 inv = 1.0f / (BMFR_NLM_EPSILON + k2 * (va + vb));
+        #pragma unroll
+        for (int m = 0; m < 3; ++m) {
+            float16 diff = BMFR_NLM_LOAD16(a + (3 * m + c) * (size_t)stride)
+                         - BMFR_NLM_LOAD16(b + (3 * m + c) * (size_t)stride);
+            q[m][c] = m == 0 ? (diff * diff - s) * inv : (0.5f * (diff * diff) - s) * inv;
+        }
+    }
     float16 d[4];
-    float2 e[4];
-    BMFR_NLM_TAP(float16, BMFR_NLM_LOAD16, a, b, stride, d[0], d[1], d[2], d[3]);
-    BMFR_NLM_TAP(float2, BMFR_NLM_LOAD_EDGES, a, b, stride, e[0], e[1], e[2], e[3]);
+    d[3] = BMFR_NLM_LOAD16(a + 12 * (size_t)stride) * BMFR_NLM_LOAD16(b + 12 * (size_t)stride);
+    #pragma unroll
+    for (int m = 0; m < 3; ++m)
+        d[m] = d[3] != 0.0f ? (q[m][0] + q[m][1]) + q[m][2] : (float16)(0.0f);
     #pragma unroll
     for (int m = 0; m < 4; ++m) {
-        // The lanes shifted by one pixel either way, the edge pixels shifted in.
-        float16 edges = (float16)(e[m], e[m], e[m], e[m], e[m], e[m], e[m], e[m]);
-        float16 left = shuffle2(d[m], edges,
-                                (uint16)(16, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14));
-        float16 right = shuffle2(d[m], edges,
-                                 (uint16)(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 17));
+        // The lanes shifted by one pixel either way.
+        float16 left = shuffle(d[m], (uint16)(0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14));
+        float16 right = shuffle(d[m], (uint16)(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 15));
         h[m] = (left + d[m]) + right;
     }
 }
 
-// bmfr_nlm on BMFR_NLM_PACK x BMFR_NLM_ROWS pixels. Global size: ceil(width / PACK) x
+// bmfr_nlm on BMFR_NLM_STEP x BMFR_NLM_ROWS pixels. Global size: ceil(width / STEP) x
 // ceil(height / ROWS), work-groups of 1.
 __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
                               __global const float4* odd_halves,
@@ -120,9 +117,10 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
                               __global const float* lines,
                               uint stride,
                               __global float4* nlm_out) {
-    int x0 = get_global_id(0) * BMFR_NLM_PACK, y0 = get_global_id(1) * BMFR_NLM_ROWS;
+    int x0 = get_global_id(0) * BMFR_NLM_STEP, y0 = get_global_id(1) * BMFR_NLM_ROWS;
     int w = (int)width, h = (int)height;
     if (x0 >= w || y0 >= h) return;
+    int xv = x0 - 1;                         // the pixel of lane 0
     float k2 = BMFR_NLM_K * BMFR_NLM_K;
     // Per row: the weighted sums of the three images' rgb (3 m + c) and their weights.
     float16 acc[BMFR_NLM_ROWS][9], wsum[BMFR_NLM_ROWS][3];
@@ -132,13 +130,13 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
     }
     for (int dy = -BMFR_NLM_RADIUS; dy <= BMFR_NLM_RADIUS; ++dy) {
         for (int dx = -BMFR_NLM_RADIUS; dx <= BMFR_NLM_RADIUS; ++dx) {
-            if (x0 + dx + BMFR_NLM_PACK - 1 < 0 || x0 + dx >= w) continue;  // no q inside
+            if (x0 + dx + BMFR_NLM_STEP - 1 < 0 || x0 + dx >= w) continue;  // no q inside
             // The row sums of rows r - 2, r - 1 and r: the patch rows of output row r - 1.
             float16 h0[4], h1[4], h2[4];
             for (int r = -1; r <= BMFR_NLM_ROWS; ++r) {
                 int ay = y0 + r, by = ay + dy;
                 if (ay >= 0 && ay < h && by >= 0 && by < h) {
-                    bmfr_nlm_row(lines, stride, x0, ay, by, dx, k2, h2);
+                    bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, h2);
                 } else {
                     #pragma unroll
                     for (int m = 0; m < 4; ++m) h2[m] = (float16)(0.0f);
@@ -146,7 +144,7 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
                 int row = r - 1, py = y0 + row, qy = py + dy;
                 if (row >= 0 && py < h && qy >= 0 && qy < h) {
                     __global const float* q =
-                        lines + bmfr_line_at(x0 + dx, qy, BMFR_NLM_LINES, stride);
+                        lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
                     int16 surface = BMFR_NLM_LOAD16(q + 13 * (size_t)stride) != 0.0f;
                     float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
                     #pragma unroll
@@ -172,9 +170,9 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
         int y = y0 + row;
         float mean[9][BMFR_NLM_PACK];
         for (int k = 0; k < 9; ++k) vstore16(acc[row][k] / wsum[row][k / 3], 0, mean[k]);
-        __global const float* p = lines + bmfr_line_at(x0, y, BMFR_NLM_LINES, stride);
-        for (int lane = 0; lane < BMFR_NLM_PACK && x0 + lane < w; ++lane) {
-            uint i = (uint)y * width + (uint)(x0 + lane);
+        __global const float* p = lines + bmfr_line_at(xv, y, BMFR_NLM_LINES, stride);
+        for (int lane = 1; lane <= BMFR_NLM_STEP && xv + lane < w; ++lane) {
+            uint i = (uint)y * width + (uint)(xv + lane);
             __global const FilterVector* f = fv + i;
             if (p[13 * (size_t)stride + lane] == 0.0f) {
                 bmfr_nlm_pass_through(f, odd_halves[i], spp, nlm_out + 3 * i);

@@ -45,16 +45,27 @@ struct Prefilter {
 }
 
 /// Floats per line of the packed kernels' inputs (kernels/filters/bmfr_nlm_packed.cl): the
-/// padding either side of the image's width rounded up to the lanes.
+/// padding left of the image, its width rounded up to the lanes, twice the padding right.
 fn line_stride(width: u32) -> u32 {
-    NLM_PACKED_PAD + width.next_multiple_of(PACK) + NLM_PACKED_PAD
+    NLM_PACKED_PAD + width.next_multiple_of(PACK) + 2 * NLM_PACKED_PAD
 }
 
 /// Lanes of the packed kernels (bmfr_nlm_packed.cl BMFR_NLM_PACK).
 const PACK: u32 = 16;
 
-// The packed kernels' reads reach the search window's radius past the lanes, into the padding.
-const _: () = assert!(MAX_NLM_RADIUS < NLM_PACKED_PAD && MAX_ALBEDO_RADIUS < NLM_PACKED_PAD);
+/// Pixels filtered per work-item of the packed non-local means: its lanes less the left and
+/// right neighbours (bmfr_nlm_packed.cl BMFR_NLM_STEP).
+const NLM_STEP: u32 = PACK - 2;
+
+// The packed kernels' reads reach the search window's radius past the lanes, into the padding:
+// left, the radius and (non-local means) the neighbour lane; right, from the last work-item's
+// first pixel (at most width - 1) its lanes and the radius.
+const _: () = assert!(
+    MAX_NLM_RADIUS + 1 <= NLM_PACKED_PAD
+        && MAX_ALBEDO_RADIUS < NLM_PACKED_PAD
+        && NLM_STEP + MAX_NLM_RADIUS <= 2 * NLM_PACKED_PAD
+        && PACK - 1 + MAX_ALBEDO_RADIUS <= 2 * NLM_PACKED_PAD
+);
 
 /// The regression filter, built once for an image size.
 pub struct BmfrKernel {
@@ -261,7 +272,7 @@ impl BmfrKernel {
                 select.push(built(kb, no_positions)?);
                 let mut kb = per_pixel("bmfr_nlm_packed", no_positions);
                 kb.global_work_size([
-                    width.div_ceil(PACK) as usize,
+                    width.div_ceil(NLM_STEP) as usize,
                     height.div_ceil(NLM_PACKED_ROWS) as usize,
                 ])
                 .local_work_size([1, 1])

@@ -80,8 +80,8 @@ pub const NLM_TILE: u32 = 16;
 /// bmfr_nlm_packed.cl BMFR_NLM_ROWS); its lanes are 16 pixels of each row.
 pub const NLM_PACKED_ROWS: u32 = 16;
 
-/// Floats of padding left of every line of the packed non-local means' input and at least
-/// right of the image (bmfr_nlm_packed.cl BMFR_NLM_PAD and BMFR_NLM_PACK).
+/// Floats of padding left of every line of the packed non-local means' input; twice as many
+/// follow the image's width rounded up to 16 (bmfr_nlm_packed.cl BMFR_NLM_PAD).
 pub const NLM_PACKED_PAD: u32 = 16;
 
 /// Lines per image row of the packed non-local means' input (bmfr_nlm_packed.cl
