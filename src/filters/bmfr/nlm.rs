@@ -57,7 +57,10 @@
 //! and 72 ms with `--bmfr-nlm-radius 0` (one offset), so the other 120 offsets cost about
 //! 120 ms packed and 770 ms in work-groups. On variants of the packed kernel not kept in the
 //! repository, shifting the lanes through private memory instead of `shuffle2` cost 50 ms more;
-//! 4, 8, 16 or 32 rows per work-item (`NLM_PACKED_ROWS`) were within 5 %. Radius 4 would take a third less and
+//! 4, 8, 16 or 32 rows per work-item (`NLM_PACKED_ROWS`) were within 5 % (later, after the
+//! kernel's stack traffic was removed: 8 / 16 / 32 / 64 rows 114 / 110 / 106 / 106 ms on
+//! Cornell diffuse, binaries alternating, so 32: its (32 + 2) / 32 row evaluations per output
+//! row against 18 / 16). Radius 4 would take a third less and
 //! measured 1-4 % more MSE-LUV on Cornell glossy, Outside, Cornell plane DOF and Cornell
 //! diffuse (5.80 / 2.32 / 6.58 / 1.67 against 5.59 / 2.30 / 6.44 / 1.61).
 //! `--bmfr-nlm=false` gives the two-way blend back (with `--bmfr-select-radius 2`).
@@ -78,7 +81,7 @@ pub const NLM_TILE: u32 = 16;
 
 /// Rows of pixels per work-item of the packed non-local means (kernels/filters/
 /// bmfr_nlm_packed.cl BMFR_NLM_ROWS); its lanes are 16 pixels of each row.
-pub const NLM_PACKED_ROWS: u32 = 16;
+pub const NLM_PACKED_ROWS: u32 = 32;
 
 /// Floats of padding left of every line of the packed non-local means' input; twice as many
 /// follow the image's width rounded up to 16 (bmfr_nlm_packed.cl BMFR_NLM_PAD).
