@@ -413,9 +413,13 @@ __kernel void bmfr_select(__global const FilterVector* fv,
     if (x >= (int)width || y >= (int)height) return;
     uint i = (uint)y * width + (uint)x;
     float sum_r = 0.0f, sum_v = 0.0f;
+    // Unrolled (the radius is a build constant), so that the kernel has no loop of its own
+    // and PoCL packs its work-items into SIMD lanes, as bmfr_apply's; the same sums.
+    #pragma unroll
     for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) {
         int yy = y + dy;
         if (yy < 0 || yy >= (int)height) continue;
+        #pragma unroll
         for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
             int xx = x + dx;
             if (xx < 0 || xx >= (int)width) continue;
