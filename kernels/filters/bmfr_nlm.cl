@@ -88,7 +88,8 @@ inline void bmfr_nlm_pass_through(__global const FilterVector* f, float4 odd, fl
 }
 
 // bmfr_nlm: for each surface pixel p, the weighted mean over the surface pixels q of the
-// (2 BMFR_NLM_RADIUS + 1)^2 window, w = exp(-max(0, d^2)), d^2 the mean over the 3 x 3 patch
+// (2 BMFR_NLM_RADIUS + 1)^2 window (the halves': (2 BMFR_NLM_ESTIMATE_RADIUS + 1)^2, as they
+// only estimate the frame's error), w = exp(-max(0, d^2)), d^2 the mean over the 3 x 3 patch
 // taps t with p + t and q + t inside the image, and over the channels, of
 //   ((u(p + t) - u(q + t))^2 - (v_a + min(v_a, v_b))) / (eps + k^2 (v_a + v_b))
 // for the frame (variance v), and of the same with the variances doubled for each half (a half
@@ -105,6 +106,10 @@ inline void bmfr_nlm_pass_through(__global const FilterVector* f, float4 odd, fl
 // an invalid tap adds 0 to the sum and 0 to the count). The tile's own inputs are read into
 // local memory once.
 #define BMFR_NLM_SIDE (BMFR_NLM_TILE + 2)
+// Whether offset (dx, dy) lies in the halves' window (they are filtered there only).
+#define BMFR_NLM_ESTIMATING(dx, dy)                                                            \
+    ((dx) >= -BMFR_NLM_ESTIMATE_RADIUS && (dx) <= BMFR_NLM_ESTIMATE_RADIUS                     \
+     && (dy) >= -BMFR_NLM_ESTIMATE_RADIUS && (dy) <= BMFR_NLM_ESTIMATE_RADIUS)
 #define BMFR_NLM_LOCAL (BMFR_NLM_SIDE * BMFR_NLM_SIDE)
 
 __kernel __attribute__((reqd_work_group_size(BMFR_NLM_TILE, BMFR_NLM_TILE, 1)))
@@ -171,7 +176,9 @@ void bmfr_nlm(__global const FilterVector* fv,
             }
             float d2[3] = {t.x, t.y, t.z};
             float taps = 3.0f * t.w;
-            for (int m = 0; m < 3; ++m) {
+            int images = BMFR_NLM_ESTIMATING(dx, dy)
+                       ? 3 : 1;
+            for (int m = 0; m < images; ++m) {
                 float wt = exp(-fmax(d2[m] / taps, 0.0f));
                 acc[m] += wt * nlm_in[4 * j + m].xyz;
                 wsum[m] += wt;

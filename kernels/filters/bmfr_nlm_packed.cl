@@ -69,13 +69,16 @@ __kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
 
 // One patch row's sum for the lanes xv .. xv + 15 of row ay, against row by shifted by dx:
 // per lane (D(x - 1) + D(x)) + D(x + 1), for the three images (h[0..2]) and the valid taps
-// (h[3]); right only in lanes 1 .. 14 (lanes 0 and 15 lack a neighbour). Always inlined, and
+// (h[3]); right only in lanes 1 .. 14 (lanes 0 and 15 lack a neighbour). `images` (a constant
+// after inlining: 3, or 1 outside the halves' estimate window) says how many of the three
+// images are computed; the others' h[m] are left unset. Always inlined, and
 // every small loop over private float16 arrays here and in the kernel unrolled: PoCL called it
 // per row and kept those arrays on the stack (same bytes; Cornell diffuse 512² 124 -> 113 ms,
 // `noisefree filter --profile`, binaries alternating).
 __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* lines,
                                                         uint stride, int xv, int ay, int by,
-                                                        int dx, float k2, float16 h[4]) {
+                                                        int dx, float k2, const int images,
+                                                        float16 h[4]) {
     __global const float* a = lines + bmfr_line_at(xv, ay, BMFR_NLM_LINES, stride);
     __global const float* b = lines + bmfr_line_at(xv + dx, by, BMFR_NLM_LINES, stride);
     // The distances of the tap for the frame (d[0]) and the two halves (d[1], d[2]),
@@ -88,24 +91,73 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
         float16 vb = BMFR_NLM_LOAD16(b + (9 + c) * (size_t)stride);
         float16 s = va + fmin(va, vb);
         float16 inv = 1.0f / (BMFR_NLM_EPSILON + k2 * (va + vb));
+        // Constant trip counts with `m < images` inside: a loop bound that is a parameter
+        // cannot be unrolled before inlining, and clang warns about each such pragma.
         #pragma unroll
         for (int m = 0; m < 3; ++m) {
-            float16 diff = BMFR_NLM_LOAD16(a + (3 * m + c) * (size_t)stride)
-                         - BMFR_NLM_LOAD16(b + (3 * m + c) * (size_t)stride);
-            q[m][c] = m == 0 ? (diff * diff - s) * inv : (0.5f * (diff * diff) - s) * inv;
+            if (m < images) {
+                float16 diff = BMFR_NLM_LOAD16(a + (3 * m + c) * (size_t)stride)
+                             - BMFR_NLM_LOAD16(b + (3 * m + c) * (size_t)stride);
+                q[m][c] = m == 0 ? (diff * diff - s) * inv : (0.5f * (diff * diff) - s) * inv;
+            }
         }
     }
     float16 d[4];
     d[3] = BMFR_NLM_LOAD16(a + 12 * (size_t)stride) * BMFR_NLM_LOAD16(b + 12 * (size_t)stride);
     #pragma unroll
     for (int m = 0; m < 3; ++m)
-        d[m] = d[3] != 0.0f ? (q[m][0] + q[m][1]) + q[m][2] : (float16)(0.0f);
+        if (m < images) d[m] = d[3] != 0.0f ? (q[m][0] + q[m][1]) + q[m][2] : (float16)(0.0f);
     #pragma unroll
     for (int m = 0; m < 4; ++m) {
+        if (m < images || m == 3) {
         // The lanes shifted by one pixel either way.
         float16 left = shuffle(d[m], (uint16)(0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14));
         float16 right = shuffle(d[m], (uint16)(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 15));
         h[m] = (left + d[m]) + right;
+        }
+    }
+}
+
+// One offset (dx, dy) of the search window for every row of the work-item, the weights of
+// `images` of the three images (see bmfr_nlm_row) added to acc and wsum.
+__attribute__((always_inline)) inline void bmfr_nlm_offset(
+    __global const float* lines, uint stride, int xv, int y0, int h, int dx, int dy, float k2,
+    const int images, float16 acc[BMFR_NLM_ROWS][9], float16 wsum[BMFR_NLM_ROWS][3]) {
+    // The row sums of rows r - 2, r - 1 and r: the patch rows of output row r - 1.
+    float16 h0[4], h1[4], h2[4];
+    for (int r = -1; r <= BMFR_NLM_ROWS; ++r) {
+        int ay = y0 + r, by = ay + dy;
+        if (ay >= 0 && ay < h && by >= 0 && by < h) {
+            bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, images, h2);
+        } else {
+            #pragma unroll
+            for (int m = 0; m < 4; ++m) h2[m] = (float16)(0.0f);
+        }
+        int row = r - 1, py = y0 + row, qy = py + dy;
+        if (row >= 0 && py < h && qy >= 0 && qy < h) {
+            __global const float* q = lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
+            int16 surface = BMFR_NLM_LOAD16(q + 13 * (size_t)stride) != 0.0f;
+            float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
+            #pragma unroll
+            for (int m = 0; m < 3; ++m) {
+                if (m < images) {
+                    float16 d2 = (h0[m] + h1[m]) + h2[m];
+                    float16 wt = surface ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
+                    #pragma unroll
+                    for (int c = 0; c < 3; ++c)
+                        acc[row][3 * m + c] +=
+                            wt * BMFR_NLM_LOAD16(q + (3 * m + c) * (size_t)stride);
+                    wsum[row][m] += wt;
+                }
+            }
+        }
+        #pragma unroll
+        for (int m = 0; m < 4; ++m) {
+            if (m < images || m == 3) {
+                h0[m] = h1[m];
+                h1[m] = h2[m];
+            }
+        }
     }
 }
 
@@ -131,39 +183,10 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
     for (int dy = -BMFR_NLM_RADIUS; dy <= BMFR_NLM_RADIUS; ++dy) {
         for (int dx = -BMFR_NLM_RADIUS; dx <= BMFR_NLM_RADIUS; ++dx) {
             if (x0 + dx + BMFR_NLM_STEP - 1 < 0 || x0 + dx >= w) continue;  // no q inside
-            // The row sums of rows r - 2, r - 1 and r: the patch rows of output row r - 1.
-            float16 h0[4], h1[4], h2[4];
-            for (int r = -1; r <= BMFR_NLM_ROWS; ++r) {
-                int ay = y0 + r, by = ay + dy;
-                if (ay >= 0 && ay < h && by >= 0 && by < h) {
-                    bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, h2);
-                } else {
-                    #pragma unroll
-                    for (int m = 0; m < 4; ++m) h2[m] = (float16)(0.0f);
-                }
-                int row = r - 1, py = y0 + row, qy = py + dy;
-                if (row >= 0 && py < h && qy >= 0 && qy < h) {
-                    __global const float* q =
-                        lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
-                    int16 surface = BMFR_NLM_LOAD16(q + 13 * (size_t)stride) != 0.0f;
-                    float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
-                    #pragma unroll
-                    for (int m = 0; m < 3; ++m) {
-                        float16 d2 = (h0[m] + h1[m]) + h2[m];
-                        float16 wt = surface ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
-                        #pragma unroll
-                        for (int c = 0; c < 3; ++c)
-                            acc[row][3 * m + c] +=
-                                wt * BMFR_NLM_LOAD16(q + (3 * m + c) * (size_t)stride);
-                        wsum[row][m] += wt;
-                    }
-                }
-                #pragma unroll
-                for (int m = 0; m < 4; ++m) {
-                    h0[m] = h1[m];
-                    h1[m] = h2[m];
-                }
-            }
+            if (BMFR_NLM_ESTIMATING(dx, dy))
+                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, acc, wsum);
+            else
+                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, acc, wsum);
         }
     }
     for (int row = 0; row < BMFR_NLM_ROWS && y0 + row < h; ++row) {

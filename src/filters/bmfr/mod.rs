@@ -132,6 +132,9 @@ crate::filter_settings! {
         pub nlm: bool = true,
         /// Half width of the non-local means' search window, pixels.
         pub nlm_radius: u32 = 5,
+        /// Half width of the window of the two half buffers' non-local means, which only
+        /// estimate the candidate's error (nlm.rs), pixels; `nlm_radius` where that is smaller.
+        pub nlm_estimate_radius: u32 = 3,
         /// k of the non-local means' patch distance: how many standard deviations of a
         /// difference count as noise.
         pub nlm_k: f64 = 0.7,
@@ -172,6 +175,11 @@ impl BmfrSettings {
     /// Whether the non-local means candidate runs (it is part of the selection).
     pub fn uses_nlm(&self) -> bool {
         self.select && self.nlm
+    }
+
+    /// The half buffers' search radius: `nlm_estimate_radius`, at most `nlm_radius`.
+    pub fn estimate_radius(&self) -> u32 {
+        self.nlm_estimate_radius.min(self.nlm_radius)
     }
 
     /// Whether the albedo prefilter runs (`auto` reads as off until specialised).

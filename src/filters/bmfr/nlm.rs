@@ -45,8 +45,17 @@
 //!   this filter, radius 2 / 3 / 4 gave Cornell glossy 5.60 / 5.25 / 5.10, Outside 2.30 /
 //!   2.28 / 2.28, Cornell plane DOF 6.44 / 6.28 / 6.29, Cornell diffuse 1.61 / 1.53 / 1.50
 //!   (`noisefree filter a.exr --filter bmfr --bmfr-select-radius R` on the same files).
+//! - the halves' search window radius 3 (`nlm_estimate_radius`), the frame's 5: the halves
+//!   only estimate the candidate's error, and their outer 72 offsets changed the selection's
+//!   result by about 1 % while taking two thirds of the non-local means' work there. With this
+//!   reference on the same files (MSE-LUV, estimate radius 5 / 3 / 2 / 1): Cornell glossy 5.10
+//!   / 5.01 / 4.99 / —, Cornell diffuse 1.50 / 1.49 / 1.45 / 1.39, Outside 2.28 / 2.29 / 2.32 /
+//!   2.48, Outside DOF 3.06 / 3.07 / 3.13 / 3.31, Cornell plane 5.04 / 5.09 / 5.29 / 5.58,
+//!   Cornell plane DOF 6.29 / 6.32 / 6.42 / 6.67. The packed kernel: 104 -> 79 ms on Cornell
+//!   diffuse 512² (`noisefree filter --profile`, binaries alternating).
 //!
-//! Cost: 121 offsets × 3 images per pixel, most of bmfr's time on a CPU. Two kernels do the
+//! Cost: 121 offsets for the frame and 49 for each half per pixel, most of bmfr's time on a
+//! CPU. Two kernels do the
 //! same float operations in the same order (each patch row's three taps summed first, then the
 //! rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16 work-groups share each tap's
 //! distance through local memory) and, on CPU devices (`packed_nlm`), `bmfr_nlm_packed`
@@ -109,15 +118,15 @@ fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
     }
 }
 
-/// The non-local means of the frame, the odd half and the even half, per pixel
-/// (`bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`).
+/// The non-local means of the frame (search window half width `radius`), the odd half and the
+/// even half (`estimate_radius`), per pixel (`bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`).
 pub fn nlm(
     fv: &[FilterVector],
     pos: &[Float4],
     odd: &[Float4],
     (w, h): (u32, u32),
     spp: f32,
-    radius: u32,
+    (radius, estimate_radius): (u32, u32),
     k: f32,
 ) -> Vec<[[f32; 3]; 3]> {
     let n = fv.len();
@@ -173,7 +182,7 @@ pub fn nlm(
         })
         .collect();
     let k2 = k * k;
-    let r = radius as i32;
+    let (r, re) = (radius as i32, estimate_radius as i32);
     (0..n)
         .into_par_iter()
         .map(|i| {
@@ -198,6 +207,12 @@ pub fn nlm(
                     if !inputs[j].1 {
                         continue;
                     }
+                    // The halves (m = 1, 2) only within the estimate's window.
+                    let images = if (qx - x).abs() <= re && (qy - y).abs() <= re {
+                        3
+                    } else {
+                        1
+                    };
                     let mut d2 = [0f32; 3];
                     let mut taps = 0f32;
                     for ty in -1..=1 {
@@ -236,7 +251,7 @@ pub fn nlm(
                             d2[m] += row[m];
                         }
                     }
-                    for m in 0..3 {
+                    for m in 0..images {
                         let wt = (-(d2[m] / taps).max(0.0)).exp();
                         for c in 0..3 {
                             acc[m][c] += wt * inputs[j].0[m][c];
