@@ -106,11 +106,12 @@ inline void bmfr_nlm_pass_through(__global const FilterVector* f, float4 odd, fl
 // an invalid tap adds 0 to the sum and 0 to the count). The tile's own inputs are read into
 // local memory once.
 #define BMFR_NLM_SIDE (BMFR_NLM_TILE + 2)
-// Whether offset (dx, dy) lies in the halves' window (they are filtered there only).
+#define BMFR_NLM_LOCAL (BMFR_NLM_SIDE * BMFR_NLM_SIDE)
+// Whether offset (dx, dy) lies in the halves' window (they are filtered there only; both
+// kernels, bmfr_nlm and bmfr_nlm_packed).
 #define BMFR_NLM_ESTIMATING(dx, dy)                                                            \
     ((dx) >= -BMFR_NLM_ESTIMATE_RADIUS && (dx) <= BMFR_NLM_ESTIMATE_RADIUS                     \
      && (dy) >= -BMFR_NLM_ESTIMATE_RADIUS && (dy) <= BMFR_NLM_ESTIMATE_RADIUS)
-#define BMFR_NLM_LOCAL (BMFR_NLM_SIDE * BMFR_NLM_SIDE)
 
 __kernel __attribute__((reqd_work_group_size(BMFR_NLM_TILE, BMFR_NLM_TILE, 1)))
 void bmfr_nlm(__global const FilterVector* fv,
@@ -176,8 +177,7 @@ void bmfr_nlm(__global const FilterVector* fv,
             }
             float d2[3] = {t.x, t.y, t.z};
             float taps = 3.0f * t.w;
-            int images = BMFR_NLM_ESTIMATING(dx, dy)
-                       ? 3 : 1;
+            int images = BMFR_NLM_ESTIMATING(dx, dy) ? 3 : 1;
             for (int m = 0; m < images; ++m) {
                 float wt = exp(-fmax(d2[m] / taps, 0.0f));
                 acc[m] += wt * nlm_in[4 * j + m].xyz;

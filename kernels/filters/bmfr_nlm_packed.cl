@@ -14,7 +14,8 @@
 // sharing. Overlapping the work-items by two pixels costs 16 / 14 of the lanes; it replaced
 // evaluating the two edge pixels of 16 output lanes on float2s, and measured 2 % faster with
 // the same bytes (Cornell diffuse 512², `noisefree filter --profile`, binaries alternating
-// four times: 109.5-110.8 ms -> 106.8-109.4 ms) and is the simpler code.
+// four times: 109.5-110.8 ms -> 106.8-109.4 ms) and is the simpler code. Offsets outside the
+// halves' window (BMFR_NLM_ESTIMATE_RADIUS) evaluate and weigh the frame's image only.
 //
 // Layout ("lines", as the a-trous filter's): bmfr_nlm_inputs_lines writes every image row as
 // BMFR_NLM_LINES lines of `stride` floats: lines 0-2 the frame's light (rgb), 3-5 the odd

@@ -6,6 +6,7 @@
 
 use std::collections::BTreeMap;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::Result;
@@ -15,6 +16,9 @@ use ocl::Event;
 /// thread-local, because a filter may launch from worker threads (several devices per frame).
 static RECORDING: Mutex<Option<Vec<(String, Event)>>> = Mutex::new(None);
 
+/// Whether a recording is open: every launch reads it, and only takes the lock when it is set.
+static OPEN: AtomicBool = AtomicBool::new(false);
+
 fn recording() -> std::sync::MutexGuard<'static, Option<Vec<(String, Event)>>> {
     // A panic elsewhere while holding the lock leaves a list that is still valid.
     RECORDING.lock().unwrap_or_else(|e| e.into_inner())
@@ -23,10 +27,14 @@ fn recording() -> std::sync::MutexGuard<'static, Option<Vec<(String, Event)>>> {
 /// Opens a recording (dropping any unfinished one).
 pub fn start() {
     *recording() = Some(Vec::new());
+    OPEN.store(true, Ordering::Release);
 }
 
-/// Keeps `event` of a launch of `kernel` if a recording is open. Costs one lock otherwise.
+/// Keeps `event` of a launch of `kernel` if a recording is open; one atomic load otherwise.
 pub fn record(kernel: &ocl::Kernel, event: &Event) {
+    if !OPEN.load(Ordering::Acquire) {
+        return;
+    }
     let mut r = recording();
     if let Some(list) = r.as_mut() {
         let name = kernel.name().unwrap_or_else(|_| "(unnamed kernel)".into());
@@ -45,7 +53,11 @@ pub struct KernelTime {
 /// Closes the recording: each kernel's launches and summed kernel time (from the profiling
 /// events), in order of first launch. Empty when no recording was open.
 pub fn finish() -> Result<Vec<KernelTime>> {
-    let list = recording().take().unwrap_or_default();
+    let list = {
+        let mut r = recording();
+        OPEN.store(false, Ordering::Release);
+        r.take().unwrap_or_default()
+    };
     let mut order: Vec<KernelTime> = Vec::new();
     let mut index = BTreeMap::new();
     for (kernel, event) in list {

@@ -61,7 +61,7 @@ const NLM_STEP: u32 = PACK - 2;
 // left, the radius and (non-local means) the neighbour lane; right, from the last work-item's
 // first pixel (at most width - 1) its lanes and the radius.
 const _: () = assert!(
-    MAX_NLM_RADIUS + 1 <= NLM_PACKED_PAD
+    MAX_NLM_RADIUS < NLM_PACKED_PAD
         && MAX_ALBEDO_RADIUS < NLM_PACKED_PAD
         && NLM_STEP + MAX_NLM_RADIUS <= 2 * NLM_PACKED_PAD
         && PACK - 1 + MAX_ALBEDO_RADIUS <= 2 * NLM_PACKED_PAD

@@ -151,7 +151,7 @@ crate::filter_settings! {
         /// Algorithm 1), which PoCL runs on scalar floats. auto: on CPU devices.
         pub packed_fit: Auto<bool> = Auto::Auto,
         /// The non-local means (the selection's candidate and the albedo prefilter) on float16
-        /// lanes, one work-item per 16 × 16 or 16 × 1 pixels (kernels/filters/
+        /// lanes, one work-item per 14 × 32 or 16 × 1 pixels (kernels/filters/
         /// bmfr_nlm_packed.cl, bmfr_prefilter_packed.cl): the same float operations in the
         /// same order as the kernels with one work-item per pixel, which PoCL runs on scalar
         /// floats. auto: on CPU devices.

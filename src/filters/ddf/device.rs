@@ -294,7 +294,7 @@ impl DdfKernel {
                 .enq()
                 .context("launching the data-driven filter's packing pass")?;
         }
-        crate::gpu::profile::record(&pack, &event);
+        crate::gpu::profile::record(pack, &event);
         event_duration(&event)
     }
 }
