@@ -563,7 +563,7 @@ fn outdoor_sigma_filters_less() {
 }
 
 #[test]
-fn progress_reaches_every_row_of_every_iteration() {
+fn progress_reaches_every_part_of_every_iteration() {
     use std::sync::Mutex;
     let (set, _) = textured_plane(6, 5, 2, 17, 0.01, 1.0);
     let s = fast(&[7, 3]);
@@ -573,11 +573,11 @@ fn progress_reaches_every_row_of_every_iteration() {
     assert_eq!(seen.len(), 10);
     assert!(
         seen.iter()
-            .any(|p| p.iteration == 1 && p.rows_done == 5 && p.box_size == 3)
+            .any(|p| p.iteration == 1 && p.parts_done == 5 && p.box_size == 3)
     );
     let last = seen
         .iter()
-        .find(|p| p.iteration == 1 && p.rows_done == 5)
+        .find(|p| p.iteration == 1 && p.parts_done == 5)
         .unwrap();
     assert!((last.fraction(&s.box_sizes) - 1.0).abs() < 1e-12);
     assert_eq!(out.iterations.len(), 2);

@@ -1,9 +1,15 @@
 //! The instruction-set paths of the mutual-information workspace ([`super::mi::MiWorkspace`]):
 //! bucket bitsets from bucket codes, the fused quantise-into-bitsets of AVX-512, and the joint
 //! counts by population count. Every path gives the same integer counts.
+//!
+//! A bitset may have more words than its values need (the workspace pads them to a multiple
+//! of 8, one AVX-512 register); the extra words are 0 and count nothing.
 
 use super::cpu::Level;
 use super::mi::MAX_BUCKETS;
+
+// `joint_counts` keeps a variable's populated buckets in a u32 mask.
+const _: () = assert!(MAX_BUCKETS <= 32);
 
 /// Two variables' bitsets and bucket counts.
 pub(super) struct JointInput<'a> {
@@ -18,6 +24,9 @@ pub(super) struct JointInput<'a> {
 impl Level {
     /// Bitsets of `codes` (one per bucket, `words` words each) into `masks`.
     pub(super) fn bitsets(self, codes: &[u8], buckets: usize, words: usize, masks: &mut [u64]) {
+        for b in 0..buckets {
+            masks[b * words + codes.len().div_ceil(64)..(b + 1) * words].fill(0);
+        }
         #[cfg(target_arch = "x86_64")]
         if self == Level::Avx512 {
             // SAFETY: the CPU has AVX-512 F and BW (`Level::detect`).
@@ -36,7 +45,13 @@ impl Level {
             }
             #[target_feature(enable = "popcnt,avx512f,avx512vpopcntdq")]
             fn avx512(input: JointInput<'_>, out: &mut [u32]) {
-                joint_counts(input, out)
+                // A closure inside a function with these features may call another such
+                // function safely.
+                joint_counts_with(input, out, |ra, my, words, cols, row| {
+                    for c in bits(cols) {
+                        row[c] = and_count_avx512(ra, &my[c * words..(c + 1) * words]);
+                    }
+                })
             }
             match self {
                 // SAFETY: `Level::detect` only returns a level whose features the CPU has.
@@ -58,11 +73,65 @@ fn and_count(a: &[u64], b: &[u64]) -> u32 {
         .sum()
 }
 
+/// [`and_count`] eight words at a time with `vpopcntq`, summed in one register and reduced
+/// once (the workspace pads the bitsets to a multiple of 8 words, so the scalar tail is
+/// usually empty). Sweeping up to four columns at once, the row loaded once per eight words,
+/// measured slower (joint counts 9.6 -> 14.2 % of RPF's profile at 256²).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "popcnt,avx512f,avx512vpopcntdq")]
+fn and_count_avx512(a: &[u64], b: &[u64]) -> u32 {
+    use std::arch::x86_64::*;
+    let n = a.len().min(b.len());
+    let full = n / 8 * 8;
+    let mut acc = _mm512_setzero_si512();
+    for w in (0..full).step_by(8) {
+        // SAFETY: 8 words at w + 7 < full ≤ both lengths; the loads are unaligned.
+        let (x, y) = unsafe {
+            (
+                _mm512_loadu_si512(a.as_ptr().add(w) as *const __m512i),
+                _mm512_loadu_si512(b.as_ptr().add(w) as *const __m512i),
+            )
+        };
+        acc = _mm512_add_epi64(acc, _mm512_popcnt_epi64(_mm512_and_si512(x, y)));
+    }
+    _mm512_reduce_add_epi64(acc) as u32 + and_count(&a[full..n], &b[full..n])
+}
+
+/// The set bits of `m`, lowest first.
+#[inline(always)]
+fn bits(mut m: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            i
+        })
+    })
+}
+
+/// `row[c] = popcount(ra & my[c])` for each column c set in `cols`.
+#[inline(always)]
+fn row_counts(ra: &[u64], my: &[u64], words: usize, cols: u32, row: &mut [u32]) {
+    for c in bits(cols) {
+        row[c] = and_count(ra, &my[c * words..(c + 1) * words]);
+    }
+}
+
 /// The joint counts of two variables from their bitsets: the bucket pairs both populated, by
 /// population count, except the last populated bucket of each variable, whose counts are what
 /// the marginal counts leave. Unpopulated pairs are 0.
 #[inline(always)]
 fn joint_counts(input: JointInput<'_>, out: &mut [u32]) {
+    joint_counts_with(input, out, row_counts)
+}
+
+/// [`joint_counts`] with the row counts `rows` ([`row_counts`]).
+#[inline(always)]
+fn joint_counts_with(
+    input: JointInput<'_>,
+    out: &mut [u32],
+    counts: impl Fn(&[u64], &[u64], usize, u32, &mut [u32]),
+) {
     let JointInput {
         mx,
         my,
@@ -72,42 +141,27 @@ fn joint_counts(input: JointInput<'_>, out: &mut [u32]) {
         words,
     } = input;
     out.fill(0);
+    // The populated buckets as bit masks (a list built in memory byte by byte and read back
+    // whole stalled on store forwarding).
     let populated = |c: &[u32]| {
-        let mut list = [0u8; MAX_BUCKETS];
-        let mut k = 0;
-        for (i, &n) in c.iter().enumerate() {
-            if n > 0 {
-                list[k] = i as u8;
-                k += 1;
-            }
-        }
-        (list, k)
+        c.iter()
+            .enumerate()
+            .fold(0u32, |m, (i, &n)| m | (u32::from(n > 0) << i))
     };
-    let (px, nx) = populated(cx);
-    let (py, ny) = populated(cy);
-    let (px, py) = (&px[..nx], &py[..ny]);
-    let Some((&last_a, rows)) = px.split_last() else {
+    let (px, py) = (populated(cx), populated(cy));
+    if px == 0 || py == 0 {
         return;
-    };
-    let Some((&last_b, cols)) = py.split_last() else {
-        return;
-    };
-    for &a in rows {
-        let a = a as usize;
-        let ra = &mx[a * words..(a + 1) * words];
-        let mut rest = cx[a];
-        for &c in cols {
-            let c = c as usize;
-            let n = and_count(ra, &my[c * words..(c + 1) * words]);
-            out[a * b + c] = n;
-            rest -= n;
-        }
-        out[a * b + last_b as usize] = rest;
     }
-    let last_a = last_a as usize;
-    for &c in py {
-        let c = c as usize;
-        let above: u32 = rows.iter().map(|&a| out[a as usize * b + c]).sum();
+    let (last_a, last_b) = (31 - px.leading_zeros() as usize, 31 - py.leading_zeros() as usize);
+    let (rows, cols) = (px & !(1 << last_a), py & !(1 << last_b));
+    for a in bits(rows) {
+        let row = &mut out[a * b..(a + 1) * b];
+        counts(&mx[a * words..(a + 1) * words], my, words, cols, row);
+        let counted: u32 = bits(cols).map(|c| row[c]).sum();
+        row[last_b] = cx[a] - counted;
+    }
+    for c in bits(py) {
+        let above: u32 = bits(rows).map(|a| out[a * b + c]).sum();
         out[last_a * b + c] = cy[c] - above;
     }
 }
@@ -213,7 +267,7 @@ fn quantize_bitsets_avx512(
 ) -> Option<usize> {
     use std::arch::x86_64::*;
     let n = values.len();
-    debug_assert!(words == n.div_ceil(64) && masks.len() == buckets * words);
+    debug_assert!(words >= n.div_ceil(64) && masks.len() == buckets * words);
     // A partial last chunk of 16 is read with a mask; its missing lanes count nowhere.
     let load = |j: usize| {
         let valid = if j + 16 <= n {
@@ -241,7 +295,7 @@ fn quantize_bitsets_avx512(
     if wide.is_nan() || wide <= 0.0 || wide.is_infinite() {
         // Every value in bucket 0.
         for (w, m) in masks[..words].iter_mut().enumerate() {
-            let left = n - 64 * w;
+            let left = n.saturating_sub(64 * w);
             *m = if left >= 64 { u64::MAX } else { (1u64 << left) - 1 };
         }
         counts[0] = n as u32;
@@ -255,7 +309,8 @@ fn quantize_bitsets_avx512(
         _mm512_set1_ps(buckets as f32 / range),
         _mm512_set1_ps((buckets - 1) as f32),
     );
-    for w in 0..words {
+    // The words past n stay 0 (`masks.fill` above).
+    for w in 0..n.div_ceil(64) {
         // 64 values' buckets as 64 bytes (a missing lane's byte is 0 and its bit cleared).
         let mut codes = _mm512_setzero_si512();
         let mut valid = 0u64;

@@ -96,15 +96,14 @@ fn mostly_accepted(table: &OffsetTable, clip: Clip) -> bool {
 use std::arch::x86_64::*;
 
 /// mix64 of `state + (index + 1) · golden` for the 8 indices `base + offsets`: the values the
-/// generator returns at those positions of its stream.
+/// generator returns at those positions of its stream. `golden_offsets` is `offsets · golden`
+/// (mod 2^64, like every product here), so the counter is one broadcast and one addition:
+/// `state + (base + 1) · golden + offsets · golden`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq")]
-fn hash8(state: u64, base: u64, offsets: __m512i) -> __m512i {
-    let index = _mm512_add_epi64(_mm512_set1_epi64(base as i64 + 1), offsets);
-    let mut z = _mm512_add_epi64(
-        _mm512_set1_epi64(state as i64),
-        _mm512_mullo_epi64(index, _mm512_set1_epi64(GOLDEN as i64)),
-    );
+fn hash8(state: u64, base: u64, golden_offsets: __m512i) -> __m512i {
+    let start = state.wrapping_add((base + 1).wrapping_mul(GOLDEN));
+    let mut z = _mm512_add_epi64(_mm512_set1_epi64(start as i64), golden_offsets);
     z = _mm512_xor_si512(z, _mm512_srli_epi64::<30>(z));
     z = _mm512_mullo_epi64(z, _mm512_set1_epi64(0xbf58_476d_1ce4_e5b9_u64 as i64));
     z = _mm512_xor_si512(z, _mm512_srli_epi64::<27>(z));
@@ -167,20 +166,12 @@ fn draw_speculating(
     let half = table.half;
     let side = 2 * half + 1;
     let value = |p: u64| mix64(state.wrapping_add((p + 1).wrapping_mul(GOLDEN)));
-    // Lane k of draw-value c sits at stream position p + 3k + c.
-    let lanes = |c: i64, first: i64| {
-        _mm512_set_epi64(
-            3 * (first + 7) + c,
-            3 * (first + 6) + c,
-            3 * (first + 5) + c,
-            3 * (first + 4) + c,
-            3 * (first + 3) + c,
-            3 * (first + 2) + c,
-            3 * (first + 1) + c,
-            3 * first + c,
-        )
+    // Lane k of draw-value c sits at stream position p + 3k + c (times golden: hash8).
+    let lanes = |c: u64, first: u64| {
+        let at = |k: u64| ((3 * (first + k) + c).wrapping_mul(GOLDEN)) as i64;
+        _mm512_set_epi64(at(7), at(6), at(5), at(4), at(3), at(2), at(1), at(0))
     };
-    let offs: [[__m512i; 2]; 3] = std::array::from_fn(|c| [lanes(c as i64, 0), lanes(c as i64, 8)]);
+    let offs: [[__m512i; 2]; 3] = std::array::from_fn(|c| [lanes(c as u64, 0), lanes(c as u64, 8)]);
     let mut p = 0u64;
     let mut done = 0usize;
     let mut keys = [0u32; 16];
@@ -206,8 +197,12 @@ fn draw_speculating(
         let key = _mm512_add_epi32(_mm512_mullo_epi32(cell, _mm512_set1_epi32(spp as i32)), s);
         // SAFETY: 16 u32.
         unsafe { _mm512_storeu_si512(keys.as_mut_ptr() as *mut __m512i, key) };
+        let words = visited.as_mut_ptr();
         for &k in &keys[..clean] {
-            visited[k as usize / 64] |= 1u64 << (k % 64);
+            // SAFETY: an accepted draw's key is below side² · spp ≤ 64 · visited.len()
+            // (|dx|, |dy| ≤ half, s < spp), checked in debug builds.
+            debug_assert!((k as usize / 64) < visited.len());
+            unsafe { *words.add(k as usize / 64) |= 1u64 << (k % 64) };
         }
         done += clean;
         p += 3 * clean as u64;

@@ -68,6 +68,43 @@ const STANDARDIZED: [usize; FLOATS_PER_SAMPLE + COLORS] = {
     }
     rows
 };
+/// The pairs of Alg. 7 in the order `analyze` stores them: per colour its randoms,
+/// positions and features, then per feature its randoms and positions.
+const MI_PAIRS: [(usize, usize); COLORS * (RANDOMS + POSITIONS + FEATURES)
+    + FEATURES * (RANDOMS + POSITIONS)] = {
+    let mut pairs = [(0, 0); COLORS * (RANDOMS + POSITIONS + FEATURES) + FEATURES * (RANDOMS + POSITIONS)];
+    let mut p = 0;
+    let mut k = 0;
+    while k < COLORS {
+        let mut l = 0;
+        while l < RANDOMS + POSITIONS + FEATURES {
+            pairs[p] = match l {
+                _ if l < RANDOMS => (C0 + k, R0 + l),
+                _ if l < RANDOMS + POSITIONS => (C0 + k, P0 + l - RANDOMS),
+                _ => (C0 + k, F0 + l - RANDOMS - POSITIONS),
+            };
+            p += 1;
+            l += 1;
+        }
+        k += 1;
+    }
+    while k < COLORS + FEATURES {
+        let f = k - COLORS;
+        let mut l = 0;
+        while l < RANDOMS + POSITIONS {
+            pairs[p] = if l < RANDOMS {
+                (F0 + f, R0 + l)
+            } else {
+                (F0 + f, P0 + l - RANDOMS)
+            };
+            p += 1;
+            l += 1;
+        }
+        k += 1;
+    }
+    pairs
+};
+
 /// Dimensions of the weight of eq. 5.2: 3 colours + 15 features.
 const DIMS: usize = COLORS + FEATURES;
 const _: () = assert!(DIMS == kernel::MAX_DIMS);
@@ -138,7 +175,7 @@ pub(super) struct Scratch {
     current: Vec<[f32; 3]>,
     /// `DIMS` rows of `cap` scaled, standardised values for the weights.
     dims: Vec<f32>,
-    dist: Vec<f32>,
+    weigh: kernel::WeighScratch,
     mi: MiWorkspace,
 }
 
@@ -151,7 +188,7 @@ impl Scratch {
             cap: 0,
             current: Vec::new(),
             dims: Vec::new(),
-            dist: Vec::new(),
+            weigh: kernel::WeighScratch::default(),
             mi: match settings.mi_bucketing {
                 MiBucketing::Range => MiWorkspace::with_level(settings.mi_buckets, level),
                 MiBucketing::Unit => MiWorkspace::unit(level),
@@ -223,25 +260,18 @@ fn analyze(it: &Iteration<'_>, x: u32, y: u32, scratch: &mut Scratch) -> PixelIn
     // Alg. 7 on the 26 original elements.
     let mi = &mut scratch.mi;
     mi.load(&scratch.rows, &MI_ROWS, cap, n);
+    let mut mi_values = [0.0f64; MI_PAIRS.len()];
+    mi.mi_batch(&MI_PAIRS, &mut mi_values);
+    let mut values = mi_values.iter().copied();
     let mut d = Dependencies::default();
     for k in 0..COLORS {
-        for l in 0..RANDOMS {
-            d.color_random[k][l] = mi.mi(C0 + k, R0 + l);
-        }
-        for l in 0..POSITIONS {
-            d.color_position[k][l] = mi.mi(C0 + k, P0 + l);
-        }
-        for f in 0..FEATURES {
-            d.color_feature[k][f] = mi.mi(C0 + k, F0 + f);
-        }
+        d.color_random[k] = std::array::from_fn(|_| values.next().unwrap_or(0.0));
+        d.color_position[k] = std::array::from_fn(|_| values.next().unwrap_or(0.0));
+        d.color_feature[k] = std::array::from_fn(|_| values.next().unwrap_or(0.0));
     }
     for k in 0..FEATURES {
-        for l in 0..RANDOMS {
-            d.feature_random[k][l] = mi.mi(F0 + k, R0 + l);
-        }
-        for l in 0..POSITIONS {
-            d.feature_position[k][l] = mi.mi(F0 + k, P0 + l);
-        }
+        d.feature_random[k] = std::array::from_fn(|_| values.next().unwrap_or(0.0));
+        d.feature_position[k] = std::array::from_fn(|_| values.next().unwrap_or(0.0));
     }
     PixelInfo {
         neighbours: n,
@@ -292,7 +322,7 @@ pub(super) fn filter_pixel(
         active,
         current: &scratch.current[..n],
     };
-    kernel::weigh(it.level, &nb, &mut out[..spp], &mut scratch.dist);
+    kernel::weigh(it.level, &nb, &mut out[..spp], &mut scratch.weigh);
     info
 }
 

@@ -58,12 +58,17 @@ pub fn gather(
     let n = indices.len();
     assert!(cap >= n.next_multiple_of(16) && rows.len() >= ROWS * cap);
     current.clear();
-    current.extend(indices.iter().map(|&i| lines.1[i as usize].current()));
     #[cfg(target_arch = "x86_64")]
     if level == Level::Avx512 {
         // SAFETY: the CPU has AVX-512 F (`Level::detect`).
-        return unsafe { gather_avx512(indices, lines, rows, cap) };
+        unsafe { gather_avx512(indices, lines, rows, cap) };
+        // The current colours from the gathered rows (in cache), not from the lines: the
+        // first read of a neighbour's rest line waits on memory, and the gather prefetches.
+        let row = |k: usize| &rows[(CUR_ROW + k) * cap..(CUR_ROW + k) * cap + n];
+        current.extend(row(0).iter().zip(row(1)).zip(row(2)).map(|((&r, &g), &b)| [r, g, b]));
+        return;
     }
+    current.extend(indices.iter().map(|&i| lines.1[i as usize].current()));
     let _ = level;
     let (features, rest) = lines;
     for (j, &i) in indices.iter().enumerate() {
@@ -76,7 +81,7 @@ pub fn gather(
 }
 
 /// Blocks of this many samples ahead are prefetched.
-const AHEAD: usize = 2;
+const AHEAD: usize = 4;
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]

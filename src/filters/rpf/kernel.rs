@@ -30,21 +30,30 @@ pub(super) struct Neighbourhood<'a> {
     pub current: &'a [[f32; 3]],
 }
 
-/// Filters the first `out.len()` samples of N (eq. 5.18) into `out`; `dist` is scratch.
+/// Reusable buffers of [`weigh`].
+#[derive(Default)]
+pub(super) struct WeighScratch {
+    /// The plain path's distances to every neighbour.
+    dist: Vec<f32>,
+    /// The AVX-512 path's neighbour colours in f64.
+    colours: Vec<f64>,
+}
+
+/// Filters the first `out.len()` samples of N (eq. 5.18) into `out`.
 pub(super) fn weigh(
     level: Level,
     nb: &Neighbourhood<'_>,
     out: &mut [[f32; 3]],
-    dist: &mut Vec<f32>,
+    scratch: &mut WeighScratch,
 ) {
     assert!(nb.active <= MAX_DIMS && nb.current.len() <= nb.cap && out.len() <= nb.current.len());
     #[cfg(target_arch = "x86_64")]
     if level == Level::Avx512 {
         // SAFETY: the CPU has AVX-512 F, VL and FMA (`Level::detect`).
-        return unsafe { weigh_avx512(nb, out) };
+        return unsafe { weigh_avx512(nb, out, &mut scratch.colours) };
     }
     let _ = level;
-    weigh_plain(nb, out, dist)
+    weigh_plain(nb, out, &mut scratch.dist)
 }
 
 /// The reference: one sample i at a time, the squared distances to every j accumulated
@@ -180,9 +189,13 @@ fn expf8(x: __m256) -> __m512d {
 /// [`weigh_plain`] with the pixel's samples in lanes (module docs).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,fma")]
-fn weigh_avx512(nb: &Neighbourhood<'_>, out: &mut [[f32; 3]]) {
+fn weigh_avx512(nb: &Neighbourhood<'_>, out: &mut [[f32; 3]], wide: &mut Vec<f64>) {
     let n = nb.current.len();
     let (cap, active) = (nb.cap, nb.active);
+    // The neighbours' colours in f64 once, not once per lane group and neighbour.
+    wide.clear();
+    wide.extend(nb.current.iter().flat_map(|c| c.map(f64::from)));
+    let wide = &wide[..];
     for first in (0..out.len()).step_by(8) {
         let lanes = (out.len() - first).min(8);
         let valid = ((1u32 << lanes) - 1) as u8;
@@ -216,6 +229,10 @@ fn weigh_avx512(nb: &Neighbourhood<'_>, out: &mut [[f32; 3]]) {
                     *du = _mm256_add_ps(*du, _mm256_mul_ps(t, t));
                 }
             }
+            // Whether any distance of the block is NaN, tested once (it rarely is).
+            let nan = d[..block]
+                .iter()
+                .fold(0u8, |m, &d| m | _mm256_cmp_ps_mask::<_CMP_UNORD_Q>(d, d));
             for (u, &d) in d[..block].iter().enumerate() {
                 // The reference skips d ≥ 105 (a NaN is not skipped).
                 let near =
@@ -223,7 +240,7 @@ fn weigh_avx512(nb: &Neighbourhood<'_>, out: &mut [[f32; 3]]) {
                 if near == 0 {
                     continue;
                 }
-                let w = if _mm256_cmp_ps_mask::<_CMP_UNORD_Q>(d, d) & near != 0 {
+                let w = if nan != 0 && _mm256_cmp_ps_mask::<_CMP_UNORD_Q>(d, d) & near != 0 {
                     // A NaN distance: the library's exp, lane by lane.
                     let mut lanes_d = [0.0f32; 8];
                     // SAFETY: 8 floats.
@@ -235,9 +252,9 @@ fn weigh_avx512(nb: &Neighbourhood<'_>, out: &mut [[f32; 3]]) {
                     expf8(_mm256_sub_ps(_mm256_setzero_ps(), d))
                 };
                 sum_w = _mm512_mask_add_pd(sum_w, near, sum_w, w);
-                let cj = nb.current[j + u];
+                let cj = &wide[3 * (j + u)..3 * (j + u) + 3];
                 for k in 0..3 {
-                    let diff = _mm512_sub_pd(_mm512_set1_pd(cj[k] as f64), ci[k]);
+                    let diff = _mm512_sub_pd(_mm512_set1_pd(cj[k]), ci[k]);
                     acc[k] = _mm512_mask_add_pd(acc[k], near, acc[k], _mm512_mul_pd(w, diff));
                 }
             }

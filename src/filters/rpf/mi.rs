@@ -149,7 +149,8 @@ pub struct MiWorkspace {
     buckets: usize,
     vars: usize,
     n: usize,
-    /// 64-bit words per bitset: ⌈n / 64⌉.
+    /// 64-bit words per bitset: ⌈n / 64⌉ rounded up to a multiple of 8 (one AVX-512
+    /// register; the words past n are 0).
     words: usize,
     /// Bucket codes of the variable being loaded.
     codes: Vec<u8>,
@@ -165,6 +166,8 @@ pub struct MiWorkspace {
     xlogx: Vec<f64>,
     /// Joint counts of the last pair, `B × B`.
     joint: Vec<u32>,
+    /// Joint counts of a group of pairs ([`Self::mi_batch`]).
+    joints: Vec<u32>,
     level: Level,
     /// Peng's unit buckets ([`super::mi_unit`]) instead of `B` over the range.
     unit: bool,
@@ -196,6 +199,7 @@ impl MiWorkspace {
             varies: Vec::new(),
             xlogx: vec![0.0],
             joint: vec![0; buckets * buckets],
+            joints: Vec::new(),
             level,
             unit: false,
             states: Vec::new(),
@@ -218,7 +222,7 @@ impl MiWorkspace {
         let vars = rows.len();
         assert!(n <= stride && rows.iter().all(|&r| values.len() >= (r + 1) * stride));
         let b = self.buckets;
-        let words = n.div_ceil(64);
+        let words = n.div_ceil(64).next_multiple_of(8);
         self.vars = vars;
         self.n = n;
         self.words = words;
@@ -310,6 +314,16 @@ impl MiWorkspace {
             let h = (nf.log2() - s / nf).max(0.0);
             return (self.entropy[x] + self.entropy[y] - h).max(0.0);
         }
+        let mut joint = std::mem::take(&mut self.joint);
+        self.joint_counts(x, y, &mut joint);
+        // Σ c log₂ c over the joint histogram, in bucket order (zeros add exactly 0).
+        let s: f64 = joint.iter().map(|&c| self.xlogx[c as usize]).sum();
+        self.joint = joint;
+        self.mi_from(x, y, s)
+    }
+
+    /// The joint counts of variables x and y (bitsets), `B × B`.
+    fn joint_counts(&self, x: usize, y: usize, out: &mut [u32]) {
         let (b, words) = (self.buckets, self.words);
         let set = |v: usize| &self.masks[v * b * words..(v + 1) * b * words];
         let count = |v: usize| &self.counts[v * b..(v + 1) * b];
@@ -322,13 +336,55 @@ impl MiWorkspace {
                 buckets: b,
                 words,
             },
-            &mut self.joint,
+            out,
         );
-        // Σ c log₂ c over the joint histogram, in bucket order (zeros add exactly 0).
-        let s: f64 = self.joint.iter().map(|&c| self.xlogx[c as usize]).sum();
+    }
+
+    /// μ(x; y) from Σ c log₂ c over their joint histogram.
+    fn mi_from(&self, x: usize, y: usize, s: f64) -> f64 {
         let nf = self.n as f64;
         let joint = (nf.log2() - s / nf).max(0.0);
         (self.entropy[x] + self.entropy[y] - joint).max(0.0)
+    }
+}
+
+impl MiWorkspace {
+    /// [`Self::mi`] of every pair in `pairs` into `out`, the same values: four pairs' joint
+    /// counts at a time, then their four Σ c log₂ c side by side, each in bucket order (one
+    /// pair's sum is a chain of B² dependent additions; four chains overlap).
+    pub fn mi_batch(&mut self, pairs: &[(usize, usize)], out: &mut [f64]) {
+        assert_eq!(pairs.len(), out.len());
+        const GROUP: usize = 4;
+        let cells = self.buckets * self.buckets;
+        let mut joints = std::mem::take(&mut self.joints);
+        joints.resize(GROUP * cells, 0);
+        for (group, results) in pairs.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
+            // The pairs that take the bitset path; the others are done one by one.
+            let mut batched = [false; GROUP];
+            for (g, (&(x, y), r)) in group.iter().zip(results.iter_mut()).enumerate() {
+                if !self.varies[x] || !self.varies[y] {
+                    *r = 0.0;
+                } else if self.unit && (self.count[x] > self.buckets || self.count[y] > self.buckets)
+                {
+                    *r = self.mi(x, y);
+                } else {
+                    self.joint_counts(x, y, &mut joints[g * cells..(g + 1) * cells]);
+                    batched[g] = true;
+                }
+            }
+            let mut sums = [0.0f64; GROUP];
+            for cell in 0..cells {
+                for (g, sum) in sums.iter_mut().enumerate() {
+                    *sum += self.xlogx[joints[g * cells + cell] as usize];
+                }
+            }
+            for (g, (&(x, y), r)) in group.iter().zip(results.iter_mut()).enumerate() {
+                if batched[g] {
+                    *r = self.mi_from(x, y, sums[g]);
+                }
+            }
+        }
+        self.joints = joints;
     }
 }
 

@@ -19,9 +19,9 @@ pub struct Progress {
     pub iteration: usize,
     pub iterations: usize,
     pub box_size: u32,
-    /// Rows of this iteration done.
-    pub rows_done: u32,
-    pub rows: u32,
+    /// Parts of this iteration done (a part is a row of one strip of columns).
+    pub parts_done: u32,
+    pub parts: u32,
 }
 
 impl Progress {
@@ -33,7 +33,7 @@ impl Progress {
             .iter()
             .map(cost)
             .sum();
-        let this = cost(&self.box_size) * self.rows_done as f64 / self.rows.max(1) as f64;
+        let this = cost(&self.box_size) * self.parts_done as f64 / self.parts.max(1) as f64;
         ((before + this) / total.max(1.0)).min(1.0)
     }
 }

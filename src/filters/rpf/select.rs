@@ -239,7 +239,9 @@ pub fn select(
     let side = 2 * half as usize + 1;
     let visited = &mut scratch.visited;
     visited.clear();
-    visited.resize((side * side * spp).div_ceil(64), 0);
+    // One word more than the keys need: the AVX-512 walk reads 16 keys from any bit, two
+    // words at a time.
+    visited.resize((side * side * spp).div_ceil(64) + 1, 0);
     let clip = draws::Clip {
         x: (xlo, xhi),
         y: (ylo, yhi),
@@ -247,24 +249,23 @@ pub fn select(
     draws::draw(level, sel.table, sel.spp, sel.draws, clip, rng, visited);
     // The drawn samples in key order, which is memory order: key = (row · side + column) ·
     // spp + s, so the sample index is key + row · (w − side) · spp + the box's first sample.
+    let walk = BoxWalk {
+        side,
+        spp,
+        base: ((y as i64 - half as i64) * w + (x as i64 - half as i64)) * spp as i64,
+        step: (w - side as i64) * spp as i64,
+    };
     let candidates = &mut scratch.candidates;
     candidates.clear();
-    let row_keys = (side * spp) as i64;
-    let step = (w - side as i64) * spp as i64;
-    let base = ((y as i64 - half as i64) * w + (x as i64 - half as i64)) * spp as i64;
-    let (mut row, mut row_end) = (0i64, row_keys);
-    for (word, &bits) in visited.iter().enumerate() {
-        let mut bits = bits;
-        while bits != 0 {
-            let key = (word * 64) as i64 + bits.trailing_zeros() as i64;
-            bits &= bits - 1;
-            while key >= row_end {
-                row += 1;
-                row_end += row_keys;
-            }
-            candidates.push((base + key + row * step) as u32);
-        }
+    #[cfg(target_arch = "x86_64")]
+    if level == Level::Avx512 {
+        // SAFETY: the CPU has AVX-512 F and VPOPCNTDQ (`Level::detect`).
+        unsafe { walk.candidates_avx512(visited, candidates) };
+    } else {
+        walk.candidates(visited, candidates);
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    walk.candidates(visited, candidates);
     let gate = Gate::new(FeatureGate::new(
         &sel.samples[first..first + spp],
         sel.kappa_world,
@@ -272,6 +273,81 @@ pub fn select(
         sel.floor,
     ));
     test_candidates(sel, level, &gate, candidates, out);
+}
+
+/// The box's keys (bits of `visited`) as sample indices: key k of box row r is sample
+/// `base + r · step + k`.
+struct BoxWalk {
+    side: usize,
+    spp: usize,
+    base: i64,
+    step: i64,
+}
+
+impl BoxWalk {
+    /// The set keys' samples, in key order, one bit at a time.
+    fn candidates(&self, visited: &[u64], out: &mut Vec<u32>) {
+        let row_keys = (self.side * self.spp) as i64;
+        let (mut row, mut row_end) = (0i64, row_keys);
+        for (word, &bits) in visited.iter().enumerate() {
+            let mut bits = bits;
+            while bits != 0 {
+                let key = (word * 64) as i64 + bits.trailing_zeros() as i64;
+                bits &= bits - 1;
+                while key >= row_end {
+                    row += 1;
+                    row_end += row_keys;
+                }
+                out.push((self.base + key + row * self.step) as u32);
+            }
+        }
+    }
+
+    /// [`Self::candidates`] 16 keys at a time: per box row, the 16 bits from each key on are
+    /// a mask that compresses the 16 consecutive sample indices (a register compress and a
+    /// full store: a compressing store to memory is microcoded on AMD's Zen 4).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vpopcntdq")]
+    fn candidates_avx512(&self, visited: &[u64], out: &mut Vec<u32>) {
+        use std::arch::x86_64::*;
+        let row_keys = self.side * self.spp;
+        // 16 slack values for the last full store.
+        out.reserve(self.side * row_keys + 16);
+        assert!(visited.len() * 64 >= self.side * row_keys + 64);
+        let iota = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
+        let dst = out.as_mut_ptr();
+        let mut len = out.len();
+        for row in 0..self.side {
+            let first = row * row_keys;
+            let offset = self.base + row as i64 * self.step;
+            for k in (first..first + row_keys).step_by(16) {
+                let (word, shift) = (k / 64, k % 64);
+                // SAFETY: word + 1 < visited.len() (the assertion: k < side · row_keys).
+                let pair = unsafe {
+                    (*visited.get_unchecked(word) as u128)
+                        | ((*visited.get_unchecked(word + 1) as u128) << 64)
+                };
+                let keep = (first + row_keys - k).min(16);
+                let bits = (pair >> shift) as u32 & ((1u32 << keep) - 1);
+                if bits == 0 {
+                    continue;
+                }
+                let mask = bits as __mmask16;
+                let index = _mm512_add_epi32(_mm512_set1_epi32((offset + k as i64) as i32), iota);
+                // SAFETY: len + 16 ≤ capacity: at most side · row_keys values are written
+                // before this store, and 16 of slack were reserved.
+                unsafe {
+                    _mm512_storeu_si512(
+                        dst.add(len) as *mut __m512i,
+                        _mm512_maskz_compress_epi32(mask, index),
+                    )
+                };
+                len += bits.count_ones() as usize;
+            }
+        }
+        // SAFETY: the first `len` values were written above (or were there before).
+        unsafe { out.set_len(len) };
+    }
 }
 
 /// Appends the candidates that pass the gate to `out`, in order.
@@ -308,6 +384,9 @@ fn test_avx512(lines: &[FeatureLine], gate: &Gate, candidates: &[u32], out: &mut
             _mm512_loadu_ps(gate.hi.as_ptr()),
         )
     };
+    out.reserve(candidates.len());
+    let dst = out.as_mut_ptr();
+    let mut len = out.len();
     for (k, &i) in candidates.iter().enumerate() {
         if let Some(&ahead) = candidates.get(k + PREFETCH) {
             let p = &lines[ahead as usize] as *const FeatureLine as *const i8;
@@ -319,10 +398,14 @@ fn test_avx512(lines: &[FeatureLine], gate: &Gate, candidates: &[u32], out: &mut
         let f = unsafe { _mm512_load_ps(line.0.as_ptr()) };
         // Ordered, non-signalling compares: false for NaN, as f < lo and f > hi are.
         let out_of = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(f, lo) | _mm512_cmp_ps_mask::<_CMP_GT_OQ>(f, hi);
-        if out_of == 0 {
-            out.push(i);
-        }
+        // Without a branch (whether a neighbour passes is hard to predict): write the index
+        // and keep it by advancing the length.
+        // SAFETY: len < out.len() + candidates.len() ≤ capacity.
+        unsafe { dst.add(len).write(i) };
+        len += usize::from(out_of == 0);
     }
+    // SAFETY: the first `len` values are written.
+    unsafe { out.set_len(len) };
 }
 
 /// Alg. 6 lines 1-14 as [`super::preprocess`] reads them, plainly: the reference for
