@@ -40,7 +40,9 @@
 //!   ([`preprocess::standardize_rows`]);
 //! * mutual information: buckets as bitsets, joint counts by population count (`bitsets.rs`);
 //! * eq. 5.18: the pixel's samples in f64 lanes, glibc's `expf` reproduced bit for bit
-//!   ([`kernel`]).
+//!   ([`kernel`]);
+//! * work order: rows of 32-column strips handed out one at a time, so the two threads'
+//!   boxes overlap in the shared L3 (`filter_at_level`).
 //!
 //! Measured side by side on the loaded 2-core build machine: results/README.md ("RPF speed").
 //!
