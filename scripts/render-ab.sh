@@ -1,18 +1,23 @@
 #!/usr/bin/env bash
-# Path-tracer speed of two builds side by side (issue 14: before/after ratios from one run).
+# Speed of two builds side by side (issue 14: before/after ratios from one run).
 #
 #   scripts/render-ab.sh OLD_BINARY NEW_BINARY [SCENE...]
+#   FILTER=rpf scripts/render-ab.sh OLD_BINARY NEW_BINARY [SCENE...]
 #
-# For each bundled scene (default: all of scenes/*.toml) renders it at its own size with each
-# binary in turn, ROUNDS times (default 3), alternating so that both see the same machine, and
-# prints a Markdown table: the median samples per pixel per second (kernel time, as `render`
-# reports it) of each binary, their ratio, and whether the two linear EXR images are the same
-# bytes. SPP (default 16; conference scenes 4, outside scenes 32) sets the samples per render.
+# For each bundled scene (default: all of scenes/*.toml) renders it with each binary in turn,
+# ROUNDS times (default 3), alternating so that both see the same machine, and prints a
+# Markdown table of the medians, their ratio, and whether the two linear EXR images are the
+# same bytes. Without FILTER: the path tracer's samples per pixel per second (kernel time, as
+# `render` reports it) at the scene's own size; SPP (default 16; conference scenes 4, outside
+# scenes 32) sets the samples per render. With FILTER=NAME: that filter's median time in
+# seconds as `render` reports it (wall-clock for RPF, kernel time for a device filter) at
+# 512 × 512 and SPP (default 8), the filtered images compared; for RPF the default scenes
+# are the five of results/README.md's RPF table.
 # Build the old binary from the old commit first, e.g.
 #   git worktree add /tmp/old OLD_COMMIT && (cd /tmp/old && cargo build --release)
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n 2,12p "$0" >&2
+    sed -n 2,17p "$0" >&2
     exit 2
 fi
 old=$1
@@ -25,9 +30,14 @@ for b in "$old" "$new"; do
         exit 2
     fi
 done
+filter=${FILTER:-}
 scenes=("$@")
 if [ ${#scenes[@]} -eq 0 ]; then
-    for f in "$root"/scenes/*.toml; do scenes+=("$(basename "$f" .toml)"); done
+    if [ "$filter" = rpf ]; then
+        scenes=(cornell_diffuse cornell_glossy cornell_plane outside conference)
+    else
+        for f in "$root"/scenes/*.toml; do scenes+=("$(basename "$f" .toml)"); done
+    fi
 fi
 rounds=${ROUNDS:-3}
 work=$(mktemp -d)
@@ -35,25 +45,43 @@ trap 'rm -rf "$work"' EXIT
 
 median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
-echo "| scene | spp | old spp/s | new spp/s | new / old | same bytes |"
+# One render with binary $1 into $work/$2.{png,exr}; prints the measured figure.
+measure() {
+    local bin=$1 which=$2
+    if [ -n "$filter" ]; then
+        "$bin" render "$file" --spp "$spp" --width 512 --height 512 --filter "$filter" \
+            --out "$work/$which.png" --exr "$work/$which.exr" 2>&1 \
+            | sed -n "s/^$filter filter.* median \([0-9.]*\) ms.*/\1/p" \
+            | awk '{printf "%.2f\n", $1 / 1000}'
+    else
+        "$bin" render "$file" --spp "$spp" --out "$work/$which.png" --exr "$work/$which.exr" 2>&1 \
+            | grep -o '[0-9.]* spp/s' | cut -d' ' -f1
+    fi
+}
+
+if [ -n "$filter" ]; then
+    echo "| scene | spp | old $filter s | new $filter s | new / old | same bytes |"
+else
+    echo "| scene | spp | old spp/s | new spp/s | new / old | same bytes |"
+fi
 echo "|---|---|---|---|---|---|"
 for scene in "${scenes[@]}"; do
     file="$root/scenes/$scene.toml"
     [ -f "$file" ] || { echo "render-ab: no scene $file" >&2; exit 2; }
-    case $scene in
-        conference*) spp=${SPP:-4} ;;
-        outside*) spp=${SPP:-32} ;;
-        *) spp=${SPP:-16} ;;
-    esac
+    if [ -n "$filter" ]; then
+        spp=${SPP:-8}
+    else
+        case $scene in
+            conference*) spp=${SPP:-4} ;;
+            outside*) spp=${SPP:-32} ;;
+            *) spp=${SPP:-16} ;;
+        esac
+    fi
     : >"$work/old.txt"
     : >"$work/new.txt"
     for _ in $(seq "$rounds"); do
-        for which in old new; do
-            bin=$old
-            [ $which = new ] && bin=$new
-            "$bin" render "$file" --spp "$spp" --out "$work/$which.png" --exr "$work/$which.exr" 2>&1 \
-                | grep -o '[0-9.]* spp/s' | cut -d' ' -f1 >>"$work/$which.txt"
-        done
+        measure "$old" old >>"$work/old.txt"
+        measure "$new" new >>"$work/new.txt"
     done
     o=$(median <"$work/old.txt")
     n=$(median <"$work/new.txt")
