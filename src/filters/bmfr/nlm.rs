@@ -50,9 +50,9 @@
 //!   result by about 1 % while taking two thirds of the non-local means' work there. With this
 //!   reference on the same files (a scratch program cutting the halves' window, written before
 //!   the setting existed; `noisefree filter a.exr --filter bmfr --bmfr-nlm-estimate-radius R`
-//!   now runs the same choice on the device), MSE-LUV with estimate radius 5 / 3 / 2 / 1:
-//!   Cornell glossy 5.10 / 5.01 / 4.99 / —, Cornell diffuse 1.50 / 1.49 / 1.45 / 1.39, Outside 2.28 / 2.29 / 2.32 /
-//!   2.48, Outside DOF 3.06 / 3.07 / 3.13 / 3.31, Cornell plane 5.04 / 5.09 / 5.29 / 5.58,
+//!   now runs the same choice on the device), MSE-LUV with estimate radius 5 / 3 / 2 / 1
+//!   (— not measured): Cornell glossy 5.10 / 5.01 / 4.99 / —, Cornell diffuse 1.50 / 1.49 /
+//!   1.45 / 1.39, Outside 2.28 / 2.29 / 2.32 / 2.48, Outside DOF 3.06 / 3.07 / 3.13 / 3.31, Cornell plane 5.04 / 5.09 / 5.29 / 5.58,
 //!   Cornell plane DOF 6.29 / 6.32 / 6.42 / 6.67. The packed kernel: 104 -> 77 ms on Cornell
 //!   diffuse 512² (`noisefree filter --profile`, binaries alternating). The quality study's
 //!   rows with the new default are in results/README.md (bmfr, "Stop 34").
@@ -62,8 +62,8 @@
 //! taps summed first, then the rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16
 //! work-groups share each tap's distance through local memory) and, on CPU devices
 //! (`packed_nlm`), `bmfr_nlm_packed` (bmfr_nlm_packed.cl; one work-item per 14 × 32 pixels on
-//! float16 lanes, the taps shifted between lanes, three row sums slid down the rows). On PoCL (2 cores, Cornell
-//! glossy 512², 8 spp, `noisefree filter a.exr --filter bmfr --repeat 5`, medians): bmfr takes
+//! float16 lanes, the taps shifted between lanes, three row sums slid down the rows). On PoCL
+//! (2 cores, Cornell glossy 512², 8 spp, `noisefree filter a.exr --filter bmfr --repeat 5`, medians): bmfr takes
 //! 190 ms with the packed kernel, 839 ms with the work-group one (`--bmfr-packed-nlm=false`)
 //! and 72 ms with `--bmfr-nlm-radius 0` (one offset), so the other 120 offsets cost about
 //! 120 ms packed and 770 ms in work-groups. On variants of the packed kernel not kept in the

@@ -47,11 +47,7 @@ impl Level {
             fn avx512(input: JointInput<'_>, out: &mut [u32]) {
                 // A closure inside a function with these features may call another such
                 // function safely.
-                joint_counts_with(input, out, |ra, my, words, cols, row| {
-                    for c in bits(cols) {
-                        row[c] = and_count_avx512(ra, &my[c * words..(c + 1) * words]);
-                    }
-                })
+                joint_counts_with(input, out, |a, b| and_count_avx512(a, b))
             }
             match self {
                 // SAFETY: `Level::detect` only returns a level whose features the CPU has.
@@ -109,29 +105,17 @@ fn bits(mut m: u32) -> impl Iterator<Item = usize> {
     })
 }
 
-/// `row[c] = popcount(ra & my[c])` for each column c set in `cols`.
-#[inline(always)]
-fn row_counts(ra: &[u64], my: &[u64], words: usize, cols: u32, row: &mut [u32]) {
-    for c in bits(cols) {
-        row[c] = and_count(ra, &my[c * words..(c + 1) * words]);
-    }
-}
-
 /// The joint counts of two variables from their bitsets: the bucket pairs both populated, by
 /// population count, except the last populated bucket of each variable, whose counts are what
 /// the marginal counts leave. Unpopulated pairs are 0.
 #[inline(always)]
 fn joint_counts(input: JointInput<'_>, out: &mut [u32]) {
-    joint_counts_with(input, out, row_counts)
+    joint_counts_with(input, out, and_count)
 }
 
-/// [`joint_counts`] with the row counts `rows` ([`row_counts`]).
+/// [`joint_counts`] with the AND-population count `count` ([`and_count`] or a vector form).
 #[inline(always)]
-fn joint_counts_with(
-    input: JointInput<'_>,
-    out: &mut [u32],
-    counts: impl Fn(&[u64], &[u64], usize, u32, &mut [u32]),
-) {
+fn joint_counts_with(input: JointInput<'_>, out: &mut [u32], count: impl Fn(&[u64], &[u64]) -> u32) {
     let JointInput {
         mx,
         my,
@@ -155,10 +139,14 @@ fn joint_counts_with(
     let (last_a, last_b) = (31 - px.leading_zeros() as usize, 31 - py.leading_zeros() as usize);
     let (rows, cols) = (px & !(1 << last_a), py & !(1 << last_b));
     for a in bits(rows) {
+        let ra = &mx[a * words..(a + 1) * words];
         let row = &mut out[a * b..(a + 1) * b];
-        counts(&mx[a * words..(a + 1) * words], my, words, cols, row);
-        let counted: u32 = bits(cols).map(|c| row[c]).sum();
-        row[last_b] = cx[a] - counted;
+        let mut rest = cx[a];
+        for c in bits(cols) {
+            row[c] = count(ra, &my[c * words..(c + 1) * words]);
+            rest -= row[c];
+        }
+        row[last_b] = rest;
     }
     for c in bits(py) {
         let above: u32 = bits(rows).map(|a| out[a * b + c]).sum();

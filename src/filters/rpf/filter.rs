@@ -68,11 +68,14 @@ const STANDARDIZED: [usize; FLOATS_PER_SAMPLE + COLORS] = {
     }
     rows
 };
+/// Mutual informations per pixel (Alg. 7): each colour with every random parameter, position
+/// and feature; each feature with every random parameter and position.
+const MI_PAIR_COUNT: usize =
+    COLORS * (RANDOMS + POSITIONS + FEATURES) + FEATURES * (RANDOMS + POSITIONS);
 /// The pairs of Alg. 7 in the order `analyze` stores them: per colour its randoms,
 /// positions and features, then per feature its randoms and positions.
-const MI_PAIRS: [(usize, usize); COLORS * (RANDOMS + POSITIONS + FEATURES)
-    + FEATURES * (RANDOMS + POSITIONS)] = {
-    let mut pairs = [(0, 0); COLORS * (RANDOMS + POSITIONS + FEATURES) + FEATURES * (RANDOMS + POSITIONS)];
+const MI_PAIRS: [(usize, usize); MI_PAIR_COUNT] = {
+    let mut pairs = [(0, 0); MI_PAIR_COUNT];
     let mut p = 0;
     let mut k = 0;
     while k < COLORS {

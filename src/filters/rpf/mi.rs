@@ -346,9 +346,7 @@ impl MiWorkspace {
         let joint = (nf.log2() - s / nf).max(0.0);
         (self.entropy[x] + self.entropy[y] - joint).max(0.0)
     }
-}
 
-impl MiWorkspace {
     /// [`Self::mi`] of every pair in `pairs` into `out`, the same values: four pairs' joint
     /// counts at a time, then their four Σ c log₂ c side by side, each in bucket order (one
     /// pair's sum is a chain of B² dependent additions; four chains overlap).

@@ -44,7 +44,7 @@
 //! * work order: rows of 32-column strips handed out one at a time, so the two threads'
 //!   boxes overlap in the shared L3 (`filter_at_level`).
 //!
-//! Measured side by side on the loaded 2-core build machine: results/README.md ("RPF speed").
+//! Measured side by side on the loaded 2-core build machine: results/README.md ("RPF time per frame").
 //!
 //! # Determinism
 //!
@@ -312,7 +312,7 @@ pub fn filter_at_level(
         // Work is handed out in parts, a row of one strip of STRIP columns, strip after
         // strip, from a shared counter: the threads work on neighbouring rows of the same
         // strip, so the samples their boxes read (b rows × (STRIP + b) columns, two 64-byte
-        // lines per sample: 6.6 MB at b = 55) stay in the shared L3. Whole rows (a 512-wide
+        // lines per sample: 4.8 MB at b = 55) stay in the shared L3. Whole rows (a 512-wide
         // box is 29 MB) or rayon's halving split (two boxes half an image apart) overflow it
         // and wait on memory. Each part is written by the one thread that took its number.
         let strips = w.div_ceil(STRIP);

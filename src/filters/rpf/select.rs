@@ -259,7 +259,7 @@ pub fn select(
     candidates.clear();
     #[cfg(target_arch = "x86_64")]
     if level == Level::Avx512 {
-        // SAFETY: the CPU has AVX-512 F and VPOPCNTDQ (`Level::detect`).
+        // SAFETY: the CPU has AVX-512 F and POPCNT (`Level::detect`).
         unsafe { walk.candidates_avx512(visited, candidates) };
     } else {
         walk.candidates(visited, candidates);
@@ -307,7 +307,7 @@ impl BoxWalk {
     /// a mask that compresses the 16 consecutive sample indices (a register compress and a
     /// full store: a compressing store to memory is microcoded on AMD's Zen 4).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512vpopcntdq")]
+    #[target_feature(enable = "avx512f,popcnt")]
     fn candidates_avx512(&self, visited: &[u64], out: &mut Vec<u32>) {
         use std::arch::x86_64::*;
         let row_keys = self.side * self.spp;
