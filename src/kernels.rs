@@ -66,6 +66,11 @@ pub const SOURCES: &[(&str, &str)] = &[
         "render/subtractive.cl",
         include_str!("../kernels/render/subtractive.cl"),
     ),
+    ("render/path.cl", include_str!("../kernels/render/path.cl")),
+    (
+        "render/wavefront.cl",
+        include_str!("../kernels/render/wavefront.cl"),
+    ),
     (
         "render/pathtrace.cl",
         include_str!("../kernels/render/pathtrace.cl"),

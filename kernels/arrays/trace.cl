@@ -22,6 +22,19 @@ typedef struct {
     __global uint* counters;   // debug counters (DEBUG_COUNTERS builds only)
 } SceneRefs;
 
+// A kernel's scene arguments, in the order the host binds them (src/render/mod.rs
+// DeviceScene::bind, then the debug counters), and the SceneRefs made of them.
+#define SCENE_PARAMS                                                                         \
+    __constant const SceneParams *params, __global const BvhNode *nodes,                     \
+        __global const TriangleGeom *tri_geom, __global const TriangleShading *tri_shading,  \
+        __global const Sphere *spheres, __global const Material *materials,                  \
+        __global const TextureInfo *textures, __global const float4 *texels,                 \
+        __global const Light *lights, __global const float *light_cdf,                      \
+        __global uint *debug_counters
+#define SCENE_REFS                                                                           \
+    {params, nodes, tri_geom, tri_shading, spheres, materials,                               \
+     textures, texels, lights, light_cdf, debug_counters}
+
 // Debug counters, compiled in only for tests (-D DEBUG_COUNTERS=1): how often each optional
 // piece of code ran, so tests can show that a scene without, say, glass never runs glass
 // code. Indices are mirrored in src/render/mod.rs (DebugCounter).

@@ -52,7 +52,7 @@ inline float gi_weight(float v1, float v2) {
 }
 
 // The lens pass's arguments (src/render/lens_field.rs binds them by name).
-__kernel void gi_field_sample(SHADOW_SCENE_PARAMS, __global float* light_field,
+__kernel void gi_field_sample(SCENE_PARAMS, __global float* light_field,
                               __global uint* lens_rays, uint side) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
@@ -60,7 +60,7 @@ __kernel void gi_field_sample(SHADOW_SCENE_PARAMS, __global float* light_field,
     __global float* lf = light_field + (size_t)pixel * LIGHT_FIELD_PIXEL_FLOATS;
     for (uint i = 0u; i < LIGHT_FIELD_PIXEL_FLOATS; ++i) lf[i] = 0.0f;
     lens_rays[pixel] = 0u;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     uint rays = 0u;
     uint jkey = rng_sample_key(params->seed, pixel, GI_JITTER_SAMPLE);
     float j1 = rng_uniform(jkey, 0u, DIM_LENS_U), j2 = rng_uniform(jkey, 0u, DIM_LENS_V);

@@ -154,13 +154,13 @@ inline void indirect_samples(const SceneRefs* s, uint x, uint y, uint pixel, flo
 
 // Pass 1. `glossy`: metal receivers are sampled too (their Phong lobe); `bandlimit` is the
 // diffuse Omega_h^max of eq. 4.5.
-__kernel void indirect_sparse(SHADOW_SCENE_PARAMS, __global float* indirect_pixels,
+__kernel void indirect_sparse(SCENE_PARAMS, __global float* indirect_pixels,
                               __global uint* indirect_rays, uint sqrt_spp, uint glossy,
                               float bandlimit) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     __global float* px = indirect_pixels + (size_t)pixel * INDIRECT_PIXEL_FLOATS;
     for (uint i = 0u; i < INDIRECT_PIXEL_FLOATS; ++i) px[i] = 0.0f;
     uint rays = 0u;
@@ -193,7 +193,7 @@ __kernel void indirect_sparse(SHADOW_SCENE_PARAMS, __global float* indirect_pixe
 // Pass 2: receivers with a reflector get n(x) of eq. 4.6 (with their lobe's Omega) clamped to
 // [sparse_spp, max_spp], the samples beyond the sparse ones as one more k x k square
 // (shadow_adaptive's plan).
-__kernel void indirect_adaptive(SHADOW_SCENE_PARAMS, __global float* indirect_pixels,
+__kernel void indirect_adaptive(SCENE_PARAMS, __global float* indirect_pixels,
                                 __global uint* indirect_rays, uint sparse_spp, uint max_spp) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
@@ -208,7 +208,7 @@ __kernel void indirect_adaptive(SHADOW_SCENE_PARAMS, __global float* indirect_pi
     uint extra = (uint)ceil(target - (float)sparse_spp);
     uint k = min(shadow_isqrt_ceil(extra), shadow_isqrt_floor(max_spp - sparse_spp));
     if (k == 0u) return;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     uint rays = 0u;
     IndirectSums acc = {vload3(0, px + INDIRECT_PIXEL_IRRADIANCE),
                         vload3(0, px + INDIRECT_PIXEL_ALBEDO), px[INDIRECT_PIXEL_WEIGHT],

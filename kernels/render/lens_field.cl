@@ -205,12 +205,12 @@ inline uint lens_field_pixel(const SceneRefs* s, uint x, uint y, uint side,
 }
 
 #if !OUTPUT_SHADOWS
-__kernel void lens_field_sample(SHADOW_SCENE_PARAMS, __global float* light_field,
+__kernel void lens_field_sample(SCENE_PARAMS, __global float* light_field,
                                 __global uint* lens_rays, uint side) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     float none[SHADOW_PLANES];
     for (uint l = 0u; l < SHADOW_PLANES; ++l) none[l] = NAN;
     lens_rays[pixel] = lens_field_pixel(&s, x, y, side,
@@ -222,20 +222,16 @@ __kernel void lens_field_sample(SHADOW_SCENE_PARAMS, __global float* light_field
 #if OUTPUT_LENS_SHADOWS
 // After the shadow passes: the receivers of the shadow planes (`shadow_lights`, a plane per
 // set bit in increasing light order) as the render kernel reads them.
-__kernel void lens_shadow_field_sample(SHADOW_SCENE_PARAMS, __global const float* shadow_pixels,
+__kernel void lens_shadow_field_sample(SCENE_PARAMS, __global const float* shadow_pixels,
                                        uint shadow_lights, __global float* lens_field,
                                        __global float* lens_shadow, __global uint* lens_rays,
                                        uint side) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     float objects[SHADOW_PLANES];
-    for (uint l = 0u; l < SHADOW_PLANES; ++l) {
-        __global const float* centre =
-            shadow_pixels + ((size_t)pixel * SHADOW_PLANES + l) * SHADOW_PIXEL_FLOATS;
-        objects[l] = centre[SHADOW_PIXEL_WEIGHT] > 0.0f ? centre[SHADOW_PIXEL_OBJECT] : NAN;
-    }
+    shadow_receiver_objects(shadow_pixels, pixel, objects);
     lens_rays[pixel] = lens_field_pixel(&s, x, y, side,
                                         lens_field + (size_t)pixel * LIGHT_FIELD_PIXEL_FLOATS,
                                         lens_shadow + (size_t)pixel * LENS_SHADOW_PIXEL_FLOATS,

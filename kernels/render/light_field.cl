@@ -64,7 +64,7 @@ inline void light_field_axis(__constant const SceneParams* p, float3 pos, float3
 // its light field, and its slopes merged into the same plane of the shadow output. The
 // samples' random numbers depend on the pixel alone, so a plane holds the bytes of a render
 // of its light alone.
-__kernel void light_field_sample(SHADOW_SCENE_PARAMS, __global float* shadow_pixels,
+__kernel void light_field_sample(SCENE_PARAMS, __global float* shadow_pixels,
                                  uint plane, uint planes, __global float* light_field,
                                  __global uint* shadow_rays, uint light, uint side,
                                  float4 frame_u, float4 frame_v) {
@@ -76,7 +76,7 @@ __kernel void light_field_sample(SHADOW_SCENE_PARAMS, __global float* shadow_pix
     __global float* px = SHADOW_AT(shadow_pixels, pixel, plane, planes);
     shadow_rays[pixel] = 0u;
     if (!(px[SHADOW_PIXEL_WEIGHT] > 0.0f) || light >= params->light_count) return;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     uint rays = 0u;
     ShadowReceiver r;
     // The sparse pass's receiver, again (its geometric normal is not kept).

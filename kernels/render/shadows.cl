@@ -94,17 +94,6 @@ inline bool shadow_receiver(const SceneRefs* s, uint x, uint y, float jx, float 
     return aaf_receiver(s, x, y, jx, jy, false, r, rays);
 }
 
-#define SHADOW_SCENE_PARAMS                                                                  \
-    __constant const SceneParams *params, __global const BvhNode *nodes,                     \
-        __global const TriangleGeom *tri_geom, __global const TriangleShading *tri_shading,  \
-        __global const Sphere *spheres, __global const Material *materials,                  \
-        __global const TextureInfo *textures, __global const float4 *texels,                 \
-        __global const Light *lights, __global const float *light_cdf,                      \
-        __global uint *debug_counters
-#define SHADOW_SCENE_REFS                                                                    \
-    {params, nodes, tri_geom, tri_shading, spheres, materials,                               \
-     textures, texels, lights, light_cdf, debug_counters}
-
 // The largest k with k^2 <= n, and the smallest with k^2 >= n (n is small: at most max_spp).
 inline uint shadow_isqrt_floor(uint n) {
     uint k = 0u;
@@ -228,13 +217,13 @@ inline void shadow_samples(const SceneRefs* s, __global const Light* light, uint
 
 // Pass 1. `light` indexes the light list (a sphere light); an index past it samples nothing.
 // Each light plane runs the passes with its light (`plane` of `planes`).
-__kernel void shadow_sparse(SHADOW_SCENE_PARAMS, __global float* shadow_pixels, uint plane,
+__kernel void shadow_sparse(SCENE_PARAMS, __global float* shadow_pixels, uint plane,
                             uint planes, __global uint* shadow_rays, uint light,
                             uint sqrt_spp) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     __global float* px = SHADOW_AT(shadow_pixels, pixel, plane, planes);
     for (uint i = 0u; i < SHADOW_PIXEL_FLOATS; ++i) px[i] = 0.0f;
     uint rays = 0u;
@@ -321,7 +310,7 @@ __kernel void shadow_fill(__global float* shadow_pixels, uint plane, uint planes
 // Pass 2: pixels with slopes get n(x) of eq. 3.5, clamped to [sparse_spp, max_spp]; the
 // samples beyond the sparse ones come as one more k x k square, the smallest that covers them
 // (the released code's ceil(sqrt)^2) and no larger than max_spp - sparse_spp allows.
-__kernel void shadow_adaptive(SHADOW_SCENE_PARAMS, __global float* shadow_pixels, uint plane,
+__kernel void shadow_adaptive(SCENE_PARAMS, __global float* shadow_pixels, uint plane,
                               uint planes, __global uint* shadow_rays, uint light,
                               uint sparse_spp, uint max_spp) {
     uint x = get_global_id(0), y = get_global_id(1);
@@ -338,7 +327,7 @@ __kernel void shadow_adaptive(SHADOW_SCENE_PARAMS, __global float* shadow_pixels
     uint extra = (uint)ceil(target - (float)sparse_spp);
     uint k = min(shadow_isqrt_ceil(extra), shadow_isqrt_floor(max_spp - sparse_spp));
     if (k == 0u) return;
-    SceneRefs s = SHADOW_SCENE_REFS;
+    SceneRefs s = SCENE_REFS;
     uint rays = 0u;
     ShadowSums acc = {px[SHADOW_PIXEL_VISIBLE], px[SHADOW_PIXEL_WEIGHT],
                       px[SHADOW_PIXEL_OCCLUDED], px[SHADOW_PIXEL_SLOPE_MAX],
@@ -360,5 +349,19 @@ __kernel void shadow_adaptive(SHADOW_SCENE_PARAMS, __global float* shadow_pixels
 #include "render/light_field.cl"
 
 #endif
+
+// The object each shadow plane's pixel-centre receiver lies on (NaN: none, or no shadow
+// output): the first hits on it record the plane's light's terms (path_vertex, path.cl).
+inline void shadow_receiver_objects(__global const float* shadow_pixels, size_t pixel,
+                                    float* objects) {
+    for (uint l = 0u; l < SHADOW_PLANES; ++l) {
+        objects[l] = NAN;
+#if OUTPUT_SHADOWS
+        __global const float* centre =
+            shadow_pixels + (pixel * SHADOW_PLANES + l) * SHADOW_PIXEL_FLOATS;
+        if (centre[SHADOW_PIXEL_WEIGHT] > 0.0f) objects[l] = centre[SHADOW_PIXEL_OBJECT];
+#endif
+    }
+}
 
 #endif

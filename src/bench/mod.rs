@@ -36,6 +36,8 @@
 //!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
 //! - `roofline`: each image filter kernel's achieved GFLOP/s and GB/s against the device's
 //!   own peaks, measured by micro-kernels in the same run (`roofline/`).
+//! - `tracers`: the megakernel and the wavefront tracer side by side per scene: samples/s,
+//!   same bytes, the wavefront's time per step (`tracers`).
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -64,6 +66,7 @@ pub mod study;
 pub mod sweep;
 pub mod sweep_report;
 pub mod table;
+pub mod tracers;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -104,6 +107,8 @@ pub enum Study {
     RpfScale,
     /// Each image filter kernel's GFLOP/s and GB/s against the device's measured peaks.
     Roofline,
+    /// The megakernel and the wavefront tracer side by side on every scene.
+    Tracers,
 }
 
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -279,6 +284,7 @@ fn select(args: &BenchArgs) -> Result<Selection> {
             Study::AccuracyTime,
             Study::Sweep,
             Study::RenderSpeed,
+            Study::Tracers,
             Study::Statistics,
             Study::Roofline,
         ];
@@ -357,6 +363,7 @@ pub fn reference_requests(args: &BenchArgs) -> Result<Vec<ground_truth::Referenc
                 }
             }
             Study::RenderSpeed
+            | Study::Tracers
             | Study::Statistics
             | Study::FilterSpeed
             | Study::Balance
@@ -515,6 +522,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             Study::RpfReadings => rpf::rpf_readings(&ctx, args.fresh)?,
             Study::RpfScale => rpf::rpf_scale(&ctx, args.fresh)?,
             Study::Roofline => roofline::roofline(&ctx)?,
+            Study::Tracers => tracers::tracers(&ctx, args.fresh)?,
         }
     }
     write_device_info(&ctx)?;

@@ -14,7 +14,7 @@ use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::{self, Scene};
 
-fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
+pub(super) fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
     let mut o = RenderOptions::for_scene(scene);
     o.frame.width = w;
     o.frame.height = h;
@@ -23,7 +23,7 @@ fn options(scene: &Scene, w: u32, h: u32) -> RenderOptions {
 
 /// Kernel time per sample of a renderer, measured over `launches` launches of `spp` samples
 /// after a one-sample warm-up: (samples/s, Mrays/s).
-fn throughput(r: &mut Renderer, spp: u32, launches: u32) -> Result<(f64, f64)> {
+pub(super) fn throughput(r: &mut Renderer, spp: u32, launches: u32) -> Result<(f64, f64)> {
     r.render_samples(1)?;
     let (mut t, mut rays, mut n) = (Duration::ZERO, 0u64, 0u32);
     for _ in 0..launches {
@@ -37,7 +37,7 @@ fn throughput(r: &mut Renderer, spp: u32, launches: u32) -> Result<(f64, f64)> {
 }
 
 /// Samples per launch so that one launch takes about `target` seconds.
-fn calibrate(r: &mut Renderer, target: f64) -> Result<u32> {
+pub(super) fn calibrate(r: &mut Renderer, target: f64) -> Result<u32> {
     let s = r.render_samples(1)?;
     Ok(((target / s.kernel_time.as_secs_f64().max(1e-6)) as u32).clamp(1, 256))
 }

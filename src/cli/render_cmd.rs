@@ -16,7 +16,7 @@ use crate::filters::{Configured, DeviceFilter, FilterRequest, MultiDeviceArgs, R
 use crate::imaging;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{
-    Budget, RenderOptions, SceneArrays, SceneInfo, Tile, progress_bar, render_progressively,
+    Budget, RenderOptions, SceneArrays, SceneInfo, Tile, Tracer, progress_bar, render_progressively,
 };
 use crate::scene;
 use crate::stats::RenderRecord;
@@ -75,6 +75,10 @@ pub struct RenderArgs {
     /// Print the effects compiled into the kernel and why.
     #[arg(long)]
     pub explain: bool,
+    /// The kernels that trace the paths: the thesis's megakernel, or one kernel per step over
+    /// queues of paths (wavefront, Laine et al. 2013). The image is the same bytes.
+    #[arg(long, value_enum, default_value_t = Tracer::Megakernel)]
+    pub tracer: Tracer,
     /// Work-group size of the path tracer, e.g. 8x8 [default: chosen by the driver].
     #[arg(long, value_parser = parse_size)]
     pub local_size: Option<[usize; 2]>,
@@ -286,6 +290,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     }
     options.all_features = args.all_features;
     options.local_size = args.local_size;
+    options.tracer = args.tracer;
     // Outputs: explicit paths must be writable now, before minutes of rendering.
     let png_path = args
         .out

@@ -17,6 +17,7 @@ pub mod shadows;
 pub mod split;
 pub mod subtractive;
 pub mod tile;
+pub mod wavefront;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -39,6 +40,7 @@ pub use progressive::{Budget, progress_bar, render_progressively};
 pub use shadows::{LightPlanes, ShadowSampling, ShadowStats};
 pub use split::{SplitFrame, SplitRenderer};
 pub use tile::Tile;
+pub use wavefront::Tracer;
 
 /// How to render, besides the scene itself.
 #[derive(Clone, Debug)]
@@ -63,6 +65,8 @@ pub struct RenderOptions {
     pub first_sample: u32,
     /// The part of the image rendered; None: all of it.
     pub tile: Option<Tile>,
+    /// The megakernel or the wavefront kernels (the same image).
+    pub tracer: Tracer,
 }
 
 impl RenderOptions {
@@ -78,6 +82,7 @@ impl RenderOptions {
             indirect: IndirectSampling::default(),
             first_sample: 0,
             tile: None,
+            tracer: Tracer::Megakernel,
         }
     }
 
@@ -133,6 +138,15 @@ impl DeviceScene {
     }
 }
 
+/// What [`Renderer::build_kernels`] builds from one program.
+struct RenderKernels {
+    kernel: Kernel,
+    shadow_passes: Option<shadows::ShadowPasses>,
+    lens_pass: Option<lens_field::LensPass>,
+    indirect_passes: Option<indirect::IndirectPasses>,
+    wavefront: Option<wavefront::Wavefront>,
+}
+
 /// Kernel time and rays of one launch.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LaunchStats {
@@ -182,6 +196,9 @@ pub struct Renderer {
     debug_counters: Buffer<u32>,
     /// Always Some after construction (built once the buffers exist).
     kernel: Option<Kernel>,
+    /// The wavefront kernels, when they render the samples instead of `kernel`.
+    tracer: Tracer,
+    wavefront: Option<wavefront::Wavefront>,
     /// The sphere lights of the shadow output, one plane each (with [`Output::Shadows`]), and
     /// how they are sampled.
     shadow_lights: Option<shadows::LightPlanes>,
@@ -201,6 +218,8 @@ pub struct Renderer {
     samples_done: u32,
     pub rays_total: u64,
     pub kernel_time_total: Duration,
+    /// With the wavefront tracer: kernel time per step so far ([`wavefront::STEPS`]).
+    pub wavefront_times: wavefront::StepTimes,
 }
 
 impl Renderer {
@@ -295,6 +314,8 @@ impl Renderer {
             ray_counts,
             debug_counters,
             kernel: None,
+            tracer: options.tracer,
+            wavefront: None,
             shadow_lights,
             shadow_sampling: options.shadows,
             shadow_passes: None,
@@ -307,27 +328,23 @@ impl Renderer {
             samples_done: 0,
             rays_total: 0,
             kernel_time_total: Duration::ZERO,
+            wavefront_times: Default::default(),
         };
-        let (kernel, shadow_passes, lens_pass, indirect_passes) = r.build_kernels()?;
-        (r.kernel, r.shadow_passes, r.lens_pass) = (Some(kernel), shadow_passes, lens_pass);
-        r.indirect_passes = indirect_passes;
+        let kernels = r.build_kernels()?;
+        r.install(kernels);
         Ok(r)
     }
 
     /// The megakernel specialised to `self.features`, every argument bound, and the shadow
     /// passes and the indirect passes from its program (with their outputs), or the
-    /// lens-field pass (with the light-field output alone).
-    #[allow(clippy::type_complexity)]
-    fn build_kernels(
-        &self,
-    ) -> Result<(
-        Kernel,
-        Option<shadows::ShadowPasses>,
-        Option<lens_field::LensPass>,
-        Option<indirect::IndirectPasses>,
-    )> {
+    /// lens-field pass (with the light-field output alone), and the wavefront kernels when
+    /// they trace the paths.
+    fn build_kernels(&self) -> Result<RenderKernels> {
         let mut defines = self.features.defines();
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
+        if self.tracer == Tracer::Wavefront {
+            defines.push(("WAVEFRONT".into(), "1".into()));
+        }
         defines.push((
             "SHADOW_PLANES".into(),
             self.shadow_lights.map_or(1, |l| l.count()).to_string(),
@@ -424,7 +441,40 @@ impl Renderer {
             )?),
             None => None,
         };
-        Ok((kernel, shadow_passes, lens_pass, indirect_passes))
+        let wavefront = match self.tracer {
+            Tracer::Megakernel => None,
+            Tracer::Wavefront => Some(wavefront::Wavefront::new(
+                &self.gpu,
+                &program,
+                &self._scene,
+                &wavefront::WavefrontBindings {
+                    outputs: &self.buffers,
+                    shadow_pixels: self.buffer(BufferId::ShadowPixels),
+                    ray_counts: &self.ray_counts,
+                    debug_counters: &self.debug_counters,
+                    tile: self.tile,
+                    local_size: self.local_size,
+                    sample_capacity: self.sample_capacity,
+                    range_first: self.first_sample,
+                    shadow_lights: self.shadow_lights.map_or(0, |l| l.0),
+                },
+            )?),
+        };
+        Ok(RenderKernels {
+            kernel,
+            shadow_passes,
+            lens_pass,
+            indirect_passes,
+            wavefront,
+        })
+    }
+
+    fn install(&mut self, k: RenderKernels) {
+        self.kernel = Some(k.kernel);
+        self.shadow_passes = k.shadow_passes;
+        self.lens_pass = k.lens_pass;
+        self.indirect_passes = k.indirect_passes;
+        self.wavefront = k.wavefront;
     }
     /// The names of the render kernel's arguments in the order they are bound.
     pub fn argument_names() -> Vec<&'static str> {
@@ -563,22 +613,31 @@ impl Renderer {
     }
 
     fn launch(&mut self, count: u32, rows: std::ops::Range<u32>) -> Result<LaunchStats> {
-        let kernel = self.kernel.as_ref().expect("built in with_arrays");
-        kernel.set_arg("sample_base", self.first_sample + self.samples_done)?;
-        kernel.set_arg("sample_count", count)?;
+        let first = self.first_sample + self.samples_done;
         let w = self.width() as usize;
-        // SAFETY: every buffer argument is alive (owned by self) and sized for the whole
-        // image; the kernel skips work-items beyond the image.
-        let event = unsafe {
-            enqueue_rows(
-                kernel,
-                self.width(),
-                self.height(),
-                rows.clone(),
-                "the render kernel",
-            )?
+        let kernel_time = if let Some(wavefront) = &self.wavefront {
+            let steps = wavefront.run(first, count, rows.clone(), &self.ray_counts)?;
+            for (total, t) in self.wavefront_times.iter_mut().zip(steps) {
+                *total += t;
+            }
+            steps.iter().sum()
+        } else {
+            let kernel = self.kernel.as_ref().expect("built in with_arrays");
+            kernel.set_arg("sample_base", first)?;
+            kernel.set_arg("sample_count", count)?;
+            // SAFETY: every buffer argument is alive (owned by self) and sized for the whole
+            // image; the kernel skips work-items beyond the image.
+            let event = unsafe {
+                enqueue_rows(
+                    kernel,
+                    self.width(),
+                    self.height(),
+                    rows.clone(),
+                    "the render kernel",
+                )?
+            };
+            event_duration(&event)?
         };
-        let kernel_time = event_duration(&event)?;
         let first = rows.start as usize * w;
         let mut counts = vec![0u32; rows.len() * w];
         self.ray_counts
@@ -627,10 +686,8 @@ impl Renderer {
             .context("uploading the camera")?;
         if features != self.features {
             self.features = features;
-            let (kernel, shadow_passes, lens_pass, indirect_passes) = self.build_kernels()?;
-            (self.kernel, self.shadow_passes, self.lens_pass) =
-                (Some(kernel), shadow_passes, lens_pass);
-            self.indirect_passes = indirect_passes;
+            let kernels = self.build_kernels()?;
+            self.install(kernels);
         }
         self.scene_info = SceneInfo::new(scene, &self.arrays);
         self.reset()

@@ -1,0 +1,128 @@
+//! The wavefront tracer (kernels/render/wavefront.cl, src/render/wavefront.rs) against the
+//! megakernel, which stays the reference (itself checked against the Rust path tracer by
+//! tests/reference.rs): every output buffer, the ray counts and the debug counters must be the
+//! same bytes, on every bundled scene, with every output the filters ask for, over bands of
+//! rows, tiles, sample ranges and launches of several samples.
+
+mod common;
+
+use common::*;
+use noisefree::layout::outputs::{Output, OutputSet};
+use noisefree::render::{Frame, RenderOptions, Renderer, Tile, Tracer};
+use noisefree::scene::Scene;
+
+/// Every output buffer of `frame`, as bytes.
+fn buffers(frame: &Frame) -> Vec<(String, Vec<u8>)> {
+    frame
+        .outputs()
+        .buffers()
+        .map(|b| {
+            let bytes = frame.host(b.id).unwrap().as_bytes().to_vec();
+            (b.name.to_string(), bytes)
+        })
+        .collect()
+}
+
+/// Renders `scene` with both tracers in launches of `batches` samples and asserts the same
+/// buffers, rays and debug counters. Every second launch covers a band of rows only (a
+/// renderer's share of a frame split across devices, src/render/split.rs), not starting at
+/// the top.
+fn assert_tracers_agree(scene: &Scene, options: &RenderOptions, batches: &[u32], what: &str) {
+    let render = |tracer: Tracer| {
+        let mut o = options.clone();
+        o.tracer = tracer;
+        o.debug_counters = true;
+        let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{what}: {e:#}"));
+        let h = r.height();
+        for (k, &n) in batches.iter().enumerate() {
+            if k % 2 == 1 && h > 4 {
+                r.render_rows(n, 2..h - 1).unwrap();
+            } else {
+                r.render_samples(n).unwrap();
+            }
+        }
+        (r.frame(), r.rays_total, r.read_debug_counters().unwrap())
+    };
+    let (mega, mega_rays, mega_counts) = render(Tracer::Megakernel);
+    let (wave, wave_rays, wave_counts) = render(Tracer::Wavefront);
+    assert_eq!(mega.info().spp, wave.info().spp, "{what}");
+    for ((name, a), (_, b)) in buffers(&mega).iter().zip(buffers(&wave)) {
+        assert!(
+            *a == b,
+            "{what}: the wavefront's {name} buffer differs from the megakernel's"
+        );
+    }
+    assert_eq!(mega_rays, wave_rays, "{what}: rays traced");
+    assert_eq!(mega_counts, wave_counts, "{what}: debug counters");
+    assert!(mega_rays > 0, "{what}: nothing was traced");
+}
+
+#[test]
+fn every_bundled_scene_gives_the_megakernels_bytes() {
+    for path in bundled_scenes() {
+        let scene = noisefree::scene::load_scene(&path).unwrap();
+        let mut o = options(&scene, 21, 13, 3);
+        o.outputs = OutputSet::of(&[
+            Output::Features,
+            Output::Variance,
+            Output::Position,
+            Output::Samples,
+            Output::Halves,
+        ]);
+        o.sample_capacity = 3;
+        assert_tracers_agree(&scene, &o, &[2, 1], &path.display().to_string());
+    }
+}
+
+#[test]
+fn mirrors_glass_and_clamped_samples_give_the_megakernels_bytes() {
+    let scene = cornell_with_spheres();
+    let mut o = options(&scene, 19, 17, 7);
+    o.outputs = OutputSet::of(&[Output::Features, Output::Variance, Output::Samples]);
+    o.sample_capacity = 4;
+    assert_tracers_agree(&scene, &o, &[1, 2, 1], "Cornell box with spheres");
+    o.frame.sample_clamp = 0.5;
+    assert_tracers_agree(&scene, &o, &[3], "clamped samples");
+    // A work-group size of its own, and paths cut at depth 2 without Russian roulette.
+    o.local_size = Some([4, 2]);
+    o.frame.sample_clamp = 0.0;
+    let shallow = scene_from_toml(&cornell("max_depth = 2\nrussian_roulette = false", ""));
+    assert_tracers_agree(&shallow, &o, &[2], "depth 2, work-group 4 x 2");
+}
+
+#[test]
+fn the_shadow_light_field_and_indirect_outputs_give_the_megakernels_bytes() {
+    // Soft shadows of two sphere lights (AAF and sheared filtering's outputs), depth of field
+    // with the lens field, and AAF's indirect output.
+    let shadows = bundled_scene("two_lights_shadows");
+    let mut o = options(&shadows, 24, 18, 5);
+    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
+    assert_tracers_agree(&shadows, &o, &[2, 1], "shadows and their light field");
+    let mut lens = bundled_scene("two_lights_shadows");
+    lens.camera.lens_radius = 0.2;
+    let mut o = options(&lens, 24, 18, 5);
+    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField, Output::LensShadows]);
+    assert_tracers_agree(&lens, &o, &[2], "shadows through a lens");
+    o.outputs = OutputSet::of(&[Output::LightField]);
+    assert_tracers_agree(&lens, &o, &[1, 1], "the lens field");
+    let room = bundled_scene("room_gi");
+    let mut o = options(&room, 24, 18, 5);
+    o.outputs = OutputSet::of(&[Output::Indirect]);
+    assert_tracers_agree(&room, &o, &[2], "indirect light");
+}
+
+#[test]
+fn tiles_and_sample_ranges_give_the_megakernels_bytes() {
+    let scene = bundled_scene("cornell_glossy");
+    let mut o = options(&scene, 30, 22, 9);
+    o.outputs = OutputSet::of(&[Output::Variance, Output::Samples, Output::Halves]);
+    o.sample_capacity = 3;
+    o.tile = Some(Tile {
+        x: 7,
+        y: 5,
+        width: 13,
+        height: 11,
+    });
+    o.first_sample = 5;
+    assert_tracers_agree(&scene, &o, &[2, 1], "a tile of samples 5..8");
+}
