@@ -70,6 +70,8 @@ fn every_bundled_scene_gives_the_megakernels_bytes() {
             Output::Halves,
         ]);
         o.sample_capacity = 3;
+        // Waves of three rows: a launch traces five waves one after the other.
+        o.wave_paths = Some(3 * 21);
         assert_tracers_agree(&scene, &o, &[2, 1], &path.display().to_string());
     }
 }
@@ -83,8 +85,10 @@ fn mirrors_glass_and_clamped_samples_give_the_megakernels_bytes() {
     assert_tracers_agree(&scene, &o, &[1, 2, 1], "Cornell box with spheres");
     o.frame.sample_clamp = 0.5;
     assert_tracers_agree(&scene, &o, &[3], "clamped samples");
-    // A work-group size of its own, and paths cut at depth 2 without Russian roulette.
+    // A work-group size of its own, waves of a few rows (4: a multiple of the work-group's
+    // height), and paths cut at depth 2 without Russian roulette.
     o.local_size = Some([4, 2]);
+    o.wave_paths = Some(3 * 19 + 1);
     o.frame.sample_clamp = 0.0;
     let shallow = scene_from_toml(&cornell("max_depth = 2\nrussian_roulette = false", ""));
     assert_tracers_agree(&shallow, &o, &[2], "depth 2, work-group 4 x 2");
@@ -124,5 +128,6 @@ fn tiles_and_sample_ranges_give_the_megakernels_bytes() {
         height: 11,
     });
     o.first_sample = 5;
+    o.wave_paths = Some(2 * 13);
     assert_tracers_agree(&scene, &o, &[2, 1], "a tile of samples 5..8");
 }

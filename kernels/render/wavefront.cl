@@ -16,11 +16,13 @@
 //       wavefront_shadow   any hit of every queued shadow ray: an occluded connection carries 0
 //   wavefront_accumulate   the last connection, the clamp, film_accumulate
 //
-// A queue holds each path's slot (its pixel in the tile), and beside it, at the same place,
-// its extension ray and then its hit, so that the BVH walk reads and writes consecutive
-// records instead of the scattered path states (measured on PoCL: loading each ray from its
-// 208-byte path state was 84 % of the extension kernel's own time). Queues are written with
-// atomics, so their order differs from run to run; nothing but the order of work depends on
+// The pixels of a wave are consecutive rows of the tile: slot `path_base + path` of the
+// renderer's buffers is path `path` of the wave's records, which hold one wave only. A queue
+// holds each path's index, and beside it, at the same place, its extension ray and then its
+// hit, so that the BVH walk reads and writes consecutive records instead of the scattered
+// path states (measured on PoCL: loading each ray from its 208-byte path state was 84 % of
+// the extension kernel's own time). Queues are written with atomics, so their order differs
+// from run to run; nothing but the order of work depends on
 // it: every path reads and writes its own records only.
 #ifndef NOISEFREE_WAVEFRONT_CL
 #define NOISEFREE_WAVEFRONT_CL
@@ -39,11 +41,11 @@ typedef struct {
     float3 o, d;
 } QueuedRay;
 
-// Appends path `slot` with its next ray to a queue.
+// Appends path `path` with its next ray to a queue.
 inline void wavefront_enqueue(__global uint* queue, __global QueuedRay* rays,
-                              __global uint* counts, uint slot, const PathState* st) {
+                              __global uint* counts, uint path, const PathState* st) {
     uint j = atomic_inc(counts + WAVEFRONT_NEXT);
-    queue[j] = slot;
+    queue[j] = path;
     rays[j].o = st->o;
     rays[j].d = st->d;
 }
@@ -61,32 +63,33 @@ __kernel void wavefront_sizes(__global uint* out) {
 __kernel void wavefront_generate(SCENE_PARAMS, __global PathState* paths, __global uint* queue,
                                  __global QueuedRay* rays, __global uint* counts, uint tile_x,
                                  uint tile_y,
-                                 uint tile_width, uint tile_height, uint sample) {
+                                 uint tile_width, uint tile_height, uint path_base,
+                                 uint sample) {
     uint tx = get_global_id(0), ty = get_global_id(1);
     if (tx >= tile_width || ty >= tile_height) return;
     uint x = tile_x + tx, y = tile_y + ty;
     uint pixel = y * params->image_width + x;           // in the image: its random numbers
-    uint slot = ty * tile_width + tx;                   // in this render's buffers
+    uint path = ty * tile_width + tx - path_base;       // in the wave's records
     SceneRefs s = SCENE_REFS;
     uint key = rng_sample_key(params->seed, pixel, sample);
     float3 o, d;
     camera_ray(&s, x, y, key, &o, &d);
     PathState st;
     path_begin(&st, o, d, key);
-    if (path_survives(&s, &st)) wavefront_enqueue(queue, rays, counts, slot, &st);
-    paths[slot] = st;
+    if (path_survives(&s, &st)) wavefront_enqueue(queue, rays, counts, path, &st);
+    paths[path] = st;
 }
 
 // The extension ray of every queued path (Alg. 4), its hit at the same place in `hits`.
 __kernel void wavefront_extend(SCENE_PARAMS, __global const QueuedRay* rays, __global Hit* hits,
                                __global const uint* queue, uint count,
-                               __global uint* ray_counts) {
+                               __global uint* ray_counts, uint path_base) {
     uint i = get_global_id(0);
     if (i >= count) return;
     SceneRefs s = SCENE_REFS;
     uint traced = 0u;
     hits[i] = intersect_closest(&s, rays[i].o, rays[i].d, INFINITY, &traced);
-    ray_counts[queue[i]] += traced;
+    ray_counts[path_base + queue[i]] += traced;
 }
 
 // One vertex of every queued path (Alg. 1 lines 12-18), after the light its last vertex's
@@ -99,39 +102,39 @@ __kernel void wavefront_shade(SCENE_PARAMS, __global PathState* paths,
                               __global uint* next_queue, __global QueuedRay* next_rays,
                               __global uint* shadow_queue,
                               __global uint* counts, __global const float* shadow_pixels,
-                              uint shadow_lights) {
+                              uint shadow_lights, uint path_base) {
     uint i = get_global_id(0);
     if (i >= count) return;
-    uint slot = queue[i];
+    uint path = queue[i];
     SceneRefs s = SCENE_REFS;
-    PathState st = paths[slot];
-    path_add_connection(&st, connections[slot].value);
+    PathState st = paths[path];
+    path_add_connection(&st, connections[path].value);
     float shadow_objects[SHADOW_PLANES];
-    shadow_receiver_objects(shadow_pixels, slot, shadow_objects);
+    shadow_receiver_objects(shadow_pixels, path_base + path, shadow_objects);
     Hit hit = hits[i];
     LightConnection connection;
     bool more = path_vertex(&s, &st, &hit, shadow_lights, shadow_objects, &connection);
     if (st.flags & PATH_CONNECTION) {
-        connections[slot] = connection;
-        if (connection.valid) shadow_queue[atomic_inc(counts + WAVEFRONT_SHADOW)] = slot;
+        connections[path] = connection;
+        if (connection.valid) shadow_queue[atomic_inc(counts + WAVEFRONT_SHADOW)] = path;
     }
     if (more && path_survives(&s, &st))
-        wavefront_enqueue(next_queue, next_rays, counts, slot, &st);
-    paths[slot] = st;
+        wavefront_enqueue(next_queue, next_rays, counts, path, &st);
+    paths[path] = st;
 }
 
 // The shadow ray of every queued light connection: an occluded one carries no light.
 __kernel void wavefront_shadow(SCENE_PARAMS, __global LightConnection* connections,
                                __global const uint* shadow_queue, uint count,
-                               __global uint* ray_counts) {
+                               __global uint* ray_counts, uint path_base) {
     uint i = get_global_id(0);
     if (i >= count) return;
-    uint slot = shadow_queue[i];
+    uint path = shadow_queue[i];
     SceneRefs s = SCENE_REFS;
     uint rays = 0u;
-    __global LightConnection* c = connections + slot;
+    __global LightConnection* c = connections + path;
     if (occluded(&s, c->o, c->d, c->t_max, &rays)) c->value = (float3)(0.0f);
-    ray_counts[slot] += rays;
+    ray_counts[path_base + path] += rays;
 }
 
 // The band's finished paths into the film, as the megakernel's loop body after trace_path.
@@ -139,14 +142,15 @@ __kernel void wavefront_accumulate(SCENE_PARAMS, __global PathState* paths,
                                    __global const LightConnection* connections,
                                    RENDER_OUTPUT_PARAMS, uint sample_capacity, uint tile_x,
                                    uint tile_y, uint tile_width, uint tile_height,
-                                   uint range_first, uint sample) {
+                                   uint path_base, uint range_first, uint sample) {
     uint tx = get_global_id(0), ty = get_global_id(1);
     if (tx >= tile_width || ty >= tile_height) return;
     uint x = tile_x + tx, y = tile_y + ty;
     uint slot = ty * tile_width + tx;
+    uint path = slot - path_base;
     SceneRefs s = SCENE_REFS;
-    PathState st = paths[slot];
-    path_add_connection(&st, connections[slot].value);
+    PathState st = paths[path];
+    path_add_connection(&st, connections[path].value);
     path_finish(&s, &st);
     PixelStats stats;
     pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, slot);

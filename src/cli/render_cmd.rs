@@ -79,6 +79,10 @@ pub struct RenderArgs {
     /// queues of paths (wavefront, Laine et al. 2013). The image is the same bytes.
     #[arg(long, value_enum, default_value_t = Tracer::Megakernel)]
     pub tracer: Tracer,
+    /// With --tracer wavefront: paths in flight at most (whole rows of them) [default: 16,384
+    /// on a CPU, 1,048,576 on a GPU]. The image does not depend on it.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub wave_paths: Option<u32>,
     /// Work-group size of the path tracer, e.g. 8x8 [default: chosen by the driver].
     #[arg(long, value_parser = parse_size)]
     pub local_size: Option<[usize; 2]>,
@@ -291,6 +295,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     options.all_features = args.all_features;
     options.local_size = args.local_size;
     options.tracer = args.tracer;
+    options.wave_paths = args.wave_paths.map(|n| n as usize);
     // Outputs: explicit paths must be writable now, before minutes of rendering.
     let png_path = args
         .out

@@ -67,6 +67,9 @@ pub struct RenderOptions {
     pub tile: Option<Tile>,
     /// The megakernel or the wavefront kernels (the same image).
     pub tracer: Tracer,
+    /// The wavefront tracer's paths in flight at most (whole rows of them); None: by the
+    /// device's kind ([`wavefront::wave_paths`]). The image does not depend on it.
+    pub wave_paths: Option<usize>,
 }
 
 impl RenderOptions {
@@ -83,6 +86,7 @@ impl RenderOptions {
             first_sample: 0,
             tile: None,
             tracer: Tracer::Megakernel,
+            wave_paths: None,
         }
     }
 
@@ -198,6 +202,7 @@ pub struct Renderer {
     kernel: Option<Kernel>,
     /// The wavefront kernels, when they render the samples instead of `kernel`.
     tracer: Tracer,
+    wave_paths: Option<usize>,
     wavefront: Option<wavefront::Wavefront>,
     /// The sphere lights of the shadow output, one plane each (with [`Output::Shadows`]), and
     /// how they are sampled.
@@ -315,6 +320,7 @@ impl Renderer {
             debug_counters,
             kernel: None,
             tracer: options.tracer,
+            wave_paths: options.wave_paths,
             wavefront: None,
             shadow_lights,
             shadow_sampling: options.shadows,
@@ -457,6 +463,7 @@ impl Renderer {
                     sample_capacity: self.sample_capacity,
                     range_first: self.first_sample,
                     shadow_lights: self.shadow_lights.map_or(0, |l| l.0),
+                    wave_paths: self.wave_paths,
                 },
             )?),
         };

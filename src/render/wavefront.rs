@@ -39,12 +39,12 @@ impl Tracer {
 const QUEUE_WORK_GROUP: usize = 64;
 
 /// Paths in flight at most on a device of kind `kind`. A GPU needs many (Laine et al. keep
-/// about a million) to hide memory latency; on a CPU the path states of a wave should stay in
-/// the caches: PoCL, 2 cores with 1 MB L2 each and 32 MB L3, Cornell diffuse 512², 16 spp,
-/// kernel time 2.97 / 2.70 / 2.94 / 3.03 / 2.95 s with waves of 4,096 / 16,384 / 32,768 /
-/// 65,536 / all 262,144 paths (208-byte path states; small waves pay a host round trip per
-/// bounce each).
-fn wave_paths(kind: &str) -> usize {
+/// about a million) to hide memory latency; on a CPU a wave's records (about 400 bytes a
+/// path) should stay in the caches. PoCL, 2 cores with 1 MB L2 each and 32 MB L3, kernel time
+/// of `render scenes/cornell_diffuse.toml --spp 16 --tracer wavefront --wave-paths N`:
+/// 3.17 / 2.66 / 2.62 / 2.99 / 2.98 s for N = 4,096 / 8,192 / 16,384 / 32,768 / 262,144 (the
+/// whole 512² image); small waves also pay a host round trip per bounce each.
+pub fn wave_paths(kind: &str) -> usize {
     if kind == "CPU" { 1 << 14 } else { 1 << 20 }
 }
 
@@ -71,11 +71,9 @@ pub struct Wavefront {
     counts: Buffer<u32>,
     width: u32,
     height: u32,
-    /// Paths in flight at most: bands of this many pixels' worth of rows are traced one after
-    /// the other (each band all its samples).
-    wave_paths: usize,
-    /// Bands start on multiples of this many rows (the work-group height).
-    row_granularity: u32,
+    /// Rows of a wave: the rows of a launch are traced this many at a time, each wave all its
+    /// samples; the records hold one wave (a multiple of the work-group height).
+    wave_rows: u32,
     // The records the kernels keep between launches; held here so they live as long as the
     // kernels bound to them.
     _paths: Buffer<u8>,
@@ -95,6 +93,8 @@ pub struct WavefrontBindings<'a> {
     pub sample_capacity: u32,
     pub range_first: u32,
     pub shadow_lights: u32,
+    /// Paths in flight at most; None: [`wave_paths`] for the device.
+    pub wave_paths: Option<usize>,
 }
 
 impl Wavefront {
@@ -106,7 +106,13 @@ impl Wavefront {
         b: &WavefrontBindings,
     ) -> Result<Wavefront> {
         let (w, h) = (b.tile.width, b.tile.height);
-        let pixels = w as usize * h as usize;
+        let granularity = b.local_size.map_or(1, |l| l[1] as u32);
+        let paths_in_flight = b
+            .wave_paths
+            .unwrap_or_else(|| wave_paths(&gpu.summary.kind));
+        let wave_rows = ((paths_in_flight / w.max(1) as usize).max(1) as u32).div_ceil(granularity)
+            * granularity;
+        let pixels = w as usize * wave_rows.min(h) as usize;
         let [path_bytes, hit_bytes, connection_bytes, ray_bytes] = record_sizes(gpu, program)?;
         let paths = gpu.zeroed::<u8>(pixels * path_bytes, "wavefront path state")?;
         let hits = gpu.zeroed::<u8>(pixels * hit_bytes, "wavefront hit")?;
@@ -162,7 +168,7 @@ impl Wavefront {
             .arg_named("rays", &queues[0].1)
             .arg_named("counts", &counts);
         tile_args(&mut k);
-        k.arg_named("sample", 0u32);
+        k.arg_named("path_base", 0u32).arg_named("sample", 0u32);
         let generate = created(k, "wavefront_generate")?;
 
         let mut k = builder("wavefront_extend");
@@ -170,7 +176,8 @@ impl Wavefront {
             .arg_named("hits", &hits)
             .arg_named("queue", &queues[0].0);
         over_queue(&mut k);
-        k.arg_named("ray_counts", b.ray_counts);
+        k.arg_named("ray_counts", b.ray_counts)
+            .arg_named("path_base", 0u32);
         let extend = created(k, "wavefront_extend")?;
 
         let mut k = builder("wavefront_shade");
@@ -184,14 +191,16 @@ impl Wavefront {
             .arg_named("shadow_queue", &shadow_queue)
             .arg_named("counts", &counts)
             .arg_named("shadow_pixels", b.shadow_pixels)
-            .arg_named("shadow_lights", b.shadow_lights);
+            .arg_named("shadow_lights", b.shadow_lights)
+            .arg_named("path_base", 0u32);
         let shade = created(k, "wavefront_shade")?;
 
         let mut k = builder("wavefront_shadow");
         k.arg_named("connections", &connections)
             .arg_named("shadow_queue", &shadow_queue);
         over_queue(&mut k);
-        k.arg_named("ray_counts", b.ray_counts);
+        k.arg_named("ray_counts", b.ray_counts)
+            .arg_named("path_base", 0u32);
         let shadow = created(k, "wavefront_shadow")?;
 
         let mut k = builder("wavefront_accumulate");
@@ -203,7 +212,8 @@ impl Wavefront {
         }
         k.arg_named("sample_capacity", b.sample_capacity);
         tile_args(&mut k);
-        k.arg_named("range_first", b.range_first)
+        k.arg_named("path_base", 0u32)
+            .arg_named("range_first", b.range_first)
             .arg_named("sample", 0u32);
         let accumulate = created(k, "wavefront_accumulate")?;
 
@@ -217,8 +227,7 @@ impl Wavefront {
             counts,
             width: w,
             height: h,
-            wave_paths: wave_paths(&gpu.summary.kind),
-            row_granularity: b.local_size.map_or(1, |l| l[1] as u32),
+            wave_rows,
             _paths: paths,
             _hits: hits,
             _connections: connections,
@@ -244,11 +253,9 @@ impl Wavefront {
             .enq()
             .context("clearing the ray counts")?;
         let mut events = Vec::new();
-        let wave_rows = (self.wave_paths / w.max(1)).max(1) as u32;
-        let wave_rows = wave_rows.div_ceil(self.row_granularity) * self.row_granularity;
         let mut start = rows.start;
         while start < rows.end {
-            let wave = start..(start + wave_rows).min(rows.end);
+            let wave = start..(start + self.wave_rows).min(rows.end);
             for sample in first..first + count {
                 self.trace_wave(sample, wave.clone(), &mut events)?;
             }
@@ -269,6 +276,16 @@ impl Wavefront {
         rows: std::ops::Range<u32>,
         events: &mut Vec<(usize, Event)>,
     ) -> Result<()> {
+        let path_base = rows.start * self.width;
+        for k in [
+            &self.generate,
+            &self.extend,
+            &self.shade,
+            &self.shadow,
+            &self.accumulate,
+        ] {
+            k.set_arg("path_base", path_base)?;
+        }
         self.generate.set_arg("sample", sample)?;
         self.reset_counts()?;
         // SAFETY: every buffer argument is owned by the renderer or by self and sized for the
