@@ -11,7 +11,7 @@
 #include "render/indirect.cl"
 
 // Algorithm 1 for one sample from the camera ray (o, d), the steps of kernels/render/path.cl
-// in one loop: each vertex's shadow ray is traced as soon as the vertex has made it. With
+// in one loop: each vertex traces its shadow ray as soon as it has made it. With
 // OUTPUT_SHADOWS, `shadow_lights` and `shadow_objects` say which first hits record which
 // light's shadow terms (path_vertex). The lens-field pass of sheared depth of field
 // (kernels/render/lens_field.cl) calls this with its own lens point.
@@ -23,10 +23,8 @@ inline PathSample trace_path_from(const SceneRefs* s, float3 o, float3 d, uint k
     while (path_survives(s, &st)) {
         Hit hit = intersect_closest(s, st.o, st.d, INFINITY, ray_count);
         LightConnection connection;
-        bool more = path_vertex(s, &st, &hit, shadow_lights, shadow_objects, &connection);
-        if (st.flags & PATH_CONNECTION)
-            path_add_connection(&st, trace_connection(s, &connection, ray_count));
-        if (!more) break;
+        if (!path_vertex(s, &st, &hit, shadow_lights, shadow_objects, &connection, ray_count))
+            break;
     }
     path_finish(s, &st);
     return st.ps;

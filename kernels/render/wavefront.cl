@@ -113,7 +113,7 @@ __kernel void wavefront_shade(SCENE_PARAMS, __global PathState* paths,
     shadow_receiver_objects(shadow_pixels, path_base + path, shadow_objects);
     Hit hit = hits[i];
     LightConnection connection;
-    bool more = path_vertex(&s, &st, &hit, shadow_lights, shadow_objects, &connection);
+    bool more = path_vertex(&s, &st, &hit, shadow_lights, shadow_objects, &connection, 0);
     if (st.flags & PATH_CONNECTION) {
         connections[path] = connection;
         if (connection.valid) shadow_queue[atomic_inc(counts + WAVEFRONT_SHADOW)] = path;
