@@ -6,7 +6,9 @@
 // film. The steps are those of kernels/render/path.cl, in the same order for every path, so
 // each sample's floats, and hence the image, are the same bytes as the megakernel's.
 //
-// One sample of every pixel of a band is in flight at a time, one path state per pixel:
+// The rows of a launch are traced in waves of whole rows (src/render/wavefront.rs sizes them:
+// on a CPU so that a wave's records stay in the caches); one sample of every pixel of a wave
+// is in flight at a time, one path per pixel:
 //
 //   wavefront_generate     camera ray and Russian roulette at vertex 0; queues the survivors
 //   repeat while the queue is not empty (the host reads the queues' lengths after each shade):
@@ -22,8 +24,8 @@
 // hit, so that the BVH walk reads and writes consecutive records instead of the scattered
 // path states (measured on PoCL: loading each ray from its 208-byte path state was 84 % of
 // the extension kernel's own time). Queues are written with atomics, so their order differs
-// from run to run; nothing but the order of work depends on
-// it: every path reads and writes its own records only.
+// from run to run; nothing but the order of work depends on it: every path reads and writes
+// its own records only.
 #ifndef NOISEFREE_WAVEFRONT_CL
 #define NOISEFREE_WAVEFRONT_CL
 
@@ -58,7 +60,7 @@ __kernel void wavefront_sizes(__global uint* out) {
     out[3] = (uint)sizeof(QueuedRay);
 }
 
-// The band's pixels start sample `sample` (one work-item per pixel, like the megakernel's
+// The wave's pixels start sample `sample` (one work-item per pixel, like the megakernel's
 // launch): the camera ray, then the path is queued unless it ends before its first vertex.
 __kernel void wavefront_generate(SCENE_PARAMS, __global PathState* paths, __global uint* queue,
                                  __global QueuedRay* rays, __global uint* counts, uint tile_x,
@@ -137,7 +139,7 @@ __kernel void wavefront_shadow(SCENE_PARAMS, __global LightConnection* connectio
     ray_counts[path_base + path] += rays;
 }
 
-// The band's finished paths into the film, as the megakernel's loop body after trace_path.
+// The wave's finished paths into the film, as the megakernel's loop body after trace_path.
 __kernel void wavefront_accumulate(SCENE_PARAMS, __global PathState* paths,
                                    __global const LightConnection* connections,
                                    RENDER_OUTPUT_PARAMS, uint sample_capacity, uint tile_x,

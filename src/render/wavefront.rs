@@ -98,7 +98,8 @@ pub struct WavefrontBindings<'a> {
 }
 
 impl Wavefront {
-    /// The kernels of `program` (built with WAVEFRONT=1), their records allocated for `tile`.
+    /// The kernels of `program` (built with WAVEFRONT=1), their records allocated for one
+    /// wave of rows of `b.tile`.
     pub(super) fn new(
         gpu: &Gpu,
         program: &Program,
