@@ -55,21 +55,9 @@ fn render_options(scene: &Scene, outputs: OutputSet) -> RenderOptions {
     o
 }
 
-/// Every output buffer of `frame`, as bytes.
-fn buffers(frame: &Frame) -> Vec<(String, Vec<u8>)> {
-    frame
-        .outputs()
-        .buffers()
-        .map(|b| {
-            let bytes = frame.host(b.id).unwrap().as_bytes().to_vec();
-            (b.name.to_string(), bytes)
-        })
-        .collect()
-}
-
 fn assert_same(split: &Frame, single: &Frame, when: &str) {
     assert_eq!(split.info().spp, single.info().spp, "{when}");
-    for ((name, a), (_, b)) in buffers(split).iter().zip(buffers(single)) {
+    for ((name, a), (_, b)) in output_bytes(split).iter().zip(output_bytes(single)) {
         assert!(
             *a == b,
             "{when}: the {name} buffer differs from one device's"
@@ -127,7 +115,7 @@ fn a_film_split_across_two_devices_is_bit_identical_to_one_devices() {
     other.frame.seed = 6;
     let mut different = Renderer::new(slow, &scene, &other).unwrap();
     different.render_samples(single.samples_done()).unwrap();
-    let differs = buffers(&different.frame()) != buffers(&single.frame());
+    let differs = output_bytes(&different.frame()) != output_bytes(&single.frame());
     assert!(differs, "another seed gave the same film");
 }
 

@@ -8,20 +8,8 @@ mod common;
 
 use common::*;
 use noisefree::layout::outputs::{Output, OutputSet};
-use noisefree::render::{Frame, RenderOptions, Renderer, Tile, Tracer};
+use noisefree::render::{RenderOptions, Renderer, Tile, Tracer};
 use noisefree::scene::Scene;
-
-/// Every output buffer of `frame`, as bytes.
-fn buffers(frame: &Frame) -> Vec<(String, Vec<u8>)> {
-    frame
-        .outputs()
-        .buffers()
-        .map(|b| {
-            let bytes = frame.host(b.id).unwrap().as_bytes().to_vec();
-            (b.name.to_string(), bytes)
-        })
-        .collect()
-}
 
 /// Renders `scene` with both tracers in launches of `batches` samples and asserts the same
 /// buffers, rays and debug counters. Every second launch covers a band of rows only (a
@@ -46,7 +34,7 @@ fn assert_tracers_agree(scene: &Scene, options: &RenderOptions, batches: &[u32],
     let (mega, mega_rays, mega_counts) = render(Tracer::Megakernel);
     let (wave, wave_rays, wave_counts) = render(Tracer::Wavefront);
     assert_eq!(mega.info().spp, wave.info().spp, "{what}");
-    for ((name, a), (_, b)) in buffers(&mega).iter().zip(buffers(&wave)) {
+    for ((name, a), (_, b)) in output_bytes(&mega).iter().zip(output_bytes(&wave)) {
         assert!(
             *a == b,
             "{what}: the wavefront's {name} buffer differs from the megakernel's"

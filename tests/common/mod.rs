@@ -293,6 +293,18 @@ pub fn lanes(f: &FilterVector) -> [f32; 16] {
     f.lanes()
 }
 
+/// Every output buffer of `frame`, named, as bytes (for bit-for-bit comparisons).
+pub fn output_bytes(frame: &noisefree::render::Frame) -> Vec<(String, Vec<u8>)> {
+    frame
+        .outputs()
+        .buffers()
+        .map(|b| {
+            let bytes = frame.host(b.id).unwrap().as_bytes().to_vec();
+            (b.name.to_string(), bytes)
+        })
+        .collect()
+}
+
 /// The film as raw bytes, for bit-exact comparisons.
 pub fn film_bytes(film: &[FilterVector]) -> Vec<u8> {
     film.iter()
