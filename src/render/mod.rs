@@ -200,9 +200,10 @@ pub struct Renderer {
     debug_counters: Buffer<u32>,
     /// Always Some after construction (built once the buffers exist).
     kernel: Option<Kernel>,
-    /// The wavefront kernels, when they render the samples instead of `kernel`.
+    /// Which kernels trace the paths, and the wavefront's paths in flight (RenderOptions).
     tracer: Tracer,
     wave_paths: Option<usize>,
+    /// The wavefront kernels, when they render the samples instead of `kernel`.
     wavefront: Option<wavefront::Wavefront>,
     /// The sphere lights of the shadow output, one plane each (with [`Output::Shadows`]), and
     /// how they are sampled.
