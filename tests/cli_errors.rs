@@ -196,6 +196,25 @@ fn output_in_a_missing_folder_is_refused_before_rendering() {
 }
 
 #[test]
+fn wave_paths_without_the_wavefront_tracer_is_refused() {
+    let dir = tempdir("cli-wave-paths");
+    let scene = write_scene(&dir, GOOD);
+    let out = dir.join("x.png");
+    fails(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--wave-paths",
+            "64",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &["--wave-paths", "--tracer wavefront"],
+    );
+    assert!(!out.exists(), "nothing is written");
+}
+
+#[test]
 fn no_opencl_platform_says_how_to_install_pocl() {
     let dir = tempdir("cli-noicd");
     // The ICD loader reads vendor files from OCL_ICD_VENDORS; an empty folder means no platform.

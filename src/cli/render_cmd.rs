@@ -295,6 +295,9 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     options.all_features = args.all_features;
     options.local_size = args.local_size;
     options.tracer = args.tracer;
+    if args.wave_paths.is_some() && args.tracer != Tracer::Wavefront {
+        bail!("--wave-paths sets the wavefront tracer's paths in flight: add --tracer wavefront");
+    }
     options.wave_paths = args.wave_paths.map(|n| n as usize);
     // Outputs: explicit paths must be writable now, before minutes of rendering.
     let png_path = args
