@@ -142,6 +142,21 @@ impl DeviceScene {
     }
 }
 
+/// Gives a kernel one work-item per pixel of `tile`, rounded up to the work-group size when
+/// there is one (the kernels skip work-items beyond the tile).
+fn over_pixels(k: &mut ocl::builders::KernelBuilder, tile: Tile, local_size: Option<[usize; 2]>) {
+    let (w, h) = (tile.width as usize, tile.height as usize);
+    match local_size {
+        Some(l) => {
+            k.global_work_size([round_up(w, l[0]), round_up(h, l[1])])
+                .local_work_size(l);
+        }
+        None => {
+            k.global_work_size([w, h]);
+        }
+    }
+}
+
 /// What [`Renderer::build_kernels`] builds from one program.
 struct RenderKernels {
     kernel: Kernel,
@@ -362,17 +377,7 @@ impl Renderer {
             .program(&program)
             .name("render")
             .queue(self.gpu.queue.clone());
-        let (w, h) = (self.width() as usize, self.height() as usize);
-        match self.local_size {
-            Some(l) => {
-                builder
-                    .global_work_size([round_up(w, l[0]), round_up(h, l[1])])
-                    .local_work_size(l);
-            }
-            None => {
-                builder.global_work_size([w, h]);
-            }
-        }
+        over_pixels(&mut builder, self.tile, self.local_size);
         // Every argument by name, in the kernel's order (checked against the kernel's own
         // argument names by tests/layout.rs).
         self._scene.bind(&mut builder);

@@ -4,14 +4,14 @@
 //! the film kernel. Selected with [`Tracer::Wavefront`] (`render --tracer wavefront`); the
 //! megakernel stays the default and the reference. Both run the steps of
 //! kernels/render/path.cl in the same order, so the images are the same bytes
-//! (tests/wavefront.rs); `bench --study wavefront` measures the two side by side.
+//! (tests/wavefront.rs); `bench --study tracers` measures the two side by side.
 
 use std::time::Duration;
 
 use anyhow::{Context as _, Result};
 use ocl::{Buffer, Event, Kernel, Program};
 
-use super::{DeviceScene, Tile};
+use super::{DeviceScene, Tile, over_pixels};
 use crate::gpu::{Gpu, enqueue_rows, event_duration, round_up};
 use crate::layout::outputs::BufferId;
 
@@ -23,15 +23,6 @@ pub enum Tracer {
     Megakernel,
     /// One kernel per step of the paths over queues (Laine et al. 2013); the same bytes.
     Wavefront,
-}
-
-impl Tracer {
-    pub fn name(self) -> &'static str {
-        match self {
-            Tracer::Megakernel => "megakernel",
-            Tracer::Wavefront => "wavefront",
-        }
-    }
 }
 
 /// Work-group size of the kernels launched over a queue: fixed, because PoCL compiles a kernel
@@ -50,6 +41,11 @@ pub fn wave_paths(kind: &str) -> usize {
 
 /// The wavefront kernels, in the order of [`StepTimes`].
 pub const STEPS: [&str; 5] = ["generate", "extend", "shade", "shadow", "accumulate"];
+const GENERATE: usize = 0;
+const EXTEND: usize = 1;
+const SHADE: usize = 2;
+const SHADOW_RAYS: usize = 3;
+const ACCUMULATE: usize = 4;
 
 /// Kernel time per step ([`STEPS`]), from the launches' profiling events.
 pub type StepTimes = [Duration; 5];
@@ -134,18 +130,6 @@ impl Wavefront {
             k.arg_named("debug_counters", b.debug_counters);
             k
         };
-        let over_pixels = |k: &mut ocl::builders::KernelBuilder| {
-            let (w, h) = (w as usize, h as usize);
-            match b.local_size {
-                Some(l) => {
-                    k.global_work_size([round_up(w, l[0]), round_up(h, l[1])])
-                        .local_work_size(l);
-                }
-                None => {
-                    k.global_work_size([w, h]);
-                }
-            }
-        };
         let over_queue = |k: &mut ocl::builders::KernelBuilder| {
             k.global_work_size(QUEUE_WORK_GROUP)
                 .local_work_size(QUEUE_WORK_GROUP)
@@ -163,7 +147,7 @@ impl Wavefront {
         };
 
         let mut k = builder("wavefront_generate");
-        over_pixels(&mut k);
+        over_pixels(&mut k, b.tile, b.local_size);
         k.arg_named("paths", &paths)
             .arg_named("queue", &queues[0].0)
             .arg_named("rays", &queues[0].1)
@@ -205,7 +189,7 @@ impl Wavefront {
         let shadow = created(k, "wavefront_shadow")?;
 
         let mut k = builder("wavefront_accumulate");
-        over_pixels(&mut k);
+        over_pixels(&mut k, b.tile, b.local_size);
         k.arg_named("paths", &paths)
             .arg_named("connections", &connections);
         for (id, buffer) in b.outputs {
@@ -246,10 +230,11 @@ impl Wavefront {
         rows: std::ops::Range<u32>,
         ray_counts: &Buffer<u32>,
     ) -> Result<StepTimes> {
+        // The kernels add to each pixel's count; the megakernel writes its launch's count.
         let w = self.width as usize;
-        let zeros = vec![0u32; rows.len() * w];
         ray_counts
-            .write(&zeros)
+            .cmd()
+            .fill(0u32, Some(rows.len() * w))
             .offset(rows.start as usize * w)
             .enq()
             .context("clearing the ray counts")?;
@@ -291,7 +276,7 @@ impl Wavefront {
         self.reset_counts()?;
         // SAFETY: every buffer argument is owned by the renderer or by self and sized for the
         // whole tile; the kernel skips work-items beyond it.
-        events.push((0, unsafe {
+        events.push((GENERATE, unsafe {
             enqueue_rows(
                 &self.generate,
                 self.width,
@@ -307,25 +292,28 @@ impl Wavefront {
             self.extend.set_arg("queue", &queue.0)?;
             self.extend.set_arg("rays", &queue.1)?;
             self.extend.set_arg("count", queued)?;
-            events.push((1, launch_queue(&self.extend, queued, "wavefront_extend")?));
+            events.push((
+                EXTEND,
+                launch_queue(&self.extend, queued, "wavefront_extend")?,
+            ));
             self.reset_counts()?;
             self.shade.set_arg("queue", &queue.0)?;
             self.shade.set_arg("next_queue", &next.0)?;
             self.shade.set_arg("next_rays", &next.1)?;
             self.shade.set_arg("count", queued)?;
-            events.push((2, launch_queue(&self.shade, queued, "wavefront_shade")?));
+            events.push((SHADE, launch_queue(&self.shade, queued, "wavefront_shade")?));
             let counts = self.read_counts()?;
             if counts[SHADOW] > 0 {
                 self.shadow.set_arg("count", counts[SHADOW])?;
                 let shadows = launch_queue(&self.shadow, counts[SHADOW], "wavefront_shadow")?;
-                events.push((3, shadows));
+                events.push((SHADOW_RAYS, shadows));
             }
             queued = counts[NEXT];
             current = 1 - current;
         }
         self.accumulate.set_arg("sample", sample)?;
         // SAFETY: as for the generate kernel.
-        events.push((4, unsafe {
+        events.push((ACCUMULATE, unsafe {
             enqueue_rows(
                 &self.accumulate,
                 self.width,
@@ -337,9 +325,13 @@ impl Wavefront {
         Ok(())
     }
 
+    /// Empties the queues' lengths: a fill in the device's queue, ordered with the launches,
+    /// so the host does not wait for it (one host round trip per bounce, the read of the
+    /// lengths, instead of two).
     fn reset_counts(&self) -> Result<()> {
         self.counts
-            .write(&[0u32; 2][..])
+            .cmd()
+            .fill(0u32, None)
             .enq()
             .context("clearing the wavefront queue lengths")
     }
