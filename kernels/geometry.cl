@@ -26,6 +26,8 @@ inline float3 safe_inverse(float3 d) {
 // blend per call on top of the min/max instruction (issue 14: a quarter of the box test).
 inline float3 min3_nonan(float3 a, float3 b) { return select(b, a, a < b); }
 inline float3 max3_nonan(float3 a, float3 b) { return select(b, a, a > b); }
+inline float8 min8_nonan(float8 a, float8 b) { return select(b, a, a < b); }
+inline float8 max8_nonan(float8 a, float8 b) { return select(b, a, a > b); }
 inline float min_nonan(float a, float b) { return a < b ? a : b; }
 inline float max_nonan(float a, float b) { return a > b ? a : b; }
 

@@ -13,6 +13,7 @@
 #define LIGHT_TRIANGLE 1u
 #define LEAF_COUNT_SHIFT 28u // BvhNode.leaf = first | count << LEAF_COUNT_SHIFT
 #define LEAF_FIRST_MASK 0xfffffffu
+#define BVH_WIDTH 8u // children of a WideBvhNode at most
 #define SKY_DEPTH 1e9f // depth of a camera ray that escapes (§6.3.4)
 
 // Everything a launch of the megakernel reads once: camera, environment, counts (§4.2.2).
@@ -49,6 +50,22 @@ typedef struct __attribute__((aligned(4))) {
     float bounds_max[3];
     uint leaf; // 0 for an inner node; for a leaf: first triangle | (triangle count << 28).
 } BvhNode;
+
+// An eight-wide BVH node (issue 14; not in the thesis, whose Alg. 4 walks [`BvhNode`]s):
+// the boxes of up to eight children as a structure of arrays, so that one slab test
+// (Alg. 2) in float8 lanes tests them all. Collapsed from the binary tree
+// (src/bvh/wide.rs), over the same triangles in the same leaf order.
+typedef struct __attribute__((aligned(64))) {
+    float min_x[8]; // The children's boxes, one lane per child: the padded boxes of the binary nodes.
+    float min_y[8];
+    float min_z[8];
+    float max_x[8];
+    float max_y[8];
+    float max_z[8];
+    uint child[8]; // An inner child's node index, or a leaf's first triangle | count << 28 (the leaf  word of BvhNode): a word whose top four bits are zero is an inner node.
+    uint child_count; // Children in use, from lane 0; the other lanes are never entered.
+    uint pad[7];
+} WideBvhNode;
 
 // Triangle vertices for intersection (Alg. 3), in leaf order.
 typedef struct __attribute__((aligned(16))) {

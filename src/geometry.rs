@@ -19,13 +19,27 @@ pub fn ray_aabb(
     bmin: Vec3,
     bmax: Vec3,
 ) -> bool {
+    let (t0, t1) = slab_interval(o, inv_d, t_near_plane, t_far_plane, bmin, bmax);
+    t1 * ROBUST_FAR_SCALE >= t0
+}
+
+/// The entry and exit distances of Alg. 2's slab test, clipped to the planes; the box is hit
+/// when `t1 * ROBUST_FAR_SCALE >= t0` ([`ray_aabb`]). The wide walk sorts children by `t0`.
+pub fn slab_interval(
+    o: Vec3,
+    inv_d: Vec3,
+    t_near_plane: f32,
+    t_far_plane: f32,
+    bmin: Vec3,
+    bmax: Vec3,
+) -> (f32, f32) {
     let l1 = (bmin - o) * inv_d;
     let l2 = (bmax - o) * inv_d;
     let t_near = l1.min(l2);
     let t_far = l1.max(l2);
     let t0 = t_near.x.max(t_near.y).max(t_near.z.max(t_near_plane));
     let t1 = t_far.x.min(t_far.y).min(t_far.z.min(t_far_plane));
-    t1 * ROBUST_FAR_SCALE >= t0
+    (t0, t1)
 }
 
 /// Algorithm 3 (Möller-Trumbore): Some((t, u, v)) or None.

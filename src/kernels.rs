@@ -13,6 +13,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/arrays/trace.cl"),
     ),
     (
+        "arrays/trace_wide.cl",
+        include_str!("../kernels/arrays/trace_wide.cl"),
+    ),
+    (
         "render/features.cl",
         include_str!("../kernels/render/features.cl"),
     ),

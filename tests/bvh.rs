@@ -1,13 +1,18 @@
-//! The flattened BVH and the skip-index traversal (Alg. 4, with nearest-hit fixes) find the
-//! same nearest hit as a brute-force search over every primitive: on the device (PoCL) and in
-//! the Rust reference, for random triangle soups and for the bundled scenes' meshes, including
-//! axis-parallel rays, rays through box planes and rays leaving surfaces.
+//! The flattened BVH and the skip-index traversal (Alg. 4, with nearest-hit fixes), and the
+//! eight-wide BVH's front-to-back walk, find the same nearest hit as a brute-force search over
+//! every primitive: on the device (PoCL) and in the Rust reference, for random triangle soups
+//! and for the bundled scenes' meshes, including axis-parallel rays, rays through box planes,
+//! rays leaving surfaces and coincident triangles (ties).
 
 mod common;
 
 use common::{TestRng, bundled_scenes, device_intersect};
 use glam::{Vec2, Vec3};
-use noisefree::arrays::trace::{Prim, brute_force_closest, intersect_closest, occluded};
+use noisefree::arrays::trace::{
+    Prim, brute_force_closest, intersect_closest, occluded, occluder_range,
+};
+use noisefree::arrays::trace_wide;
+use noisefree::bvh::BvhLayout;
 use noisefree::geometry::offset_ray_origin;
 use noisefree::render::{FrameSettings, SceneArrays};
 use noisefree::scene::{
@@ -168,31 +173,70 @@ fn prim_code(p: Option<Prim>) -> i32 {
     }
 }
 
-/// Compares the BVH traversals (device and Rust) with brute force; returns mismatches.
+/// Compares the BVH traversals (device and Rust, both trees) with brute force; returns
+/// mismatches.
 fn check(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<String> {
-    let device = device_intersect(arrays, rays);
+    let mut bad = check_rust(arrays, rays);
+    for bvh in [BvhLayout::Skip, BvhLayout::Wide] {
+        bad.extend(check_device(arrays, rays, bvh));
+    }
+    bad
+}
+
+/// The Rust walks of both trees run the same float operations as brute force: exact, ties
+/// included (the triangle first in leaf order).
+fn check_rust(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<String> {
+    rays.par_iter()
+        .enumerate()
+        .filter_map(|(i, &(o, d, t_max))| {
+            let truth = brute_force_closest(arrays, o, d, t_max);
+            let cpu = intersect_closest(arrays, o, d, t_max);
+            if cpu != truth {
+                return Some(format!(
+                    "ray {i}: Rust BVH {cpu:?} != brute force {truth:?}"
+                ));
+            }
+            let wide = trace_wide::intersect_closest(arrays, o, d, t_max);
+            if wide != truth {
+                return Some(format!(
+                    "ray {i}: Rust wide BVH {wide:?} != brute force {truth:?}"
+                ));
+            }
+            if occluded(arrays, o, d, t_max) != truth.is_some()
+                || trace_wide::occluded(arrays, o, d, t_max) != truth.is_some()
+            {
+                return Some(format!("ray {i}: Rust any-hit disagrees with brute force"));
+            }
+            let (skip_range, wide_range) = (
+                occluder_range(arrays, o, d, t_max),
+                trace_wide::occluder_range(arrays, o, d, t_max),
+            );
+            if skip_range != wide_range {
+                return Some(format!(
+                    "ray {i}: occluder range {skip_range:?} (skip) != {wide_range:?} (wide)"
+                ));
+            }
+            None
+        })
+        .collect()
+}
+
+fn check_device(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)], bvh: BvhLayout) -> Vec<String> {
+    let device = device_intersect(arrays, rays, bvh);
     rays.par_iter()
         .zip(device.par_iter())
         .enumerate()
         .filter_map(|(i, (&(o, d, t_max), &(dt, dp, d_occ)))| {
             let truth = brute_force_closest(arrays, o, d, t_max);
-            let cpu = intersect_closest(arrays, o, d, t_max);
-            // The Rust traversal runs the same float operations as brute force: exact.
-            if cpu != truth {
-                return Some(format!("ray {i}: Rust BVH {cpu:?} != brute force {truth:?}"));
-            }
-            if occluded(arrays, o, d, t_max) != truth.is_some() {
-                return Some(format!("ray {i}: Rust any-hit disagrees with brute force"));
-            }
             let (tt, tp) = (truth.map_or(-1.0, |h| h.t), prim_code(truth.map(|h| h.prim)));
             let same_t = (dt - tt).abs() <= 1e-5 * tt.abs().max(1.0);
             // The device may round differently in the last bits; a different primitive is only
             // acceptable at the same distance (a shared edge or coincident surfaces).
             if (dp == -1) != (tp == -1) || (dp != tp && !same_t) || (tp != -1 && !same_t) {
-                return Some(format!("ray {i} o={o} d={d}: device (t={dt}, prim={dp}) vs brute force (t={tt}, prim={tp})"));
+                return Some(format!("{bvh:?} ray {i} o={o} d={d}: device (t={dt}, prim={dp}) vs brute force (t={tt}, prim={tp})"));
             }
             if d_occ != truth.is_some() {
-                return Some(format!("ray {i}: device any-hit {d_occ} vs brute force {}", truth.is_some()));
+                return Some(format!("{bvh:?} ray {i}: device any-hit {d_occ} vs brute force {}", truth.is_some()));
             }
             None
         })
@@ -258,4 +302,94 @@ fn bundled_scene_meshes_match_brute_force() {
         checked >= 5,
         "only {checked} bundled scenes with meshes were found under scenes/"
     );
+}
+
+/// Coincident triangles, nine copies of each, so that a leaf (at most four triangles) cannot
+/// hold all copies: a ray meets the same distance in several leaves, which the wide walk
+/// visits in another order than the skip-index walk. Both must return the copy first in leaf
+/// order, on the device too (the copies' distances are the same float there as well).
+#[test]
+fn coincident_triangles_resolve_to_the_first_in_leaf_order() {
+    let mut rng = TestRng(99);
+    let base = soup(&mut rng, 300, 4.0, 1.5);
+    let tris: Vec<Triangle> = base
+        .iter()
+        .flat_map(|t| std::iter::repeat_n(*t, 9))
+        .collect();
+    let scene = scene_of(tris, vec![]);
+    let arrays = SceneArrays::build(&scene, &FrameSettings::from_scene(&scene)).unwrap();
+    let rays = rays(
+        &mut rng,
+        &arrays,
+        Vec3::splat(-4.0),
+        Vec3::splat(4.0),
+        8_000,
+    );
+    let bad = check(&arrays, &rays);
+    assert!(
+        bad.is_empty(),
+        "{} mismatches, first: {:?}",
+        bad.len(),
+        &bad[..bad.len().min(5)]
+    );
+    let mut ties = 0;
+    for bvh in [BvhLayout::Skip, BvhLayout::Wide] {
+        let device = device_intersect(&arrays, &rays, bvh);
+        for (i, (&(o, d, t_max), &(_, dp, _))) in rays.iter().zip(&device).enumerate() {
+            let truth = brute_force_closest(&arrays, o, d, t_max);
+            assert_eq!(dp, prim_code(truth.map(|h| h.prim)), "{bvh:?} ray {i}");
+            ties += truth.is_some() as usize;
+        }
+    }
+    assert!(ties > 1000, "only {ties} rays hit a copy");
+}
+
+/// Two copies of one triangle in two leaves whose boxes differ: the second copy's box reaches
+/// out towards the ray, so the wide walk, which takes the nearer box first, meets the second
+/// copy first. It must still answer with the first copy, as the skip-index walk (and brute
+/// force) do: without its tie rule the wide walk returns the second.
+#[test]
+fn a_tie_across_leaves_entered_out_of_order_goes_to_the_first_copy() {
+    use noisefree::layout::{BvhNode, LEAF_COUNT_SHIFT};
+    let tri = Triangle {
+        p: [
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ],
+        n: [Vec3::Z; 3],
+        uv: [Vec2::ZERO; 3],
+        material: 0,
+        object: 0,
+    };
+    let scene = scene_of(vec![tri, tri], vec![]);
+    let mut arrays = SceneArrays::build(&scene, &FrameSettings::from_scene(&scene)).unwrap();
+    let leaf = |first: u32, near_z: f32, skip: u32| BvhNode {
+        bounds_min: [-1.1, -1.1, -0.1],
+        bounds_max: [1.1, 1.1, near_z],
+        skip,
+        leaf: first | 1 << LEAF_COUNT_SHIFT,
+    };
+    arrays.nodes = vec![
+        BvhNode {
+            bounds_min: [-1.1, -1.1, -0.1],
+            bounds_max: [1.1, 1.1, 5.0],
+            skip: 3,
+            leaf: 0,
+        },
+        leaf(0, 0.1, 2),
+        leaf(1, 5.0, 3),
+    ];
+    arrays.params.node_count = 3;
+    arrays.wide_bvh = noisefree::bvh::wide::collapse(&arrays.nodes);
+    let rays = vec![(Vec3::new(0.1, 0.0, 10.0), Vec3::NEG_Z, f32::INFINITY); 4];
+    assert!(
+        check(&arrays, &rays).is_empty(),
+        "{:?}",
+        check(&arrays, &rays)
+    );
+    for bvh in [BvhLayout::Skip, BvhLayout::Wide] {
+        let device = device_intersect(&arrays, &rays, bvh);
+        assert_eq!(device[0].1, 0, "{bvh:?}: {:?}", device[0]);
+    }
 }

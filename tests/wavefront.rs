@@ -8,41 +8,24 @@ mod common;
 
 use common::*;
 use noisefree::layout::outputs::{Output, OutputSet};
-use noisefree::render::{RenderOptions, Renderer, Tile, Tracer};
+use noisefree::render::{RenderOptions, Tile, Tracer};
 use noisefree::scene::Scene;
 
 /// Renders `scene` with both tracers in launches of `batches` samples and asserts the same
-/// buffers, rays and debug counters. Every second launch covers a band of rows only (a
-/// renderer's share of a frame split across devices, src/render/split.rs), not starting at
-/// the top.
+/// buffers, rays and debug counters ([`render_in_launches`], [`assert_same_render`]).
 fn assert_tracers_agree(scene: &Scene, options: &RenderOptions, batches: &[u32], what: &str) {
     let render = |tracer: Tracer| {
         let mut o = options.clone();
         o.tracer = tracer;
-        o.debug_counters = true;
-        let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{what}: {e:#}"));
-        let h = r.height();
-        for (k, &n) in batches.iter().enumerate() {
-            if k % 2 == 1 && h > 4 {
-                r.render_rows(n, 2..h - 1).unwrap();
-            } else {
-                r.render_samples(n).unwrap();
-            }
-        }
-        (r.frame(), r.rays_total, r.read_debug_counters().unwrap())
+        render_in_launches(scene, &o, batches, what)
     };
-    let (mega, mega_rays, mega_counts) = render(Tracer::Megakernel);
-    let (wave, wave_rays, wave_counts) = render(Tracer::Wavefront);
-    assert_eq!(mega.info().spp, wave.info().spp, "{what}");
-    for ((name, a), (_, b)) in output_bytes(&mega).iter().zip(output_bytes(&wave)) {
-        assert!(
-            *a == b,
-            "{what}: the wavefront's {name} buffer differs from the megakernel's"
-        );
-    }
-    assert_eq!(mega_rays, wave_rays, "{what}: rays traced");
-    assert_eq!(mega_counts, wave_counts, "{what}: debug counters");
-    assert!(mega_rays > 0, "{what}: nothing was traced");
+    let mega = render(Tracer::Megakernel);
+    let wave = render(Tracer::Wavefront);
+    assert_same_render(
+        &mega,
+        &wave,
+        &format!("{what}: the wavefront against the megakernel"),
+    );
 }
 
 #[test]

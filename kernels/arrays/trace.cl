@@ -7,10 +7,26 @@
 #include "render/features.cl"
 #include "geometry.cl"
 
+// Which tree the ray queries walk: the thesis's binary skip-index tree (Alg. 4; BVH_WIDE=0)
+// or the eight-wide one (arrays/trace_wide.cl; BVH_WIDE=1), chosen by the host
+// (src/render/mod.rs, RenderOptions::bvh). Both give every query the same answer. The wide
+// walk's stack holds BVH_STACK entries, what the scene's tree can need (src/bvh/wide.rs).
+#if !defined(BVH_WIDE)
+#error "noisefree: BVH_WIDE is missing from the build options"
+#endif
+#if BVH_WIDE
+#if !defined(BVH_STACK)
+#error "noisefree: BVH_STACK (the wide walk's stack entries) is missing from the build options"
+#endif
+typedef WideBvhNode SceneNode;
+#else
+typedef BvhNode SceneNode;
+#endif
+
 // Pointers to the scene buffers, bundled so functions take one argument.
 typedef struct {
     __constant const SceneParams* params;
-    __global const BvhNode* nodes;
+    __global const SceneNode* nodes;   // BvhNode, or WideBvhNode with BVH_WIDE
     __global const TriangleGeom* tri_geom;
     __global const TriangleShading* tri_shading;
     __global const Sphere* spheres;
@@ -25,7 +41,7 @@ typedef struct {
 // A kernel's scene arguments, in the order the host binds them (src/render/mod.rs
 // DeviceScene::bind, then the debug counters), and the SceneRefs made of them.
 #define SCENE_PARAMS                                                                         \
-    __constant const SceneParams *params, __global const BvhNode *nodes,                     \
+    __constant const SceneParams *params, __global const SceneNode *nodes,                   \
         __global const TriangleGeom *tri_geom, __global const TriangleShading *tri_shading,  \
         __global const Sphere *spheres, __global const Material *materials,                  \
         __global const TextureInfo *textures, __global const float4 *texels,                 \
@@ -68,6 +84,9 @@ typedef struct {
     int kind;        // HIT_NONE, HIT_TRIANGLE or HIT_SPHERE
 } Hit;
 
+#if BVH_WIDE
+#include "arrays/trace_wide.cl"
+#else
 inline float3 node_min(__global const BvhNode* n) {
     return (float3)(n->bounds_min[0], n->bounds_min[1], n->bounds_min[2]);
 }
@@ -75,23 +94,15 @@ inline float3 node_max(__global const BvhNode* n) {
     return (float3)(n->bounds_max[0], n->bounds_max[1], n->bounds_max[2]);
 }
 
-// Nearest hit along o + t d, t in (0, t_max).
+// The nearest triangle hit before hit->t (which starts at the query's t_max), into *hit.
 //
 // Algorithm 4 as printed keeps the *last* triangle it hits and never shortens the far plane,
 // so it returns whichever intersected triangle comes last in node order, not the nearest one.
 // Here a hit is kept only when it is nearer than the best so far, and the far plane passed to
 // the box test (Alg. 2) is clipped to it, which also prunes boxes behind the nearest hit.
 // A leaf holds several triangles (obvhs leaves); Alg. 4 line 9 tests one.
-inline Hit intersect_closest(const SceneRefs* s, float3 o, float3 d, float t_max, uint* ray_count) {
-    Hit hit;
-    hit.t = t_max;
-    hit.u = 0.0f;
-    hit.v = 0.0f;
-    hit.prim = 0u;
-    hit.kind = HIT_NONE;
-    *ray_count += 1u;
-#if HAS_TRIANGLES
-    DEBUG_COUNT(s, COUNT_BVH_TRAVERSAL);
+inline void nearest_triangle(const SceneRefs* s, float3 o, float3 d, Hit* out) {
+    Hit hit = *out;
     float3 inv_d = safe_inverse(d);
     uint node_count = s->params->node_count;
     uint current = 0u;
@@ -122,27 +133,11 @@ inline Hit intersect_closest(const SceneRefs* s, float3 o, float3 d, float t_max
             current = node->skip;       // Alg. 4 line 21: skip the whole subtree
         }
     }
-#endif
-#if HAS_SPHERES
-    DEBUG_COUNT(s, COUNT_SPHERE_TEST);
-    for (uint i = 0u; i < s->params->sphere_count; ++i) {
-        __global const Sphere* sp = s->spheres + i;
-        float3 c = (float3)(sp->center[0], sp->center[1], sp->center[2]);
-        float t = ray_sphere(o, d, c, sp->radius, 0.0f, hit.t);
-        if (t > 0.0f) {
-            hit.t = t;
-            hit.prim = i;
-            hit.kind = HIT_SPHERE;
-        }
-    }
-#endif
-    return hit;
+    *out = hit;
 }
 
-// Any-hit query for shadow rays: true as soon as anything lies in (0, t_max).
-inline bool occluded(const SceneRefs* s, float3 o, float3 d, float t_max, uint* ray_count) {
-    *ray_count += 1u;
-#if HAS_TRIANGLES
+// Any triangle hit in (0, t_max).
+inline bool any_triangle(const SceneRefs* s, float3 o, float3 d, float t_max) {
     float3 inv_d = safe_inverse(d);
     uint node_count = s->params->node_count;
     uint current = 0u;
@@ -167,6 +162,77 @@ inline bool occluded(const SceneRefs* s, float3 o, float3 d, float t_max, uint* 
             current = node->skip;
         }
     }
+    return false;
+}
+
+// Widens [*lo, *hi] by every triangle hit in (0, t_max).
+inline void triangle_range(const SceneRefs* s, float3 o, float3 d, float t_max, float* lo,
+                           float* hi) {
+    float3 inv_d = safe_inverse(d);
+    uint node_count = s->params->node_count;
+    uint current = 0u;
+    while (current < node_count) {
+        __global const BvhNode* node = s->nodes + current;
+        if (ray_aabb(o, inv_d, 0.0f, t_max, node_min(node), node_max(node))) {
+            uint leaf = node->leaf;
+            if (leaf != 0u) {
+                uint first = leaf & LEAF_FIRST_MASK;
+                uint count = leaf >> LEAF_COUNT_SHIFT;
+                for (uint k = first; k < first + count; ++k) {
+                    __global const TriangleGeom* tri = s->tri_geom + k;
+                    float u, v;
+                    float t = ray_triangle(o, d, tri->v0.xyz, tri->v1.xyz, tri->v2.xyz, &u, &v);
+                    if (t > 0.0f && t < t_max) {
+                        *lo = fmin(*lo, t);
+                        *hi = fmax(*hi, t);
+                    }
+                }
+                current = node->skip;
+            } else {
+                current += 1u;
+            }
+        } else {
+            current = node->skip;
+        }
+    }
+}
+#endif
+
+// Nearest hit along o + t d, t in (0, t_max): the triangles (by either walk), then the
+// analytic spheres, each kept only when strictly nearer.
+inline Hit intersect_closest(const SceneRefs* s, float3 o, float3 d, float t_max, uint* ray_count) {
+    Hit hit;
+    hit.t = t_max;
+    hit.u = 0.0f;
+    hit.v = 0.0f;
+    hit.prim = 0u;
+    hit.kind = HIT_NONE;
+    *ray_count += 1u;
+#if HAS_TRIANGLES
+    DEBUG_COUNT(s, COUNT_BVH_TRAVERSAL);
+    nearest_triangle(s, o, d, &hit);
+#endif
+#if HAS_SPHERES
+    DEBUG_COUNT(s, COUNT_SPHERE_TEST);
+    for (uint i = 0u; i < s->params->sphere_count; ++i) {
+        __global const Sphere* sp = s->spheres + i;
+        float3 c = (float3)(sp->center[0], sp->center[1], sp->center[2]);
+        float t = ray_sphere(o, d, c, sp->radius, 0.0f, hit.t);
+        if (t > 0.0f) {
+            hit.t = t;
+            hit.prim = i;
+            hit.kind = HIT_SPHERE;
+        }
+    }
+#endif
+    return hit;
+}
+
+// Any-hit query for shadow rays: true as soon as anything lies in (0, t_max).
+inline bool occluded(const SceneRefs* s, float3 o, float3 d, float t_max, uint* ray_count) {
+    *ray_count += 1u;
+#if HAS_TRIANGLES
+    if (any_triangle(s, o, d, t_max)) return true;
 #endif
 #if HAS_SPHERES
     for (uint i = 0u; i < s->params->sphere_count; ++i) {
@@ -187,33 +253,7 @@ inline bool occluder_range(const SceneRefs* s, float3 o, float3 d, float t_max, 
     *ray_count += 1u;
     float lo = INFINITY, hi = 0.0f;
 #if HAS_TRIANGLES
-    float3 inv_d = safe_inverse(d);
-    uint node_count = s->params->node_count;
-    uint current = 0u;
-    while (current < node_count) {
-        __global const BvhNode* node = s->nodes + current;
-        if (ray_aabb(o, inv_d, 0.0f, t_max, node_min(node), node_max(node))) {
-            uint leaf = node->leaf;
-            if (leaf != 0u) {
-                uint first = leaf & LEAF_FIRST_MASK;
-                uint count = leaf >> LEAF_COUNT_SHIFT;
-                for (uint k = first; k < first + count; ++k) {
-                    __global const TriangleGeom* tri = s->tri_geom + k;
-                    float u, v;
-                    float t = ray_triangle(o, d, tri->v0.xyz, tri->v1.xyz, tri->v2.xyz, &u, &v);
-                    if (t > 0.0f && t < t_max) {
-                        lo = fmin(lo, t);
-                        hi = fmax(hi, t);
-                    }
-                }
-                current = node->skip;
-            } else {
-                current += 1u;
-            }
-        } else {
-            current = node->skip;
-        }
-    }
+    triangle_range(s, o, d, t_max, &lo, &hi);
 #endif
 #if HAS_SPHERES
     for (uint i = 0u; i < s->params->sphere_count; ++i) {

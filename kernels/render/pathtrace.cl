@@ -49,7 +49,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 // or launch draws it. The host binds every argument by name (src/render/mod.rs), the output
 // buffers in the order of the generated RENDER_OUTPUT_PARAMS; they hold the tile's pixels.
 __kernel void render(__constant const SceneParams* params,
-                     __global const BvhNode* nodes,
+                     __global const SceneNode* nodes,
                      __global const TriangleGeom* tri_geom,
                      __global const TriangleShading* tri_shading,
                      __global const Sphere* spheres,

@@ -19,7 +19,7 @@ __kernel void probe_rng(__global const uint4* counters, uint seed, __global floa
 
 // Nearest hit (t, prim, kind) or any-hit for each ray (origin.xyz, t_max in origin.w).
 __kernel void probe_intersect(__constant const SceneParams* params,
-                              __global const BvhNode* nodes,
+                              __global const SceneNode* nodes,
                               __global const TriangleGeom* tri_geom,
                               __global const Sphere* spheres,
                               __global const float4* origins,

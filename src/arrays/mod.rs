@@ -4,10 +4,12 @@
 
 pub mod texels;
 pub mod trace;
+pub mod trace_wide;
 
 use anyhow::{Result, bail};
 use glam::Vec3;
 
+use crate::bvh::wide::WideBvh;
 use crate::bvh::{self, BuildQuality, BvhStats};
 use crate::layout::{
     BvhNode, Float2, Float4, LIGHT_SPHERE, LIGHT_TRIANGLE, Light, MATERIAL_DIFFUSE,
@@ -49,6 +51,9 @@ pub const MAX_PATH_VERTICES: u32 = 1024;
 pub struct SceneArrays {
     pub params: SceneParams,
     pub nodes: Vec<BvhNode>,
+    /// The same tree collapsed to eight children per node (src/bvh/wide.rs), for the wide
+    /// walk of kernels/arrays/trace_wide.cl.
+    pub wide_bvh: WideBvh,
     pub tri_geom: Vec<TriangleGeom>,
     pub tri_shading: Vec<TriangleShading>,
     pub spheres: Vec<Sphere>,
@@ -87,6 +92,9 @@ impl SceneArrays {
         let flat = bvh::build(&verts, frame.bvh_quality)?;
         a.nodes = flat.nodes;
         a.bvh_stats = flat.stats;
+        a.wide_bvh = bvh::wide::collapse(&a.nodes);
+        #[cfg(debug_assertions)]
+        bvh::wide::validate(&a.wide_bvh, &a.nodes);
         for &i in &flat.triangle_order {
             let t = &scene.triangles[i as usize];
             a.tri_geom.push(TriangleGeom {

@@ -21,12 +21,17 @@ pub struct Hit {
     pub prim: Prim,
 }
 
-fn v3(a: &[f32; 3]) -> Vec3 {
+pub(super) fn v3(a: &[f32; 3]) -> Vec3 {
     Vec3::from_array(*a)
 }
 
 /// Nearest hit in (0, t_max).
 pub fn intersect_closest(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+    nearest_sphere(s, o, d, t_max, nearest_triangle(s, o, d, t_max))
+}
+
+/// The nearest triangle hit in (0, t_max), by the skip-index walk (Alg. 4).
+fn nearest_triangle(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
     let mut best: Option<Hit> = None;
     let mut t_best = t_max;
     let inv_d = safe_inverse(d);
@@ -68,6 +73,19 @@ pub fn intersect_closest(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Optio
             current = node.skip as usize;
         }
     }
+    best
+}
+
+/// The spheres after the triangles (as the kernels test them): a sphere replaces `best` only
+/// when strictly nearer.
+pub(super) fn nearest_sphere(
+    s: &SceneArrays,
+    o: Vec3,
+    d: Vec3,
+    t_max: f32,
+    mut best: Option<Hit>,
+) -> Option<Hit> {
+    let mut t_best = best.map_or(t_max, |h| h.t);
     for (i, sp) in s
         .spheres
         .iter()
@@ -137,13 +155,14 @@ fn triangle_hits(
 
 /// Any hit in (0, t_max).
 pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
-    triangle_hits(s, o, d, t_max, |_| true)
-        || s.spheres
-            .iter()
-            .take(s.params.sphere_count as usize)
-            .any(|sp| {
-                ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_max).is_some_and(|t| t > 0.0)
-            })
+    triangle_hits(s, o, d, t_max, |_| true) || any_sphere(s, o, d, t_max)
+}
+
+pub(super) fn any_sphere(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
+    s.spheres
+        .iter()
+        .take(s.params.sphere_count as usize)
+        .any(|sp| ray_sphere(o, d, v3(&sp.center), sp.radius, 0.0, t_max).is_some_and(|t| t > 0.0))
 }
 
 /// Every hit in (0, t_max), nearest and farthest (kernels/arrays/trace.cl `occluder_range`):
@@ -155,6 +174,18 @@ pub fn occluder_range(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<(
         hi = hi.max(t);
         false
     });
+    sphere_range(s, o, d, t_max, lo, hi)
+}
+
+/// Widens (lo, hi) by both crossings of every sphere in range; None when nothing is hit.
+pub(super) fn sphere_range(
+    s: &SceneArrays,
+    o: Vec3,
+    d: Vec3,
+    t_max: f32,
+    mut lo: f32,
+    mut hi: f32,
+) -> Option<(f32, f32)> {
     for sp in s.spheres.iter().take(s.params.sphere_count as usize) {
         let c = v3(&sp.center);
         if let Some(t0) = ray_sphere(o, d, c, sp.radius, 0.0, t_max).filter(|&t| t > 0.0) {

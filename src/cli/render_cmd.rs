@@ -12,6 +12,7 @@ use clap::Args;
 use super::interrupt::{Interrupted, catch_ctrl_c, interrupted};
 use super::partial_render::{check_partial_flags, parse_output, parse_range, write_part};
 
+use crate::bvh::BvhLayout;
 use crate::filters::{Configured, DeviceFilter, FilterRequest, MultiDeviceArgs, Registry};
 use crate::imaging;
 use crate::layout::outputs::{Output, OutputSet};
@@ -83,6 +84,10 @@ pub struct RenderArgs {
     /// on a CPU, 1,048,576 on a GPU]. The image does not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub wave_paths: Option<u32>,
+    /// The BVH the rays walk: the thesis's binary tree with skip indices (Alg. 4), or eight
+    /// children per node tested in float8 lanes. The image is the same bytes.
+    #[arg(long, value_enum, default_value_t = BvhLayout::default())]
+    pub bvh: BvhLayout,
     /// Work-group size of the path tracer, e.g. 8x8 [default: chosen by the driver].
     #[arg(long, value_parser = parse_size)]
     pub local_size: Option<[usize; 2]>,
@@ -295,6 +300,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     options.all_features = args.all_features;
     options.local_size = args.local_size;
     options.tracer = args.tracer;
+    options.bvh = args.bvh;
     if args.wave_paths.is_some() && args.tracer != Tracer::Wavefront {
         bail!("--wave-paths sets the wavefront tracer's paths in flight: add --tracer wavefront");
     }

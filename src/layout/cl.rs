@@ -36,6 +36,7 @@ pub fn all_declarations() -> Vec<Declaration> {
     vec![
         declaration::<SceneParams>(false),
         declaration::<BvhNode>(false),
+        declaration::<WideBvhNode>(false),
         declaration::<TriangleGeom>(false),
         declaration::<TriangleShading>(false),
         declaration::<Sphere>(false),
@@ -127,6 +128,11 @@ pub fn shared_constants() -> Vec<(&'static str, String, &'static str)> {
             "BvhNode.leaf = first | count << LEAF_COUNT_SHIFT",
         ),
         ("LEAF_FIRST_MASK", format!("{LEAF_FIRST_MASK:#x}u"), ""),
+        (
+            "BVH_WIDTH",
+            u(BVH_WIDTH),
+            "children of a WideBvhNode at most",
+        ),
         (
             "SKY_DEPTH",
             format!("{SKY_DEPTH:e}f"),

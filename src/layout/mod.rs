@@ -213,6 +213,27 @@ device_structs! {
         pub leaf: u32,
     }
 
+    /// An eight-wide BVH node (issue 14; not in the thesis, whose Alg. 4 walks [`BvhNode`]s):
+    /// the boxes of up to eight children as a structure of arrays, so that one slab test
+    /// (Alg. 2) in float8 lanes tests them all. Collapsed from the binary tree
+    /// (src/bvh/wide.rs), over the same triangles in the same leaf order.
+    #[align(64)]
+    pub struct WideBvhNode {
+        /// The children's boxes, one lane per child: the padded boxes of the binary nodes.
+        pub min_x: [f32; 8],
+        pub min_y: [f32; 8],
+        pub min_z: [f32; 8],
+        pub max_x: [f32; 8],
+        pub max_y: [f32; 8],
+        pub max_z: [f32; 8],
+        /// An inner child's node index, or a leaf's first triangle | count << 28 (the leaf
+        /// word of BvhNode): a word whose top four bits are zero is an inner node.
+        pub child: [u32; 8],
+        /// Children in use, from lane 0; the other lanes are never entered.
+        pub child_count: u32,
+        pub pad: [u32; 7],
+    }
+
     /// Triangle vertices for intersection (Alg. 3), in leaf order.
     #[align(16)]
     pub struct TriangleGeom {
@@ -698,6 +719,8 @@ pub const LIGHT_SPHERE: u32 = 0;
 pub const LIGHT_TRIANGLE: u32 = 1;
 pub const LEAF_COUNT_SHIFT: u32 = 28;
 pub const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
+/// Children of a [`WideBvhNode`] at most: one float8 of each bound.
+pub const BVH_WIDTH: u32 = 8;
 /// Depth sentinel of a camera ray that escapes (§6.3.4). Finite, so that the squared
 /// differences of the Welford update and of the filter weights stay finite in float32.
 pub const SKY_DEPTH: f32 = 1.0e9;

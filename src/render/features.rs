@@ -228,8 +228,8 @@ fn output_switches(outputs: OutputSet) -> Vec<Feature> {
         .collect()
 }
 
-/// Every switch on, scene effects and outputs: the build options of kernels that do not
-/// depend on a scene (the probes of the tests, the layout test).
+/// Every switch on, scene effects and outputs, and the wide BVH: the build options of kernels
+/// that do not depend on a scene (the probes of the tests, the layout test).
 pub fn generic_defines() -> Vec<(String, String)> {
     let scene_switches = [
         "HAS_TRIANGLES",
@@ -250,7 +250,12 @@ pub fn generic_defines() -> Vec<(String, String)> {
     scene_switches
         .into_iter()
         .chain(OUTPUTS.iter().filter_map(|o| o.switch))
+        .chain(["BVH_WIDE"])
         .map(|d| (d.to_string(), "1".to_string()))
+        .chain([(
+            "BVH_STACK".to_string(),
+            crate::bvh::wide::MAX_BVH_STACK.to_string(),
+        )])
         .collect()
 }
 
@@ -270,7 +275,10 @@ mod tests {
         }
         // kernels/render/features.cl refuses a build without each scene switch.
         let cl = include_str!("../../kernels/render/features.cl");
-        for d in generic.iter().filter(|d| !d.starts_with("OUTPUT_")) {
+        for d in generic
+            .iter()
+            .filter(|d| !d.starts_with("OUTPUT_") && !d.starts_with("BVH_"))
+        {
             assert!(
                 cl.contains(&format!("!defined({d})")),
                 "features.cl does not check {d}"

@@ -26,11 +26,13 @@ use anyhow::{Context as _, Result};
 use ocl::{Buffer, Kernel};
 
 pub use crate::arrays::{FrameSettings, SceneArrays};
+use crate::bvh::BvhLayout;
+use crate::bvh::wide::MAX_BVH_STACK;
 use crate::gpu::{Gpu, enqueue_rows, event_duration, fnv1a, round_up};
 use crate::layout::outputs::{BUFFERS, BufferId, Output, OutputSet};
 use crate::layout::{
     BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
-    TriangleShading,
+    TriangleShading, WideBvhNode,
 };
 use crate::scene::Scene;
 pub use features::FeatureSet;
@@ -70,6 +72,8 @@ pub struct RenderOptions {
     /// The wavefront tracer's paths in flight at most (whole rows of them); None: by the
     /// device's kind ([`wavefront::wave_paths`]). The image does not depend on it.
     pub wave_paths: Option<usize>,
+    /// The tree the ray queries walk. The image does not depend on it.
+    pub bvh: BvhLayout,
 }
 
 impl RenderOptions {
@@ -87,6 +91,7 @@ impl RenderOptions {
             tile: None,
             tracer: Tracer::Megakernel,
             wave_paths: None,
+            bvh: BvhLayout::default(),
         }
     }
 
@@ -100,7 +105,7 @@ impl RenderOptions {
 /// The scene's buffers on the device.
 struct DeviceScene {
     params: Buffer<SceneParams>,
-    nodes: Buffer<BvhNode>,
+    nodes: NodeBuffer,
     tri_geom: Buffer<TriangleGeom>,
     tri_shading: Buffer<TriangleShading>,
     spheres: Buffer<Sphere>,
@@ -111,11 +116,20 @@ struct DeviceScene {
     light_cdf: Buffer<f32>,
 }
 
+/// The tree the kernels walk, in its layout.
+enum NodeBuffer {
+    Skip(Buffer<BvhNode>),
+    Wide(Buffer<WideBvhNode>),
+}
+
 impl DeviceScene {
-    fn upload(gpu: &Gpu, a: &SceneArrays) -> Result<DeviceScene> {
+    fn upload(gpu: &Gpu, a: &SceneArrays, bvh: BvhLayout) -> Result<DeviceScene> {
         Ok(DeviceScene {
             params: gpu.upload(std::slice::from_ref(&a.params))?,
-            nodes: gpu.upload(&a.nodes)?,
+            nodes: match bvh {
+                BvhLayout::Skip => NodeBuffer::Skip(gpu.upload(&a.nodes)?),
+                BvhLayout::Wide => NodeBuffer::Wide(gpu.upload(&a.wide_bvh.nodes)?),
+            },
             tri_geom: gpu.upload(&a.tri_geom)?,
             tri_shading: gpu.upload(&a.tri_shading)?,
             spheres: gpu.upload(&a.spheres)?,
@@ -129,9 +143,12 @@ impl DeviceScene {
 
     /// Binds the scene arguments every scene kernel starts with, by name, in their order.
     fn bind<'b>(&'b self, b: &mut ocl::builders::KernelBuilder<'b>) {
-        b.arg_named("params", &self.params)
-            .arg_named("nodes", &self.nodes)
-            .arg_named("tri_geom", &self.tri_geom)
+        b.arg_named("params", &self.params);
+        match &self.nodes {
+            NodeBuffer::Skip(n) => b.arg_named("nodes", n),
+            NodeBuffer::Wide(n) => b.arg_named("nodes", n),
+        };
+        b.arg_named("tri_geom", &self.tri_geom)
             .arg_named("tri_shading", &self.tri_shading)
             .arg_named("spheres", &self.spheres)
             .arg_named("materials", &self.materials)
@@ -140,6 +157,21 @@ impl DeviceScene {
             .arg_named("lights", &self.lights)
             .arg_named("light_cdf", &self.light_cdf);
     }
+}
+
+/// The tree the kernels walk when `asked` is asked for: the skip-index tree when the wide
+/// tree's walk could need a stack larger than [`MAX_BVH_STACK`] (a tree far deeper than any
+/// bundled scene's; src/bvh/wide.rs), which gives the same image.
+fn bvh_walked(arrays: &SceneArrays, asked: BvhLayout) -> BvhLayout {
+    if asked == BvhLayout::Wide && !arrays.wide_bvh.fits_stack() {
+        eprintln!(
+            "note: the wide BVH's walk could need {} stack entries, more than {MAX_BVH_STACK}: \
+             walking the skip-index BVH instead (the same image)",
+            arrays.wide_bvh.stack_need,
+        );
+        return BvhLayout::Skip;
+    }
+    asked
 }
 
 /// Gives a kernel one work-item per pixel of `tile`, rounded up to the work-group size when
@@ -218,6 +250,9 @@ pub struct Renderer {
     /// Which kernels trace the paths, and the wavefront's paths in flight (RenderOptions).
     tracer: Tracer,
     wave_paths: Option<usize>,
+    /// The tree the kernels walk: the one asked for, unless the wide tree could overflow the
+    /// walk's stack ([`bvh_walked`]).
+    pub bvh: BvhLayout,
     /// The wavefront kernels, when they render the samples instead of `kernel`.
     wavefront: Option<wavefront::Wavefront>,
     /// The sphere lights of the shadow output, one plane each (with [`Output::Shadows`]), and
@@ -300,7 +335,8 @@ impl Renderer {
         } else {
             None
         };
-        let device_scene = DeviceScene::upload(&gpu, &arrays)?;
+        let bvh = bvh_walked(&arrays, options.bvh);
+        let device_scene = DeviceScene::upload(&gpu, &arrays, bvh)?;
         let scene_info = SceneInfo::new(scene, &arrays);
         let (w, h) = (tile.width, tile.height);
         let planes = shadow_lights.map_or(0, |l| l.count());
@@ -337,6 +373,7 @@ impl Renderer {
             kernel: None,
             tracer: options.tracer,
             wave_paths: options.wave_paths,
+            bvh,
             wavefront: None,
             shadow_lights,
             shadow_sampling: options.shadows,
@@ -366,6 +403,14 @@ impl Renderer {
         defines.push(("DEBUG_COUNTERS".into(), (self.debug as u32).to_string()));
         if self.tracer == Tracer::Wavefront {
             defines.push(("WAVEFRONT".into(), "1".into()));
+        }
+        defines.push((
+            "BVH_WIDE".into(),
+            ((self.bvh == BvhLayout::Wide) as u32).to_string(),
+        ));
+        if self.bvh == BvhLayout::Wide {
+            let entries = self.arrays.wide_bvh.stack_entries();
+            defines.push(("BVH_STACK".into(), entries.to_string()));
         }
         defines.push((
             "SHADOW_PLANES".into(),

@@ -91,6 +91,7 @@ pub fn repo_path(rel: &str) -> PathBuf {
 }
 
 use glam::Vec3;
+use noisefree::bvh::BvhLayout;
 use noisefree::imaging::RgbImage;
 use noisefree::layout::{FilterVector, Float4};
 use noisefree::render::{RenderOptions, Renderer, SceneArrays};
@@ -293,6 +294,44 @@ pub fn lanes(f: &FilterVector) -> [f32; 16] {
     f.lanes()
 }
 
+/// A render's every output, its rays traced and its debug counters.
+pub type RenderRecord = (noisefree::render::Frame, u64, Vec<u32>);
+
+/// Renders `scene` with `options` (and the debug counters) in launches of `batches` samples.
+/// Every second launch covers a band of rows only (a renderer's share of a frame split across
+/// devices, src/render/split.rs), not starting at the top.
+pub fn render_in_launches(
+    scene: &Scene,
+    options: &RenderOptions,
+    batches: &[u32],
+    what: &str,
+) -> RenderRecord {
+    let mut o = options.clone();
+    o.debug_counters = true;
+    let mut r = Renderer::new(gpu(), scene, &o).unwrap_or_else(|e| panic!("{what}: {e:#}"));
+    let h = r.height();
+    for (k, &n) in batches.iter().enumerate() {
+        if k % 2 == 1 && h > 4 {
+            r.render_rows(n, 2..h - 1).unwrap();
+        } else {
+            r.render_samples(n).unwrap();
+        }
+    }
+    (r.frame(), r.rays_total, r.read_debug_counters().unwrap())
+}
+
+/// Asserts that two renders wrote the same bytes to every buffer, traced as many rays and
+/// counted the same.
+pub fn assert_same_render(a: &RenderRecord, b: &RenderRecord, what: &str) {
+    assert_eq!(a.0.info().spp, b.0.info().spp, "{what}");
+    for ((name, x), (_, y)) in output_bytes(&a.0).iter().zip(output_bytes(&b.0)) {
+        assert!(*x == y, "{what}: the {name} buffers differ");
+    }
+    assert_eq!(a.1, b.1, "{what}: rays traced");
+    assert_eq!(a.2, b.2, "{what}: debug counters");
+    assert!(a.1 > 0, "{what}: nothing was traced");
+}
+
 /// Every output buffer of `frame`, named, as bytes (for bit-for-bit comparisons).
 pub fn output_bytes(frame: &noisefree::render::Frame) -> Vec<(String, Vec<u8>)> {
     frame
@@ -348,18 +387,39 @@ pub fn two_pass(x: &[f32]) -> (f64, f64) {
     (mean, var)
 }
 
-/// Runs kernels/test/probes.cl `probe_intersect` on `arrays`: per ray (origin, direction, t_max)
-/// returns (t or -1, primitive: triangle k, or -2 - sphere index, or -1 for none, occluded).
-pub fn device_intersect(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<(f32, i32, bool)> {
+/// The bytes of a slice of a shared layout struct (plain f32/u32 fields, explicit padding).
+pub fn pod_bytes<T: ocl::OclPrm>(v: &[T]) -> Vec<u8> {
+    // SAFETY: the layout structs are plain-old-data with every byte initialised
+    // (src/layout/mod.rs).
+    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
+        .to_vec()
+}
+
+/// Runs kernels/test/probes.cl `probe_intersect` on `arrays`, walking the `bvh` tree: per ray
+/// (origin, direction, t_max) returns (t or -1, primitive: triangle k, or -2 - sphere index,
+/// or -1 for none, occluded).
+pub fn device_intersect(
+    arrays: &SceneArrays,
+    rays: &[(Vec3, Vec3, f32)],
+    bvh: BvhLayout,
+) -> Vec<(f32, i32, bool)> {
     let gpu = gpu();
-    let program = gpu
-        .program("test/probes.cl", &generic_defines(), "")
-        .unwrap();
+    let mut defines = generic_defines();
+    if bvh == BvhLayout::Skip {
+        defines.retain(|d| !d.0.starts_with("BVH_"));
+        defines.push(("BVH_WIDE".into(), "0".into()));
+    }
+    let program = gpu.program("test/probes.cl", &defines, "").unwrap();
     let n = rays.len();
     let origins: Vec<Float4> = rays.iter().map(|r| Float4::from_vec3(r.0, r.2)).collect();
     let dirs: Vec<Float4> = rays.iter().map(|r| Float4::from_vec3(r.1, 0.0)).collect();
     let params = gpu.upload(std::slice::from_ref(&arrays.params)).unwrap();
-    let nodes = gpu.upload(&arrays.nodes).unwrap();
+    // One byte buffer either way: the kernel's pointer type follows BVH_WIDE.
+    let node_bytes: Vec<u8> = match bvh {
+        BvhLayout::Skip => pod_bytes(&arrays.nodes),
+        BvhLayout::Wide => pod_bytes(&arrays.wide_bvh.nodes),
+    };
+    let nodes = gpu.upload(&node_bytes).unwrap();
     let geom = gpu.upload(&arrays.tri_geom).unwrap();
     let spheres = gpu.upload(&arrays.spheres).unwrap();
     let o = gpu.upload(&origins).unwrap();

@@ -6,6 +6,8 @@
 //! the next node to visit when a ray misses the node's whole subtree. Triangles are reordered
 //! into leaf order, so the device reads a leaf's triangles contiguously, without indirection.
 
+pub mod wide;
+
 use std::time::{Duration, Instant};
 
 use anyhow::{Result, bail};
@@ -25,6 +27,17 @@ pub enum BuildQuality {
     /// Uses obvhs's pre-splitting: a large triangle may sit in several leaves and is then
     /// duplicated in the reordered triangle list.
     Slow,
+}
+
+/// Which tree the kernels walk (`render --bvh`). Both give every ray query the same answer,
+/// so the image is the same bytes (tests/wide_bvh.rs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum BvhLayout {
+    /// The thesis's binary tree with skip indices (§4.2.2, Alg. 4), walked without a stack.
+    Skip,
+    /// Eight children per node ([`wide`]), tested in float8 lanes, walked front to back.
+    #[default]
+    Wide,
 }
 
 /// Most triangles a leaf may hold; the count must fit in the node's top 4 bits.
@@ -163,11 +176,11 @@ pub fn flatten(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use glam::Vec3;
 
-    fn soup(n: usize) -> Vec<[Vec3; 3]> {
+    pub(crate) fn soup(n: usize) -> Vec<[Vec3; 3]> {
         let mut s = 12345u32;
         let mut r = move || {
             s = s.wrapping_mul(1664525).wrapping_add(1013904223);

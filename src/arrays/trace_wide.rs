@@ -1,0 +1,143 @@
+//! kernels/arrays/trace_wide.cl in Rust: the walks of the eight-wide BVH (src/bvh/wide.rs).
+//!
+//! They answer every query exactly as the skip-index walks of [`super::trace`] do, whatever
+//! order they visit the leaves in:
+//! - the nearest hit is the triangle with the smallest t, and among triangles at the same t
+//!   the one first in leaf order, which the skip-index walk meets first (it visits leaves in
+//!   leaf order and keeps a hit only when strictly nearer);
+//! - a box is passed over only when the slab test (Alg. 2, with its robust far bound) says
+//!   that no point of it lies before the nearest hit so far, so no nearer triangle is lost;
+//! - any-hit and the occluder range do not depend on the order at all.
+
+use glam::Vec3;
+
+use super::SceneArrays;
+use super::trace::{Hit, Prim, any_sphere, nearest_sphere, sphere_range};
+use crate::bvh::wide::is_inner;
+use crate::geometry::{ROBUST_FAR_SCALE, ray_triangle, safe_inverse, slab_interval};
+use crate::layout::{LEAF_COUNT_SHIFT, LEAF_FIRST_MASK, WideBvhNode};
+
+/// The children of `n` whose boxes the ray enters before `t_far`, with their entry distances,
+/// in lane order.
+fn children_hit(n: &WideBvhNode, o: Vec3, inv_d: Vec3, t_far: f32) -> Vec<(u32, f32)> {
+    (0..n.child_count as usize)
+        .filter_map(|k| {
+            let lo = Vec3::new(n.min_x[k], n.min_y[k], n.min_z[k]);
+            let hi = Vec3::new(n.max_x[k], n.max_y[k], n.max_z[k]);
+            let (t0, t1) = slab_interval(o, inv_d, 0.0, t_far, lo, hi);
+            (t1 * ROBUST_FAR_SCALE >= t0).then_some((n.child[k], t0))
+        })
+        .collect()
+}
+
+fn leaf_range(word: u32) -> std::ops::Range<usize> {
+    let first = (word & LEAF_FIRST_MASK) as usize;
+    first..first + (word >> LEAF_COUNT_SHIFT) as usize
+}
+
+/// Nearest hit in (0, t_max).
+pub fn intersect_closest(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+    nearest_sphere(s, o, d, t_max, nearest_triangle(s, o, d, t_max))
+}
+
+/// Front to back: the children a node's test hits are taken nearest entry first, the others
+/// kept on the stack with their entry distance and dropped when popped behind the nearest hit.
+fn nearest_triangle(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit> {
+    let nodes = &s.wide_bvh.nodes;
+    if nodes.is_empty() {
+        return None;
+    }
+    let inv_d = safe_inverse(d);
+    let mut best: Option<Hit> = None;
+    let mut t_best = t_max;
+    let mut stack: Vec<(u32, f32)> = Vec::new();
+    let mut word = 0u32;
+    loop {
+        if is_inner(word) {
+            let mut hits = children_hit(&nodes[word as usize], o, inv_d, t_best);
+            // Stable: children at the same entry distance stay in lane order (as the kernel's
+            // insertion sort keeps them).
+            hits.sort_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some(&(near, _)) = hits.first() {
+                stack.extend(hits[1..].iter().rev());
+                debug_assert!(stack.len() <= s.wide_bvh.stack_need);
+                word = near;
+                continue;
+            }
+        } else {
+            for k in leaf_range(word) {
+                let g = &s.tri_geom[k];
+                if let Some((t, u, v)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
+                    && t > 0.0
+                    && (t < t_best
+                        || (t == t_best
+                            && matches!(best, Some(Hit { prim: Prim::Triangle(b), .. }) if (k as u32) < b)))
+                {
+                    t_best = t;
+                    best = Some(Hit {
+                        t,
+                        u,
+                        v,
+                        prim: Prim::Triangle(k as u32),
+                    });
+                }
+            }
+        }
+        // The next kept box that still starts before the nearest hit.
+        match std::iter::from_fn(|| stack.pop()).find(|&(_, t0)| t_best * ROBUST_FAR_SCALE >= t0) {
+            Some((next, _)) => word = next,
+            None => return best,
+        }
+    }
+}
+
+/// Visits the distance of every triangle hit in (0, t_max), in no particular order, until
+/// `visit` says stop (returns true); returns whether it stopped.
+fn triangle_hits(
+    s: &SceneArrays,
+    o: Vec3,
+    d: Vec3,
+    t_max: f32,
+    mut visit: impl FnMut(f32) -> bool,
+) -> bool {
+    let nodes = &s.wide_bvh.nodes;
+    if nodes.is_empty() {
+        return false;
+    }
+    let inv_d = safe_inverse(d);
+    let mut stack: Vec<u32> = vec![0];
+    while let Some(word) = stack.pop() {
+        if is_inner(word) {
+            let hits = children_hit(&nodes[word as usize], o, inv_d, t_max);
+            // Lane 0 next, as the kernel does.
+            stack.extend(hits.iter().rev().map(|h| h.0));
+        } else {
+            for g in &s.tri_geom[leaf_range(word)] {
+                if let Some((t, _, _)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
+                    && t > 0.0
+                    && t < t_max
+                    && visit(t)
+                {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
+/// Any hit in (0, t_max).
+pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
+    triangle_hits(s, o, d, t_max, |_| true) || any_sphere(s, o, d, t_max)
+}
+
+/// Every hit in (0, t_max), nearest and farthest; None when nothing is hit.
+pub fn occluder_range(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, f32)> {
+    let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+    triangle_hits(s, o, d, t_max, |t| {
+        lo = lo.min(t);
+        hi = hi.max(t);
+        false
+    });
+    sphere_range(s, o, d, t_max, lo, hi)
+}

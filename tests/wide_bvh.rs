@@ -1,0 +1,78 @@
+//! The eight-wide BVH (src/bvh/wide.rs, kernels/arrays/trace_wide.cl) against the thesis's
+//! skip-index BVH (Alg. 4): every output buffer, the ray counts and the debug counters must be
+//! the same bytes, on every bundled scene, with every output the filters ask for, including
+//! the AAF passes' occluder ranges and the wavefront tracer. The ray queries themselves are
+//! compared with brute force in tests/bvh.rs.
+
+mod common;
+
+use common::*;
+use noisefree::bvh::BvhLayout;
+use noisefree::layout::outputs::{Output, OutputSet};
+use noisefree::render::{RenderOptions, Renderer, Tracer};
+use noisefree::scene::Scene;
+
+fn assert_trees_agree(scene: &Scene, options: &RenderOptions, batches: &[u32], what: &str) {
+    let render = |bvh: BvhLayout| {
+        let mut o = options.clone();
+        o.bvh = bvh;
+        render_in_launches(scene, &o, batches, what)
+    };
+    let skip = render(BvhLayout::Skip);
+    let wide = render(BvhLayout::Wide);
+    assert_same_render(
+        &skip,
+        &wide,
+        &format!("{what}: the wide BVH against the skip-index BVH"),
+    );
+}
+
+#[test]
+fn every_bundled_scene_gives_the_skip_index_walks_bytes() {
+    for path in bundled_scenes() {
+        let scene = noisefree::scene::load_scene(&path).unwrap();
+        let mut o = options(&scene, 23, 17, 3);
+        o.outputs = OutputSet::of(&[
+            Output::Features,
+            Output::Variance,
+            Output::Position,
+            Output::Samples,
+            Output::Halves,
+        ]);
+        o.sample_capacity = 3;
+        assert_trees_agree(&scene, &o, &[2, 1], &path.display().to_string());
+    }
+}
+
+#[test]
+fn shadow_light_field_indirect_outputs_and_the_wavefront_give_the_same_bytes() {
+    // AAF's shadow passes walk the tree for every occluder (occluder_range).
+    let shadows = bundled_scene("two_lights_shadows");
+    let mut o = options(&shadows, 24, 18, 5);
+    o.outputs = OutputSet::of(&[Output::Shadows, Output::LightField]);
+    assert_trees_agree(&shadows, &o, &[2, 1], "shadows and their light field");
+    let room = bundled_scene("room_gi");
+    let mut o = options(&room, 24, 18, 5);
+    o.outputs = OutputSet::of(&[Output::Indirect]);
+    assert_trees_agree(&room, &o, &[2], "indirect light");
+    let glossy = bundled_scene("cornell_glossy");
+    let mut o = options(&glossy, 20, 14, 4);
+    o.tracer = Tracer::Wavefront;
+    assert_trees_agree(&glossy, &o, &[2], "the wavefront tracer");
+}
+
+#[test]
+fn the_wide_walk_is_built_with_the_stack_its_tree_needs() {
+    // The conference room's tree is the deepest bundled one.
+    let scene = bundled_scene("conference");
+    let r = Renderer::new(gpu(), &scene, &options(&scene, 8, 8, 1)).unwrap();
+    let wide = &r.arrays.wide_bvh;
+    assert_eq!(r.bvh, BvhLayout::Wide);
+    assert!(
+        wide.stack_need > 8 && wide.fits_stack(),
+        "{}",
+        wide.stack_need
+    );
+    assert_eq!(wide.stack_entries() % 8, 0);
+    assert!(wide.stack_entries() >= wide.stack_need);
+}
