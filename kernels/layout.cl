@@ -62,10 +62,29 @@ typedef struct __attribute__((aligned(64))) {
     float max_x[8];
     float max_y[8];
     float max_z[8];
-    uint child[8]; // An inner child's node index, or a leaf's first triangle | count << 28 (the leaf  word of BvhNode): a word whose top four bits are zero is an inner node.
+    uint child[8]; // An inner child's node index, or for a leaf its TrianglePack's index | triangle  count << 28: a word whose top four bits are zero is an inner node.
     uint child_count; // Children in use, from lane 0; the other lanes are never entered.
     uint pad[7];
 } WideBvhNode;
+
+// The triangles of one leaf of the wide BVH as a structure of arrays (issue 14): up to
+// four triangles, one per float4 lane, so that one Möller-Trumbore test (Alg. 3) in four
+// lanes tests them all. The edges are stored as the kernels' scalar test computes them
+// (v1 - v0, v2 - v0: the same floats), so each lane's t, u and v are that test's bits.
+typedef struct __attribute__((aligned(16))) {
+    float v0_x[4];
+    float v0_y[4];
+    float v0_z[4];
+    float e1_x[4];
+    float e1_y[4];
+    float e1_z[4];
+    float e2_x[4];
+    float e2_y[4];
+    float e2_z[4];
+    uint first; // The leaf's first triangle (leaf order): lane i is triangle first + i.
+    uint count; // Lanes in use, from lane 0.
+    uint pad[2];
+} TrianglePack;
 
 // Triangle vertices for intersection (Alg. 3), in leaf order.
 typedef struct __attribute__((aligned(16))) {

@@ -44,8 +44,18 @@ pub fn slab_interval(
 
 /// Algorithm 3 (Möller-Trumbore): Some((t, u, v)) or None.
 pub fn ray_triangle(o: Vec3, d: Vec3, p1: Vec3, p2: Vec3, p3: Vec3) -> Option<(f32, f32, f32)> {
-    let e1 = p2 - p1;
-    let e2 = p3 - p1;
+    ray_triangle_edges(o, d, p1, p2 - p1, p3 - p1)
+}
+
+/// [`ray_triangle`] from the first vertex and the two edges (a wide BVH leaf's
+/// [`crate::layout::TrianglePack`] stores them).
+pub fn ray_triangle_edges(
+    o: Vec3,
+    d: Vec3,
+    p1: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+) -> Option<(f32, f32, f32)> {
     let c = d.cross(e2);
     let det = e1.dot(c);
     if det == 0.0 {

@@ -381,7 +381,7 @@ fn a_tie_across_leaves_entered_out_of_order_goes_to_the_first_copy() {
         leaf(1, 5.0, 3),
     ];
     arrays.params.node_count = 3;
-    arrays.wide_bvh = noisefree::bvh::wide::collapse(&arrays.nodes);
+    arrays.wide_bvh = noisefree::bvh::wide::collapse(&arrays.nodes, &arrays.tri_geom);
     let rays = vec![(Vec3::new(0.1, 0.0, 10.0), Vec3::NEG_Z, f32::INFINITY); 4];
     assert!(
         check(&arrays, &rays).is_empty(),

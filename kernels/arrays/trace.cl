@@ -28,6 +28,7 @@ typedef struct {
     __constant const SceneParams* params;
     __global const SceneNode* nodes;   // BvhNode, or WideBvhNode with BVH_WIDE
     __global const TriangleGeom* tri_geom;
+    __global const TrianglePack* tri_packs;   // the wide BVH's leaves (BVH_WIDE only)
     __global const TriangleShading* tri_shading;
     __global const Sphere* spheres;
     __global const Material* materials;
@@ -42,13 +43,14 @@ typedef struct {
 // DeviceScene::bind, then the debug counters), and the SceneRefs made of them.
 #define SCENE_PARAMS                                                                         \
     __constant const SceneParams *params, __global const SceneNode *nodes,                   \
-        __global const TriangleGeom *tri_geom, __global const TriangleShading *tri_shading,  \
+        __global const TriangleGeom *tri_geom, __global const TrianglePack *tri_packs,       \
+        __global const TriangleShading *tri_shading,                                         \
         __global const Sphere *spheres, __global const Material *materials,                  \
         __global const TextureInfo *textures, __global const float4 *texels,                 \
         __global const Light *lights, __global const float *light_cdf,                      \
         __global uint *debug_counters
 #define SCENE_REFS                                                                           \
-    {params, nodes, tri_geom, tri_shading, spheres, materials,                               \
+    {params, nodes, tri_geom, tri_packs, tri_shading, spheres, materials,                    \
      textures, texels, lights, light_cdf, debug_counters}
 
 // Debug counters, compiled in only for tests (-D DEBUG_COUNTERS=1): how often each optional
@@ -84,6 +86,16 @@ typedef struct {
     int kind;        // HIT_NONE, HIT_TRIANGLE or HIT_SPHERE
 } Hit;
 
+inline Hit no_hit(float t_max) {
+    Hit hit;
+    hit.t = t_max;
+    hit.u = 0.0f;
+    hit.v = 0.0f;
+    hit.prim = 0u;
+    hit.kind = HIT_NONE;
+    return hit;
+}
+
 #if BVH_WIDE
 #include "arrays/trace_wide.cl"
 #else
@@ -94,15 +106,17 @@ inline float3 node_max(__global const BvhNode* n) {
     return (float3)(n->bounds_max[0], n->bounds_max[1], n->bounds_max[2]);
 }
 
-// The nearest triangle hit before hit->t (which starts at the query's t_max), into *hit.
+// The nearest triangle hit in (0, t_max), into *out (kind HIT_NONE when there is none). The
+// hit starts here, not from the caller's copy: reading back a struct the caller has just
+// stored field by field stalls on store forwarding.
 //
 // Algorithm 4 as printed keeps the *last* triangle it hits and never shortens the far plane,
 // so it returns whichever intersected triangle comes last in node order, not the nearest one.
 // Here a hit is kept only when it is nearer than the best so far, and the far plane passed to
 // the box test (Alg. 2) is clipped to it, which also prunes boxes behind the nearest hit.
 // A leaf holds several triangles (obvhs leaves); Alg. 4 line 9 tests one.
-inline void nearest_triangle(const SceneRefs* s, float3 o, float3 d, Hit* out) {
-    Hit hit = *out;
+inline void nearest_triangle(const SceneRefs* s, float3 o, float3 d, float t_max, Hit* out) {
+    Hit hit = no_hit(t_max);
     float3 inv_d = safe_inverse(d);
     uint node_count = s->params->node_count;
     uint current = 0u;
@@ -201,16 +215,11 @@ inline void triangle_range(const SceneRefs* s, float3 o, float3 d, float t_max, 
 // Nearest hit along o + t d, t in (0, t_max): the triangles (by either walk), then the
 // analytic spheres, each kept only when strictly nearer.
 inline Hit intersect_closest(const SceneRefs* s, float3 o, float3 d, float t_max, uint* ray_count) {
-    Hit hit;
-    hit.t = t_max;
-    hit.u = 0.0f;
-    hit.v = 0.0f;
-    hit.prim = 0u;
-    hit.kind = HIT_NONE;
+    Hit hit = no_hit(t_max);
     *ray_count += 1u;
 #if HAS_TRIANGLES
     DEBUG_COUNT(s, COUNT_BVH_TRAVERSAL);
-    nearest_triangle(s, o, d, &hit);
+    nearest_triangle(s, o, d, t_max, &hit);
 #endif
 #if HAS_SPHERES
     DEBUG_COUNT(s, COUNT_SPHERE_TEST);

@@ -39,9 +39,45 @@ inline uint wide_children_hit(__global const WideBvhNode* n, float3 o, float3 in
 inline uint lowest_lane(uint mask) { return 31u - clz(mask & (0u - mask)); }
 inline uint highest_lane(uint mask) { return 31u - clz(mask); }
 
-// The nearest triangle hit before hit->t (which starts at the query's t_max), into *hit.
-inline void nearest_triangle(const SceneRefs* s, float3 o, float3 d, Hit* out) {
-    Hit hit = *out;
+// Alg. 3 (Möller-Trumbore) in four lanes over a leaf's TrianglePack. Each lane runs exactly
+// the float operations of ray_triangle (geometry.cl) in the same order, dot and cross written
+// out as PoCL's builtins compute them (FP_CONTRACT OFF), so its t, u and v are that test's
+// bits, and the nearest hit is the same float. Returns the lanes whose triangle the ray hits
+// at t in (0, t_max] (t_max itself: a tie with the nearest hit so far), their t, u, v in the
+// arrays. Unused lanes hold zero edges: a zero determinant, never a hit.
+inline uint pack_hits(__global const TrianglePack* p, float3 o, float3 d, float t_max,
+                      float* lane_t, float* lane_u, float* lane_v) {
+    float4 e1x = vload4(0, p->e1_x), e1y = vload4(0, p->e1_y), e1z = vload4(0, p->e1_z);
+    float4 e2x = vload4(0, p->e2_x), e2y = vload4(0, p->e2_y), e2z = vload4(0, p->e2_z);
+    float4 cx = d.y * e2z - d.z * e2y;            // c = cross(d, e2)
+    float4 cy = d.z * e2x - d.x * e2z;
+    float4 cz = d.x * e2y - d.y * e2x;
+    float4 det = e1x * cx + e1y * cy + e1z * cz;  // dot(e1, c)
+    float4 ax = o.x - vload4(0, p->v0_x);         // vec1 = o - p1
+    float4 ay = o.y - vload4(0, p->v0_y);
+    float4 az = o.z - vload4(0, p->v0_z);
+    float4 u = (ax * cx + ay * cy + az * cz) / det;
+    float4 qx = ay * e1z - az * e1y;              // vec2 = cross(vec1, e1)
+    float4 qy = az * e1x - ax * e1z;
+    float4 qz = ax * e1y - ay * e1x;
+    float4 v = (d.x * qx + d.y * qy + d.z * qz) / det;
+    float4 t = (e2x * qx + e2y * qy + e2z * qz) / det;
+    // ray_triangle's rejections, written as there (a NaN u or v passes them, as there).
+    int4 hit = (det != 0.0f) & !(u < 0.0f) & !(u > 1.0f) & !(v < 0.0f) & !(u + v > 1.0f)
+               & (t > 0.0f) & (t <= t_max);
+    int4 bits = hit & (int4)(1, 2, 4, 8);
+    int2 b2 = bits.lo | bits.hi;
+    vstore4(t, 0, lane_t);
+    vstore4(u, 0, lane_u);
+    vstore4(v, 0, lane_v);
+    return (uint)(b2.x | b2.y);
+}
+
+// The nearest triangle hit in (0, t_max), into *out (kind HIT_NONE when there is none). The
+// hit starts here, not from the caller's copy: reading back a struct the caller has just
+// stored field by field stalls on store forwarding.
+inline void nearest_triangle(const SceneRefs* s, float3 o, float3 d, float t_max, Hit* out) {
+    Hit hit = no_hit(t_max);
     float3 inv_d = safe_inverse(d);
     uint stack_word[BVH_STACK];
     float stack_entry[BVH_STACK];
@@ -91,18 +127,19 @@ inline void nearest_triangle(const SceneRefs* s, float3 o, float3 d, Hit* out) {
                 continue;
             }
         } else {
-            uint first = word & LEAF_FIRST_MASK;
-            uint count = word >> LEAF_COUNT_SHIFT;
-            for (uint k = first; k < first + count; ++k) {
-                __global const TriangleGeom* tri = s->tri_geom + k;
-                float u, v;
-                float t = ray_triangle(o, d, tri->v0.xyz, tri->v1.xyz, tri->v2.xyz, &u, &v);
+            __global const TrianglePack* p = s->tri_packs + (word & LEAF_FIRST_MASK);
+            float lane_t[4], lane_u[4], lane_v[4];
+            uint mask = pack_hits(p, o, d, hit.t, lane_t, lane_u, lane_v);
+            while (mask != 0u) {   // in lane order, which is leaf order
+                uint lane = lowest_lane(mask);
+                mask &= mask - 1u;
+                uint k = p->first + lane;
+                float t = lane_t[lane];
                 // A tie goes to the triangle first in leaf order (the skip-index walk's pick).
-                if (t > 0.0f && (t < hit.t || (t == hit.t && hit.kind == HIT_TRIANGLE
-                                                && k < hit.prim))) {
+                if (t < hit.t || (hit.kind == HIT_TRIANGLE && k < hit.prim)) {
                     hit.t = t;
-                    hit.u = u;
-                    hit.v = v;
+                    hit.u = lane_u[lane];
+                    hit.v = lane_v[lane];
                     hit.prim = k;
                     hit.kind = HIT_TRIANGLE;
                 }
@@ -150,13 +187,14 @@ inline bool wide_triangle_hits(const SceneRefs* s, float3 o, float3 d, float t_m
                 continue;
             }
         } else {
-            uint first = word & LEAF_FIRST_MASK;
-            uint count = word >> LEAF_COUNT_SHIFT;
-            for (uint k = first; k < first + count; ++k) {
-                __global const TriangleGeom* tri = s->tri_geom + k;
-                float u, v;
-                float t = ray_triangle(o, d, tri->v0.xyz, tri->v1.xyz, tri->v2.xyz, &u, &v);
-                if (t > 0.0f && t < t_max) {
+            __global const TrianglePack* p = s->tri_packs + (word & LEAF_FIRST_MASK);
+            float lane_t[4], lane_u[4], lane_v[4];
+            uint mask = pack_hits(p, o, d, t_max, lane_t, lane_u, lane_v);
+            while (mask != 0u) {
+                uint lane = lowest_lane(mask);
+                mask &= mask - 1u;
+                float t = lane_t[lane];
+                if (t < t_max) {
                     if (first_only) return true;
                     any = true;
                     *lo = fmin(*lo, t);

@@ -51,6 +51,7 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 __kernel void render(__constant const SceneParams* params,
                      __global const SceneNode* nodes,
                      __global const TriangleGeom* tri_geom,
+                     __global const TrianglePack* tri_packs,
                      __global const TriangleShading* tri_shading,
                      __global const Sphere* spheres,
                      __global const Material* materials,
@@ -75,7 +76,7 @@ __kernel void render(__constant const SceneParams* params,
     uint x = tile_x + tx, y = tile_y + ty;
     uint pixel = y * params->image_width + x;           // in the image: its random numbers
     uint slot = ty * tile_width + tx;                   // in this render's buffers
-    SceneRefs s = {params, nodes, tri_geom, tri_shading, spheres, materials,
+    SceneRefs s = {params, nodes, tri_geom, tri_packs, tri_shading, spheres, materials,
                    textures, texels, lights, light_cdf, debug_counters};
     PixelStats stats;
     pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, slot);

@@ -21,6 +21,7 @@ __kernel void probe_rng(__global const uint4* counters, uint seed, __global floa
 __kernel void probe_intersect(__constant const SceneParams* params,
                               __global const SceneNode* nodes,
                               __global const TriangleGeom* tri_geom,
+                              __global const TrianglePack* tri_packs,
                               __global const Sphere* spheres,
                               __global const float4* origins,
                               __global const float4* directions,
@@ -30,7 +31,7 @@ __kernel void probe_intersect(__constant const SceneParams* params,
                               uint n) {
     uint i = get_global_id(0);
     if (i >= n) return;
-    SceneRefs s = {params, nodes, tri_geom, 0, spheres, 0, 0, 0, 0, 0, 0};
+    SceneRefs s = {params, nodes, tri_geom, tri_packs, 0, spheres, 0, 0, 0, 0, 0, 0};
     float3 o = origins[i].xyz, d = directions[i].xyz;
     float t_max = origins[i].w;
     uint rays = 0u;
@@ -47,7 +48,7 @@ __kernel void probe_camera(__constant const SceneParams* params, uint sample,
     if (x >= params->image_width || y >= params->image_height) return;
     uint pixel = y * params->image_width + x;
     float3 o, d;
-    SceneRefs s = {params, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    SceneRefs s = {params, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
     camera_ray(&s, x, y, rng_sample_key(params->seed, pixel, sample), &o, &d);
     out_origin[pixel] = (float4)(o, 0.0f);
     out_dir[pixel] = (float4)(d, 0.0f);

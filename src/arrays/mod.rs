@@ -92,9 +92,7 @@ impl SceneArrays {
         let flat = bvh::build(&verts, frame.bvh_quality)?;
         a.nodes = flat.nodes;
         a.bvh_stats = flat.stats;
-        a.wide_bvh = bvh::wide::collapse(&a.nodes);
-        #[cfg(debug_assertions)]
-        bvh::wide::validate(&a.wide_bvh, &a.nodes);
+
         for &i in &flat.triangle_order {
             let t = &scene.triangles[i as usize];
             a.tri_geom.push(TriangleGeom {
@@ -115,6 +113,9 @@ impl SceneArrays {
                 ..Default::default()
             });
         }
+        a.wide_bvh = bvh::wide::collapse(&a.nodes, &a.tri_geom);
+        #[cfg(debug_assertions)]
+        bvh::wide::validate(&a.wide_bvh, &a.nodes);
 
         for m in &scene.materials {
             let mut d = Material {

@@ -14,8 +14,8 @@ use glam::Vec3;
 use super::SceneArrays;
 use super::trace::{Hit, Prim, any_sphere, nearest_sphere, sphere_range};
 use crate::bvh::wide::is_inner;
-use crate::geometry::{ROBUST_FAR_SCALE, ray_triangle, safe_inverse, slab_interval};
-use crate::layout::{LEAF_COUNT_SHIFT, LEAF_FIRST_MASK, WideBvhNode};
+use crate::geometry::{ROBUST_FAR_SCALE, ray_triangle_edges, safe_inverse, slab_interval};
+use crate::layout::{LEAF_FIRST_MASK, TrianglePack, WideBvhNode};
 
 /// The children of `n` whose boxes the ray enters before `t_far`, with their entry distances,
 /// in lane order.
@@ -30,9 +30,21 @@ fn children_hit(n: &WideBvhNode, o: Vec3, inv_d: Vec3, t_far: f32) -> Vec<(u32, 
         .collect()
 }
 
-fn leaf_range(word: u32) -> std::ops::Range<usize> {
-    let first = (word & LEAF_FIRST_MASK) as usize;
-    first..first + (word >> LEAF_COUNT_SHIFT) as usize
+/// A leaf's triangles as the kernel's four-lane test sees them: (triangle index, t, u, v) of
+/// every lane the test passes, in lane order (triangle order).
+fn pack_hits(
+    s: &SceneArrays,
+    word: u32,
+    o: Vec3,
+    d: Vec3,
+) -> impl Iterator<Item = (u32, f32, f32, f32)> {
+    let p: &TrianglePack = &s.wide_bvh.packs[(word & LEAF_FIRST_MASK) as usize];
+    (0..p.count as usize).filter_map(move |l| {
+        let v0 = Vec3::new(p.v0_x[l], p.v0_y[l], p.v0_z[l]);
+        let e1 = Vec3::new(p.e1_x[l], p.e1_y[l], p.e1_z[l]);
+        let e2 = Vec3::new(p.e2_x[l], p.e2_y[l], p.e2_z[l]);
+        ray_triangle_edges(o, d, v0, e1, e2).map(|(t, u, v)| (p.first + l as u32, t, u, v))
+    })
 }
 
 /// Nearest hit in (0, t_max).
@@ -65,20 +77,18 @@ fn nearest_triangle(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<Hit
                 continue;
             }
         } else {
-            for k in leaf_range(word) {
-                let g = &s.tri_geom[k];
-                if let Some((t, u, v)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
-                    && t > 0.0
+            for (k, t, u, v) in pack_hits(s, word, o, d) {
+                if t > 0.0
                     && (t < t_best
                         || (t == t_best
-                            && matches!(best, Some(Hit { prim: Prim::Triangle(b), .. }) if (k as u32) < b)))
+                            && matches!(best, Some(Hit { prim: Prim::Triangle(b), .. }) if k < b)))
                 {
                     t_best = t;
                     best = Some(Hit {
                         t,
                         u,
                         v,
-                        prim: Prim::Triangle(k as u32),
+                        prim: Prim::Triangle(k),
                     });
                 }
             }
@@ -112,12 +122,8 @@ fn triangle_hits(
             // Lane 0 next, as the kernel does.
             stack.extend(hits.iter().rev().map(|h| h.0));
         } else {
-            for g in &s.tri_geom[leaf_range(word)] {
-                if let Some((t, _, _)) = ray_triangle(o, d, g.v0.xyz(), g.v1.xyz(), g.v2.xyz())
-                    && t > 0.0
-                    && t < t_max
-                    && visit(t)
-                {
+            for (_, t, _, _) in pack_hits(s, word, o, d) {
+                if t > 0.0 && t < t_max && visit(t) {
                     return true;
                 }
             }

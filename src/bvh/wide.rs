@@ -9,14 +9,21 @@
 //! takes the two children of a binary node and opens its largest inner child (by surface area,
 //! the SAH's measure of how often a ray enters it) into its two children until it holds eight
 //! or only leaves (Wald et al. 2008 §3; Ylitie, Karras & Laine 2017 collapse by cost). The
-//! children stay in depth-first order.
+//! children stay in depth-first order. Each leaf's triangles are stored once more as a
+//! [`TrianglePack`], four triangles in float4 lanes, which one vector Möller-Trumbore test
+//! checks at once.
 
-use crate::layout::{BVH_WIDTH, BvhNode, LEAF_COUNT_SHIFT, WideBvhNode};
+use super::MAX_LEAF_TRIANGLES;
+use crate::layout::{
+    BVH_WIDTH, BvhNode, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK, TriangleGeom, TrianglePack, WideBvhNode,
+};
 
 /// The wide tree and what its walk needs.
 #[derive(Clone, Debug, Default)]
 pub struct WideBvh {
     pub nodes: Vec<WideBvhNode>,
+    /// One per leaf, in the order the leaves were met; a leaf's child word holds its index.
+    pub packs: Vec<TrianglePack>,
     /// Most stack entries a walk can hold ([`stack_need`]).
     pub stack_need: usize,
 }
@@ -50,19 +57,26 @@ fn binary_children(nodes: &[BvhNode], i: usize) -> [usize; 2] {
     [i + 1, nodes[i + 1].skip as usize]
 }
 
-/// Collapses a flattened binary tree (skip-index layout) into eight-wide nodes. Node 0 is the
-/// root and always an inner node: a tree that is a single leaf becomes a root with one child.
-pub fn collapse(nodes: &[BvhNode]) -> WideBvh {
+/// Collapses a flattened binary tree (skip-index layout) over `triangles` (leaf order) into
+/// eight-wide nodes. Node 0 is the root and always an inner node: a tree that is a single leaf
+/// becomes a root with one child.
+pub fn collapse(nodes: &[BvhNode], triangles: &[TriangleGeom]) -> WideBvh {
     if nodes.is_empty() {
         return WideBvh::default();
     }
     let width = BVH_WIDTH as usize;
     let mut out: Vec<WideBvhNode> = Vec::new();
+    let mut packs: Vec<TrianglePack> = Vec::new();
+    let mut leaf_word = |leaf: u32| {
+        let index = packs.len() as u32;
+        packs.push(pack(leaf, triangles));
+        index | (leaf & !LEAF_FIRST_MASK)
+    };
     // (binary node, wide index): binary inner nodes whose wide node is still to be filled.
     let mut todo: Vec<(usize, usize)> = Vec::new();
     out.push(WideBvhNode::default());
     if nodes[0].leaf != 0 {
-        set_child(&mut out[0], 0, &nodes[0], nodes[0].leaf);
+        set_child(&mut out[0], 0, &nodes[0], leaf_word(nodes[0].leaf));
         out[0].child_count = 1;
     } else {
         todo.push((0, 0));
@@ -81,7 +95,7 @@ pub fn collapse(nodes: &[BvhNode]) -> WideBvh {
         }
         for (lane, &c) in slots.iter().enumerate() {
             let word = if nodes[c].leaf != 0 {
-                nodes[c].leaf
+                leaf_word(nodes[c].leaf)
             } else {
                 let index = out.len();
                 out.push(WideBvhNode::default());
@@ -95,8 +109,33 @@ pub fn collapse(nodes: &[BvhNode]) -> WideBvh {
     let stack_need = stack_need(&out);
     WideBvh {
         nodes: out,
+        packs,
         stack_need,
     }
+}
+
+/// The triangles of the binary leaf `leaf` (first | count << 28) in float4 lanes; unused lanes
+/// are zero (the walk never reads their answers).
+fn pack(leaf: u32, triangles: &[TriangleGeom]) -> TrianglePack {
+    let first = leaf & LEAF_FIRST_MASK;
+    let count = leaf >> LEAF_COUNT_SHIFT;
+    assert!(
+        count <= MAX_LEAF_TRIANGLES,
+        "a leaf of {count} triangles does not fit a pack"
+    );
+    let mut p = TrianglePack {
+        first,
+        count,
+        ..Default::default()
+    };
+    for lane in 0..count as usize {
+        let t = &triangles[first as usize + lane];
+        let (v0, e1, e2) = (t.v0.xyz(), t.v1.xyz() - t.v0.xyz(), t.v2.xyz() - t.v0.xyz());
+        [p.v0_x[lane], p.v0_y[lane], p.v0_z[lane]] = v0.to_array();
+        [p.e1_x[lane], p.e1_y[lane], p.e1_z[lane]] = e1.to_array();
+        [p.e2_x[lane], p.e2_y[lane], p.e2_z[lane]] = e2.to_array();
+    }
+    p
 }
 
 fn set_child(w: &mut WideBvhNode, lane: usize, n: &BvhNode, word: u32) {
@@ -142,6 +181,7 @@ pub fn stack_need(nodes: &[WideBvhNode]) -> usize {
 /// exactly once (so every triangle, in its own leaf's box).
 pub fn validate(wide: &WideBvh, binary: &[BvhNode]) {
     let mut leaves: Vec<u32> = Vec::new();
+    let mut packs_met = vec![0u32; wide.packs.len()];
     for (i, n) in wide.nodes.iter().enumerate() {
         let count = n.child_count as usize;
         assert!(
@@ -157,7 +197,10 @@ pub fn validate(wide: &WideBvh, binary: &[BvhNode]) {
                     "node {i} lane {lane}: child {c}"
                 );
             } else {
-                leaves.push(w);
+                let p = &wide.packs[(w & LEAF_FIRST_MASK) as usize];
+                assert_eq!(p.count, w >> LEAF_COUNT_SHIFT, "node {i} lane {lane}");
+                packs_met[(w & LEAF_FIRST_MASK) as usize] += 1;
+                leaves.push(p.first | p.count << LEAF_COUNT_SHIFT);
             }
         }
     }
@@ -179,13 +222,25 @@ pub fn validate(wide: &WideBvh, binary: &[BvhNode]) {
 mod tests {
     use super::*;
     use crate::bvh::tests::soup;
-    use crate::bvh::{BuildQuality, build};
+    use crate::bvh::{BuildQuality, FlatBvh, build};
+    use crate::layout::Float4;
+
+    /// The triangles in the tree's leaf order, as the scene arrays hold them.
+    fn leaf_order(bvh: &FlatBvh, tris: &[[glam::Vec3; 3]]) -> Vec<TriangleGeom> {
+        bvh.triangle_order
+            .iter()
+            .map(|&i| {
+                let [v0, v1, v2] = tris[i as usize].map(|v| Float4::from_vec3(v, 0.0));
+                TriangleGeom { v0, v1, v2 }
+            })
+            .collect()
+    }
 
     #[test]
     fn collapse_keeps_every_leaf_in_fewer_nodes() {
         for n in [1, 2, 3, 9, 500, 5000] {
             let binary = build(&soup(n), BuildQuality::Medium).unwrap();
-            let wide = collapse(&binary.nodes);
+            let wide = collapse(&binary.nodes, &leaf_order(&binary, &soup(n)));
             validate(&wide, &binary.nodes);
             assert!(wide.fits_stack(), "{n} triangles need {}", wide.stack_need);
             if n >= 500 {
@@ -204,12 +259,23 @@ mod tests {
     #[test]
     fn a_single_leaf_becomes_a_root_with_one_child() {
         let binary = build(&soup(1), BuildQuality::Medium).unwrap();
-        let wide = collapse(&binary.nodes);
+        let tris = leaf_order(&binary, &soup(1));
+        let wide = collapse(&binary.nodes, &tris);
         assert_eq!(wide.nodes.len(), 1);
         assert_eq!(wide.nodes[0].child_count, 1);
-        assert_eq!(wide.nodes[0].child[0], binary.nodes[0].leaf);
+        assert_eq!(
+            wide.nodes[0].child[0],
+            1 << LEAF_COUNT_SHIFT,
+            "pack 0, one triangle"
+        );
         assert_eq!(wide.stack_need, 0);
-        assert!(collapse(&[]).nodes.is_empty());
+        // The pack holds the triangle's first vertex and its edges as the kernels form them.
+        let p = &wide.packs[0];
+        assert_eq!((p.first, p.count), (0, 1));
+        assert_eq!(p.e1_y[0], tris[0].v1.0[1] - tris[0].v0.0[1]);
+        assert_eq!(p.e2_z[0], tris[0].v2.0[2] - tris[0].v0.0[2]);
+        assert_eq!(p.v0_x[1], 0.0);
+        assert!(collapse(&[], &[]).nodes.is_empty());
     }
 
     #[test]

@@ -37,6 +37,7 @@ pub fn all_declarations() -> Vec<Declaration> {
         declaration::<SceneParams>(false),
         declaration::<BvhNode>(false),
         declaration::<WideBvhNode>(false),
+        declaration::<TrianglePack>(false),
         declaration::<TriangleGeom>(false),
         declaration::<TriangleShading>(false),
         declaration::<Sphere>(false),

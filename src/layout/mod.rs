@@ -226,12 +226,34 @@ device_structs! {
         pub max_x: [f32; 8],
         pub max_y: [f32; 8],
         pub max_z: [f32; 8],
-        /// An inner child's node index, or a leaf's first triangle | count << 28 (the leaf
-        /// word of BvhNode): a word whose top four bits are zero is an inner node.
+        /// An inner child's node index, or for a leaf its TrianglePack's index | triangle
+        /// count << 28: a word whose top four bits are zero is an inner node.
         pub child: [u32; 8],
         /// Children in use, from lane 0; the other lanes are never entered.
         pub child_count: u32,
         pub pad: [u32; 7],
+    }
+
+    /// The triangles of one leaf of the wide BVH as a structure of arrays (issue 14): up to
+    /// four triangles, one per float4 lane, so that one Möller-Trumbore test (Alg. 3) in four
+    /// lanes tests them all. The edges are stored as the kernels' scalar test computes them
+    /// (v1 - v0, v2 - v0: the same floats), so each lane's t, u and v are that test's bits.
+    #[align(16)]
+    pub struct TrianglePack {
+        pub v0_x: [f32; 4],
+        pub v0_y: [f32; 4],
+        pub v0_z: [f32; 4],
+        pub e1_x: [f32; 4],
+        pub e1_y: [f32; 4],
+        pub e1_z: [f32; 4],
+        pub e2_x: [f32; 4],
+        pub e2_y: [f32; 4],
+        pub e2_z: [f32; 4],
+        /// The leaf's first triangle (leaf order): lane i is triangle first + i.
+        pub first: u32,
+        /// Lanes in use, from lane 0.
+        pub count: u32,
+        pub pad: [u32; 2],
     }
 
     /// Triangle vertices for intersection (Alg. 3), in leaf order.

@@ -31,7 +31,7 @@ use crate::bvh::wide::MAX_BVH_STACK;
 use crate::gpu::{Gpu, enqueue_rows, event_duration, fnv1a, round_up};
 use crate::layout::outputs::{BUFFERS, BufferId, Output, OutputSet};
 use crate::layout::{
-    BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom,
+    BvhNode, Float4, Light, Material, SceneParams, Sphere, TextureInfo, TriangleGeom, TrianglePack,
     TriangleShading, WideBvhNode,
 };
 use crate::scene::Scene;
@@ -107,6 +107,8 @@ struct DeviceScene {
     params: Buffer<SceneParams>,
     nodes: NodeBuffer,
     tri_geom: Buffer<TriangleGeom>,
+    /// The wide BVH's leaves; a one-pack stand-in for the skip-index walk.
+    tri_packs: Buffer<TrianglePack>,
     tri_shading: Buffer<TriangleShading>,
     spheres: Buffer<Sphere>,
     materials: Buffer<Material>,
@@ -131,6 +133,10 @@ impl DeviceScene {
                 BvhLayout::Wide => NodeBuffer::Wide(gpu.upload(&a.wide_bvh.nodes)?),
             },
             tri_geom: gpu.upload(&a.tri_geom)?,
+            tri_packs: match bvh {
+                BvhLayout::Skip => gpu.upload(&[TrianglePack::default()])?,
+                BvhLayout::Wide => gpu.upload(&a.wide_bvh.packs)?,
+            },
             tri_shading: gpu.upload(&a.tri_shading)?,
             spheres: gpu.upload(&a.spheres)?,
             materials: gpu.upload(&a.materials)?,
@@ -149,6 +155,7 @@ impl DeviceScene {
             NodeBuffer::Wide(n) => b.arg_named("nodes", n),
         };
         b.arg_named("tri_geom", &self.tri_geom)
+            .arg_named("tri_packs", &self.tri_packs)
             .arg_named("tri_shading", &self.tri_shading)
             .arg_named("spheres", &self.spheres)
             .arg_named("materials", &self.materials)
@@ -540,6 +547,7 @@ impl Renderer {
             "params",
             "nodes",
             "tri_geom",
+            "tri_packs",
             "tri_shading",
             "spheres",
             "materials",

@@ -421,6 +421,11 @@ pub fn device_intersect(
     };
     let nodes = gpu.upload(&node_bytes).unwrap();
     let geom = gpu.upload(&arrays.tri_geom).unwrap();
+    let packs = match bvh {
+        BvhLayout::Skip => gpu.upload(&[noisefree::layout::TrianglePack::default()]),
+        BvhLayout::Wide => gpu.upload(&arrays.wide_bvh.packs),
+    }
+    .unwrap();
     let spheres = gpu.upload(&arrays.spheres).unwrap();
     let o = gpu.upload(&origins).unwrap();
     let d = gpu.upload(&dirs).unwrap();
@@ -435,6 +440,7 @@ pub fn device_intersect(
         .arg(&params)
         .arg(&nodes)
         .arg(&geom)
+        .arg(&packs)
         .arg(&spheres)
         .arg(&o)
         .arg(&d)
