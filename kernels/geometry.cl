@@ -11,7 +11,7 @@
 // NaN decide the hit arbitrarily; with +-1e30 every product is finite or +-inf, never NaN, an
 // axis-parallel ray inside a slab gets the interval (-huge, +huge) and one outside an empty
 // one. A ray exactly in a face's plane is classified by the sign of its zero; the host pads
-// every box outward (src/bvh.rs pad_bound) so that no triangle lies on a box face and that
+// every box outward (src/bvh/mod.rs pad_bound) so that no triangle lies on a box face and that
 // choice never decides a hit.
 inline float3 safe_inverse(float3 d) {
     const float tiny = 1.0e-30f;

@@ -159,7 +159,7 @@ mod tests {
                 Vec3::ONE
             ));
         }
-        // (Origins exactly on a face plane are handled by padding the BVH's boxes, src/bvh.rs.)
+        // (Origins exactly on a face plane are handled by padding the BVH's boxes, src/bvh/mod.rs.)
     }
 
     #[test]

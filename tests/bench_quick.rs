@@ -25,7 +25,7 @@ fn quick_benchmark_completes_with_well_formed_results() {
         ("accuracy-time", 7),
         ("sweep", 6),
         ("roofline", 14),
-        ("tracers", 12),
+        ("tracers", 13),
     ] {
         let csv = std::fs::read_to_string(out.join(format!("{study}.csv")))
             .unwrap_or_else(|e| panic!("{study}.csv: {e}"));
@@ -46,10 +46,11 @@ fn quick_benchmark_completes_with_well_formed_results() {
             "{study}.md missing"
         );
     }
-    // The wavefront tracer's films are the megakernel's bytes on every scene of the run.
+    // The wavefront tracer's and the skip-index walk's films are the megakernel's bytes on
+    // every scene of the run.
     let tracers = std::fs::read_to_string(out.join("tracers.csv")).unwrap();
     for row in tracers.lines().skip(1) {
-        assert_eq!(row.split(',').nth(6), Some("true"), "tracers: {row}");
+        assert_eq!(row.split(',').nth(7), Some("true"), "tracers: {row}");
     }
     // The quality study runs every denoiser of the registry that changes the quick scene
     // (cornell_diffuse), and the unfiltered image; no row repeats the unfiltered image under

@@ -435,8 +435,20 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
     };
     let renderer = film.primary();
     if !args.quiet {
+        let walked = match renderer.bvh {
+            BvhLayout::Skip => "skip-index walk".to_string(),
+            BvhLayout::Wide => {
+                let wide = &renderer.arrays.wide_bvh;
+                format!(
+                    "walked as {} eight-wide nodes, {} leaves, stack {}",
+                    wide.nodes.len(),
+                    wide.packs.len(),
+                    wide.stack_entries()
+                )
+            }
+        };
         eprintln!(
-            "device: {} | {} triangles, {} BVH nodes (built in {:.2} s), {} spheres, {} lights",
+            "device: {} | {} triangles, {} BVH nodes (built in {:.2} s; {walked}), {} spheres, {} lights",
             film.describe(),
             renderer.arrays.tri_geom.len(),
             renderer.arrays.nodes.len(),
