@@ -14,18 +14,11 @@ use noisefree::scene::Scene;
 /// Renders `scene` with both tracers in launches of `batches` samples and asserts the same
 /// buffers, rays and debug counters ([`render_in_launches`], [`assert_same_render`]).
 fn assert_tracers_agree(scene: &Scene, options: &RenderOptions, batches: &[u32], what: &str) {
-    let render = |tracer: Tracer| {
-        let mut o = options.clone();
-        o.tracer = tracer;
-        render_in_launches(scene, &o, batches, what)
-    };
-    let mega = render(Tracer::Megakernel);
-    let wave = render(Tracer::Wavefront);
-    assert_same_render(
-        &mega,
-        &wave,
-        &format!("{what}: the wavefront against the megakernel"),
-    );
+    let (mut mega, mut wave) = (options.clone(), options.clone());
+    mega.tracer = Tracer::Megakernel;
+    wave.tracer = Tracer::Wavefront;
+    let what = format!("{what}: the wavefront against the megakernel");
+    assert_options_agree(scene, &mega, &wave, batches, &what);
 }
 
 #[test]

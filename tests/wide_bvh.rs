@@ -9,22 +9,15 @@ mod common;
 use common::*;
 use noisefree::bvh::BvhLayout;
 use noisefree::layout::outputs::{Output, OutputSet};
-use noisefree::render::{RenderOptions, Renderer, Tracer};
+use noisefree::render::{RenderOptions, Renderer, SceneArrays, Tracer};
 use noisefree::scene::Scene;
 
 fn assert_trees_agree(scene: &Scene, options: &RenderOptions, batches: &[u32], what: &str) {
-    let render = |bvh: BvhLayout| {
-        let mut o = options.clone();
-        o.bvh = bvh;
-        render_in_launches(scene, &o, batches, what)
-    };
-    let skip = render(BvhLayout::Skip);
-    let wide = render(BvhLayout::Wide);
-    assert_same_render(
-        &skip,
-        &wide,
-        &format!("{what}: the wide BVH against the skip-index BVH"),
-    );
+    let (mut skip, mut wide) = (options.clone(), options.clone());
+    skip.bvh = BvhLayout::Skip;
+    wide.bvh = BvhLayout::Wide;
+    let what = format!("{what}: the wide BVH against the skip-index BVH");
+    assert_options_agree(scene, &skip, &wide, batches, &what);
 }
 
 #[test]
@@ -63,7 +56,7 @@ fn shadow_light_field_indirect_outputs_and_the_wavefront_give_the_same_bytes() {
 
 #[test]
 fn the_wide_walk_is_built_with_the_stack_its_tree_needs() {
-    // The conference room's tree is the deepest bundled one.
+    // The conference room's tree is the deepest bundled one: 71 entries at most.
     let scene = bundled_scene("conference");
     let r = Renderer::new(gpu(), &scene, &options(&scene, 8, 8, 1)).unwrap();
     let wide = &r.arrays.wide_bvh;
@@ -75,4 +68,19 @@ fn the_wide_walk_is_built_with_the_stack_its_tree_needs() {
     );
     assert_eq!(wide.stack_entries() % 8, 0);
     assert!(wide.stack_entries() >= wide.stack_need);
+}
+
+#[test]
+fn a_tree_too_deep_for_the_stack_is_walked_by_the_skip_index_walk() {
+    let scene = bundled_scene("cornell_glossy");
+    let o = options(&scene, 16, 12, 2);
+    let mut arrays = SceneArrays::build(&scene, &o.frame).unwrap();
+    arrays.wide_bvh.stack_need = noisefree::bvh::wide::MAX_BVH_STACK + 1;
+    let mut deep = Renderer::with_arrays(gpu(), &scene, arrays, &o).unwrap();
+    assert_eq!(deep.bvh, BvhLayout::Skip);
+    let mut wide = Renderer::new(gpu(), &scene, &o).unwrap();
+    assert_eq!(wide.bvh, BvhLayout::Wide);
+    deep.render_samples(2).unwrap();
+    wide.render_samples(2).unwrap();
+    assert_eq!(output_bytes(&deep.frame()), output_bytes(&wide.frame()));
 }

@@ -168,24 +168,24 @@ pub(super) fn any_sphere(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool 
 /// Every hit in (0, t_max), nearest and farthest (kernels/arrays/trace.cl `occluder_range`):
 /// AAF's any-hit shadow rays that record the distance and go on. None when nothing is hit.
 pub fn occluder_range(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, f32)> {
-    let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
-    triangle_hits(s, o, d, t_max, |t| {
-        lo = lo.min(t);
-        hi = hi.max(t);
-        false
-    });
-    sphere_range(s, o, d, t_max, lo, hi)
+    range_of_hits(s, o, d, t_max, |visit| triangle_hits(s, o, d, t_max, visit))
 }
 
-/// Widens (lo, hi) by both crossings of every sphere in range; None when nothing is hit.
-pub(super) fn sphere_range(
+/// The occluder range of the triangle hits a walk visits (`walk` calls its argument with each
+/// distance), then of both crossings of every sphere in range; None when nothing is hit.
+pub(super) fn range_of_hits(
     s: &SceneArrays,
     o: Vec3,
     d: Vec3,
     t_max: f32,
-    mut lo: f32,
-    mut hi: f32,
+    walk: impl FnOnce(&mut dyn FnMut(f32) -> bool) -> bool,
 ) -> Option<(f32, f32)> {
+    let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+    walk(&mut |t| {
+        lo = lo.min(t);
+        hi = hi.max(t);
+        false
+    });
     for sp in s.spheres.iter().take(s.params.sphere_count as usize) {
         let c = v3(&sp.center);
         if let Some(t0) = ray_sphere(o, d, c, sp.radius, 0.0, t_max).filter(|&t| t > 0.0) {

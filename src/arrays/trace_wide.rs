@@ -12,7 +12,7 @@
 use glam::Vec3;
 
 use super::SceneArrays;
-use super::trace::{Hit, Prim, any_sphere, nearest_sphere, sphere_range};
+use super::trace::{Hit, Prim, any_sphere, nearest_sphere, range_of_hits};
 use crate::bvh::wide::is_inner;
 use crate::geometry::{ROBUST_FAR_SCALE, ray_triangle_edges, safe_inverse, slab_interval};
 use crate::layout::{LEAF_FIRST_MASK, TrianglePack, WideBvhNode};
@@ -139,11 +139,5 @@ pub fn occluded(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> bool {
 
 /// Every hit in (0, t_max), nearest and farthest; None when nothing is hit.
 pub fn occluder_range(s: &SceneArrays, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, f32)> {
-    let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
-    triangle_hits(s, o, d, t_max, |t| {
-        lo = lo.min(t);
-        hi = hi.max(t);
-        false
-    });
-    sphere_range(s, o, d, t_max, lo, hi)
+    range_of_hits(s, o, d, t_max, |visit| triangle_hits(s, o, d, t_max, visit))
 }

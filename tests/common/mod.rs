@@ -320,6 +320,20 @@ pub fn render_in_launches(
     (r.frame(), r.rays_total, r.read_debug_counters().unwrap())
 }
 
+/// Renders `scene` with options `a` and `b` ([`render_in_launches`]) and asserts the same
+/// bytes, rays and counters ([`assert_same_render`]).
+pub fn assert_options_agree(
+    scene: &Scene,
+    a: &RenderOptions,
+    b: &RenderOptions,
+    batches: &[u32],
+    what: &str,
+) {
+    let first = render_in_launches(scene, a, batches, what);
+    let second = render_in_launches(scene, b, batches, what);
+    assert_same_render(&first, &second, what);
+}
+
 /// Asserts that two renders wrote the same bytes to every buffer, traced as many rays and
 /// counted the same.
 pub fn assert_same_render(a: &RenderRecord, b: &RenderRecord, what: &str) {
