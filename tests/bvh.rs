@@ -9,7 +9,7 @@ mod common;
 use common::{TestRng, bundled_scenes, device_intersect};
 use glam::{Vec2, Vec3};
 use noisefree::arrays::trace::{
-    Prim, brute_force_closest, intersect_closest, occluded, occluder_range,
+    Hit, Prim, brute_force_closest, intersect_closest, occluded, occluder_range,
 };
 use noisefree::arrays::trace_wide;
 use noisefree::bvh::BvhLayout;
@@ -176,20 +176,29 @@ fn prim_code(p: Option<Prim>) -> i32 {
 /// Compares the BVH traversals (device and Rust, both trees) with brute force; returns
 /// mismatches.
 fn check(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<String> {
-    let mut bad = check_rust(arrays, rays);
+    // Brute force once per ray (the conference room: 360k triangles a ray).
+    let truths: Vec<Option<Hit>> = rays
+        .par_iter()
+        .map(|&(o, d, t_max)| brute_force_closest(arrays, o, d, t_max))
+        .collect();
+    let mut bad = check_rust(arrays, rays, &truths);
     for bvh in [BvhLayout::Skip, BvhLayout::Wide] {
-        bad.extend(check_device(arrays, rays, bvh));
+        bad.extend(check_device(arrays, rays, &truths, bvh));
     }
     bad
 }
 
 /// The Rust walks of both trees run the same float operations as brute force: exact, ties
 /// included (the triangle first in leaf order).
-fn check_rust(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<String> {
+fn check_rust(
+    arrays: &SceneArrays,
+    rays: &[(Vec3, Vec3, f32)],
+    truths: &[Option<Hit>],
+) -> Vec<String> {
     rays.par_iter()
+        .zip(truths.par_iter())
         .enumerate()
-        .filter_map(|(i, &(o, d, t_max))| {
-            let truth = brute_force_closest(arrays, o, d, t_max);
+        .filter_map(|(i, (&(o, d, t_max), &truth))| {
             let cpu = intersect_closest(arrays, o, d, t_max);
             if cpu != truth {
                 return Some(format!(
@@ -221,13 +230,17 @@ fn check_rust(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<String> {
         .collect()
 }
 
-fn check_device(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)], bvh: BvhLayout) -> Vec<String> {
+fn check_device(
+    arrays: &SceneArrays,
+    rays: &[(Vec3, Vec3, f32)],
+    truths: &[Option<Hit>],
+    bvh: BvhLayout,
+) -> Vec<String> {
     let device = device_intersect(arrays, rays, bvh);
     rays.par_iter()
-        .zip(device.par_iter())
+        .zip(device.par_iter().zip(truths.par_iter()))
         .enumerate()
-        .filter_map(|(i, (&(o, d, t_max), &(dt, dp, d_occ)))| {
-            let truth = brute_force_closest(arrays, o, d, t_max);
+        .filter_map(|(i, (&(o, d, _), (&(dt, dp, d_occ), &truth)))| {
             let (tt, tp) = (truth.map_or(-1.0, |h| h.t), prim_code(truth.map(|h| h.prim)));
             let same_t = (dt - tt).abs() <= 1e-5 * tt.abs().max(1.0);
             // The device may round differently in the last bits; a different primitive is only
