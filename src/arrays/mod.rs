@@ -1,6 +1,7 @@
 //! The scene as flat arrays in the shared layout (src/layout.rs): exactly what is uploaded to
 //! the device, and what the CPU mirror of the kernels (src/render/cpu) reads, so both trace the
-//! same data; and the ray queries over them ([`trace`], the mirror of kernels/arrays/trace.cl).
+//! same data; and the ray queries over them ([`trace`], the mirror of kernels/arrays/trace.cl;
+//! [`trace_wide`], of kernels/arrays/trace_wide.cl).
 
 pub mod texels;
 pub mod trace;
