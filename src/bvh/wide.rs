@@ -3,7 +3,7 @@
 //! checks at once (kernels/arrays/trace_wide.cl). A ray tracer on a CPU spends most of its time
 //! walking boxes one at a time with a scalar ray (Wald, Benthin & Boulos 2008, "Getting rid of
 //! packets"); eight children per node make one box test of eight lanes out of eight scalar
-//! ones, and a tree a third as deep.
+//! ones, over far fewer nodes (the conference room: 34,444 wide nodes for 227,927 binary ones).
 //!
 //! The collapse keeps the leaves and the triangles' leaf order of the binary tree: a wide node
 //! takes the two children of a binary node and opens its largest inner child (by surface area,
