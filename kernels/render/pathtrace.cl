@@ -46,22 +46,12 @@ inline PathSample trace_path(const SceneRefs* s, uint x, uint y, uint key, uint*
 // A, so its outputs are those of exactly the samples A..B-1, which `noisefree merge` combines
 // with the other ranges (src/stats/merge.rs). The random numbers hash the pixel's place in the
 // whole image and the absolute sample number, so a sample is the same whichever render, tile
-// or launch draws it. The host binds every argument by name (src/render/mod.rs), the output
+// or launch draws it. The host binds every argument by name (src/render/mod.rs): the scene's
+// (SCENE_PARAMS, the debug counters last, used by DEBUG_COUNTERS builds only), then the output
 // buffers in the order of the generated RENDER_OUTPUT_PARAMS; they hold the tile's pixels.
-__kernel void render(__constant const SceneParams* params,
-                     __global const SceneNode* nodes,
-                     __global const TriangleGeom* tri_geom,
-                     __global const TrianglePack* tri_packs,
-                     __global const TriangleShading* tri_shading,
-                     __global const Sphere* spheres,
-                     __global const Material* materials,
-                     __global const TextureInfo* textures,
-                     __global const float4* texels,
-                     __global const Light* lights,
-                     __global const float* light_cdf,
+__kernel void render(SCENE_PARAMS,
                      RENDER_OUTPUT_PARAMS,
                      __global uint* ray_counts,
-                     __global uint* debug_counters,     // DEBUG_COUNTERS builds only
                      uint sample_capacity,              // samples per pixel sample_vectors holds
                      uint tile_x,                       // the tile's top-left pixel in the image
                      uint tile_y,
@@ -76,8 +66,7 @@ __kernel void render(__constant const SceneParams* params,
     uint x = tile_x + tx, y = tile_y + ty;
     uint pixel = y * params->image_width + x;           // in the image: its random numbers
     uint slot = ty * tile_width + tx;                   // in this render's buffers
-    SceneRefs s = {params, nodes, tri_geom, tri_packs, tri_shading, spheres, materials,
-                   textures, texels, lights, light_cdf, debug_counters};
+    SceneRefs s = SCENE_REFS;
     PixelStats stats;
     pixel_stats_load(&stats, RENDER_OUTPUT_ARGS, slot);
     // The shadow passes ran before the first path samples (whole images only: the host

@@ -82,8 +82,7 @@ impl LensPass {
             .name(name)
             .queue(gpu.queue.clone())
             .global_work_size(size);
-        scene.bind(&mut b);
-        b.arg_named("debug_counters", debug_counters);
+        scene.bind(&mut b, debug_counters);
         match &shadows {
             Some(s) => {
                 b.arg_named("shadow_pixels", s.shadow_pixels)

@@ -147,8 +147,13 @@ impl DeviceScene {
         })
     }
 
-    /// Binds the scene arguments every scene kernel starts with, by name, in their order.
-    fn bind<'b>(&'b self, b: &mut ocl::builders::KernelBuilder<'b>) {
+    /// Binds the scene arguments every scene kernel starts with (kernels/arrays/trace.cl
+    /// SCENE_PARAMS), by name, in their order: the scene's buffers, then the debug counters.
+    fn bind<'b>(
+        &'b self,
+        b: &mut ocl::builders::KernelBuilder<'b>,
+        debug_counters: &'b Buffer<u32>,
+    ) {
         b.arg_named("params", &self.params);
         match &self.nodes {
             NodeBuffer::Skip(n) => b.arg_named("nodes", n),
@@ -162,7 +167,8 @@ impl DeviceScene {
             .arg_named("textures", &self.textures)
             .arg_named("texels", &self.texels)
             .arg_named("lights", &self.lights)
-            .arg_named("light_cdf", &self.light_cdf);
+            .arg_named("light_cdf", &self.light_cdf)
+            .arg_named("debug_counters", debug_counters);
     }
 }
 
@@ -432,13 +438,12 @@ impl Renderer {
         over_pixels(&mut builder, self.tile, self.local_size);
         // Every argument by name, in the kernel's order (checked against the kernel's own
         // argument names by tests/layout.rs).
-        self._scene.bind(&mut builder);
+        self._scene.bind(&mut builder, &self.debug_counters);
         for (id, b) in &self.buffers {
             builder.arg_named(id.decl().name, b);
         }
         builder
             .arg_named("ray_counts", &self.ray_counts)
-            .arg_named("debug_counters", &self.debug_counters)
             .arg_named("sample_capacity", self.sample_capacity)
             .arg_named("tile_x", self.tile.x)
             .arg_named("tile_y", self.tile.y)
@@ -555,11 +560,11 @@ impl Renderer {
             "texels",
             "lights",
             "light_cdf",
+            "debug_counters",
         ];
         v.extend(BUFFERS.iter().map(|b| b.name));
         v.extend([
             "ray_counts",
-            "debug_counters",
             "sample_capacity",
             "tile_x",
             "tile_y",

@@ -55,7 +55,7 @@ const NEXT: usize = 0;
 const SHADOW: usize = 1;
 
 /// The wavefront kernels, bound to the renderer's buffers, and the per-path records: one path
-/// in flight per pixel of the renderer's tile.
+/// in flight per pixel of a wave (`wave_rows` rows of the renderer's tile).
 pub struct Wavefront {
     generate: Kernel,
     extend: Kernel,
@@ -126,8 +126,7 @@ impl Wavefront {
         let builder = |name: &'static str| {
             let mut k = Kernel::builder();
             k.program(program).name(name).queue(gpu.queue.clone());
-            scene.bind(&mut k);
-            k.arg_named("debug_counters", b.debug_counters);
+            scene.bind(&mut k, b.debug_counters);
             k
         };
         let over_queue = |k: &mut ocl::builders::KernelBuilder| {
@@ -274,8 +273,9 @@ impl Wavefront {
         }
         self.generate.set_arg("sample", sample)?;
         self.reset_counts()?;
-        // SAFETY: every buffer argument is owned by the renderer or by self and sized for the
-        // whole tile; the kernel skips work-items beyond it.
+        // SAFETY: every buffer argument is owned by the renderer or by self: the outputs hold
+        // the whole tile, the records one wave, which `rows` (a wave) and `path_base` index;
+        // the kernel skips work-items beyond the tile.
         events.push((GENERATE, unsafe {
             enqueue_rows(
                 &self.generate,
@@ -349,8 +349,9 @@ impl Wavefront {
 /// Launches a queue kernel over `count` work-items (rounded up to its work-group).
 fn launch_queue(kernel: &Kernel, count: u32, what: &str) -> Result<Event> {
     let mut event = Event::empty();
-    // SAFETY: the queue kernels' buffers are owned by the renderer or the Wavefront and hold
-    // a whole tile; work-items past `count` return at once.
+    // SAFETY: the queue kernels' buffers are owned by the renderer or the Wavefront; the
+    // queues and records hold a wave, and `count` is at most a wave's paths; work-items past
+    // `count` return at once.
     unsafe {
         kernel
             .cmd()

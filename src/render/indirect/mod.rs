@@ -171,9 +171,8 @@ impl IndirectPasses {
                 .name(name)
                 .queue(gpu.queue.clone())
                 .global_work_size(size);
-            scene.bind(&mut b);
-            b.arg_named("debug_counters", debug_counters)
-                .arg_named("indirect_pixels", pixels)
+            scene.bind(&mut b, debug_counters);
+            b.arg_named("indirect_pixels", pixels)
                 .arg_named("indirect_rays", &rays);
             b
         };

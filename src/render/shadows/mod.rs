@@ -249,8 +249,7 @@ impl ShadowPasses {
                 .queue(gpu.queue.clone())
                 .global_work_size(size);
             if with_scene {
-                scene.bind(&mut b);
-                b.arg_named("debug_counters", debug_counters);
+                scene.bind(&mut b, debug_counters);
             }
             b.arg_named("shadow_pixels", pixels);
             Ok(b)
