@@ -182,9 +182,21 @@ fn check(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<String> {
         .map(|&(o, d, t_max)| brute_force_closest(arrays, o, d, t_max))
         .collect();
     let mut bad = check_rust(arrays, rays, &truths);
-    for bvh in [BvhLayout::Skip, BvhLayout::Wide] {
-        bad.extend(check_device(arrays, rays, &truths, bvh));
-    }
+    let skip = device_intersect(arrays, rays, BvhLayout::Skip);
+    let wide = device_intersect(arrays, rays, BvhLayout::Wide);
+    bad.extend(check_device(rays, &skip, &truths, BvhLayout::Skip));
+    bad.extend(check_device(rays, &wide, &truths, BvhLayout::Wide));
+    // On the device the two walks give the same bits: the wide walk's four-lane triangle test
+    // runs the scalar test's float operations in order, and ties go to the same triangle.
+    bad.extend(
+        skip.iter()
+            .zip(&wide)
+            .enumerate()
+            .filter_map(|(i, (a, b))| {
+                (a.0.to_bits() != b.0.to_bits() || a.1 != b.1 || a.2 != b.2)
+                    .then(|| format!("ray {i}: device skip-index walk {a:?} != wide walk {b:?}"))
+            }),
+    );
     bad
 }
 
@@ -230,13 +242,13 @@ fn check_rust(
         .collect()
 }
 
+/// The device's answers (`device`, from walking the `bvh` tree) against brute force.
 fn check_device(
-    arrays: &SceneArrays,
     rays: &[(Vec3, Vec3, f32)],
+    device: &[(f32, i32, bool)],
     truths: &[Option<Hit>],
     bvh: BvhLayout,
 ) -> Vec<String> {
-    let device = device_intersect(arrays, rays, bvh);
     rays.par_iter()
         .zip(device.par_iter().zip(truths.par_iter()))
         .enumerate()
