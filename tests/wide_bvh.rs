@@ -62,8 +62,9 @@ fn the_wide_walk_is_built_with_the_stack_its_tree_needs() {
     let r = Renderer::new(gpu(), &scene, &options(&scene, 8, 8, 1)).unwrap();
     let wide = &r.arrays.wide_bvh;
     assert_eq!(r.bvh, BvhLayout::Wide);
+    // More than the 64 entries a fixed stack first had (measured: 71), within the cap.
     assert!(
-        wide.stack_need > 8 && wide.fits_stack(),
+        wide.stack_need > 64 && wide.fits_stack(),
         "{}",
         wide.stack_need
     );

@@ -36,8 +36,9 @@
 //!   thesis's gain, and Tables 5.3-5.4 (`rpf`).
 //! - `roofline`: each image filter kernel's achieved GFLOP/s and GB/s against the device's
 //!   own peaks, measured by micro-kernels in the same run (`roofline/`).
-//! - `tracers`: the megakernel and the wavefront tracer side by side per scene: samples/s,
-//!   same bytes, the wavefront's time per step (`tracers`).
+//! - `tracers`: the megakernel, the wavefront tracer and the megakernel on the skip-index
+//!   BVH side by side per scene: samples/s, same bytes, the wavefront's time per step
+//!   (`tracers`).
 //!
 //! Files: `speed` holds the first three studies; `quality`, `accuracy_time` and `sweep` one
 //! study each, with `study` for what those three share and `curves` for the log-log maths of
@@ -107,7 +108,7 @@ pub enum Study {
     RpfScale,
     /// Each image filter kernel's GFLOP/s and GB/s against the device's measured peaks.
     Roofline,
-    /// The megakernel and the wavefront tracer side by side on every scene.
+    /// The megakernel, the wavefront tracer and the skip-index BVH side by side per scene.
     Tracers,
 }
 
