@@ -278,9 +278,9 @@ fn quantize_bitsets_avx512(
     let (lo, hi) = (_mm512_reduce_min_ps(lo), _mm512_reduce_max_ps(hi));
     let range = hi - lo;
     let wide = hi as f64 - lo as f64;
-    masks.fill(0);
     counts[..buckets].fill(0);
     if wide.is_nan() || wide <= 0.0 || wide.is_infinite() {
+        masks.fill(0);
         // Every value in bucket 0.
         for (w, m) in masks[..words].iter_mut().enumerate() {
             let left = n.saturating_sub(64 * w);
@@ -297,8 +297,13 @@ fn quantize_bitsets_avx512(
         _mm512_set1_ps(buckets as f32 / range),
         _mm512_set1_ps((buckets - 1) as f32),
     );
-    // The words past n stay 0 (`masks.fill` above).
-    for w in 0..n.div_ceil(64) {
+    // The words past n are 0; the loop below writes every other word (zeroing all of them
+    // first was 1 % of RPF's profile).
+    let used = n.div_ceil(64);
+    for b in 0..buckets {
+        masks[b * words + used..(b + 1) * words].fill(0);
+    }
+    for w in 0..used {
         // 64 values' buckets as 64 bytes (a missing lane's byte is 0 and its bit cleared).
         let mut codes = _mm512_setzero_si512();
         let mut valid = 0u64;

@@ -100,20 +100,24 @@ fn gather_avx512(
         }
         let block = &indices[first..(first + 16).min(indices.len())];
         for (half, base) in [(0, 0), (1, F_ROW)] {
-            let mut r = [_mm512_setzero_ps(); 16];
-            for (k, &i) in block.iter().enumerate() {
-                let line = if half == 0 {
-                    &rest[i as usize].0
-                } else {
-                    &features[i as usize].0
-                };
+            let line = |k: usize| {
+                let i = block[k] as usize;
+                let line = if half == 0 { &rest[i].0 } else { &features[i].0 };
                 // SAFETY: 16 floats, 64-byte aligned.
-                r[k] = unsafe { _mm512_load_ps(line.as_ptr()) };
-            }
-            for rk in r.iter_mut().skip(block.len()) {
-                // SAFETY: 16 floats.
-                *rk = unsafe { _mm512_loadu_ps(zero.as_ptr()) };
-            }
+                unsafe { _mm512_load_ps(line.as_ptr()) }
+            };
+            let r: [__m512; 16] = if block.len() == 16 {
+                // A whole block with constant indices, so that the lines stay in registers
+                // through the transpose (the loop below built them on the stack).
+                std::array::from_fn(line)
+            } else {
+                let mut r = [_mm512_setzero_ps(); 16];
+                for (k, rk) in r.iter_mut().enumerate() {
+                    // SAFETY: 16 floats.
+                    *rk = if k < block.len() { line(k) } else { unsafe { _mm512_loadu_ps(zero.as_ptr()) } };
+                }
+                r
+            };
             let t = transpose16(r);
             for (e, te) in t.iter().enumerate() {
                 // SAFETY: row base + e has room for first + 16 ≤ cap values.

@@ -307,9 +307,9 @@ pub fn standardize(values: &mut [f32]) -> (f64, f64) {
 }
 
 /// [`standardize`] for the rows `which` of `n` values, `rows[r * cap..][..n]`. On AVX-512 the
-/// rows go four at a time: each row's sums keep [`sum_f64`]'s four lanes and order (so the
-/// bytes are the same), and the four rows' chains run side by side instead of one waiting on
-/// the next addition.
+/// rows go [`GROUP`] at a time: each row's sums keep [`sum_f64`]'s four lanes and order (so the
+/// bytes are the same), and the rows' chains run side by side instead of one waiting on the
+/// next addition.
 pub fn standardize_rows(level: Level, rows: &mut [f32], cap: usize, which: &[usize], n: usize) {
     assert!(n <= cap && which.iter().all(|&r| rows.len() >= (r + 1) * cap));
     #[cfg(target_arch = "x86_64")]
@@ -323,6 +323,11 @@ pub fn standardize_rows(level: Level, rows: &mut [f32], cap: usize, which: &[usi
     }
 }
 
+/// Rows standardised side by side: eight four-lane chains keep the adder busy through its
+/// latency (four left the mean pass waiting on it).
+#[cfg(target_arch = "x86_64")]
+const GROUP: usize = 8;
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 fn standardize_rows_avx512(rows: &mut [f32], cap: usize, which: &[usize], n: usize) {
@@ -333,11 +338,11 @@ fn standardize_rows_avx512(rows: &mut [f32], cap: usize, which: &[usize], n: usi
     let (chunks, nf) = (n / 4, n as f64);
     // Σ f(v) over row r with sum_f64's lanes: four lanes over whole chunks of 4, the rest
     // added to lane 0 in order, then (l0 + l1) + (l2 + l3).
-    let sums = |rows: &[f32], group: [usize; 4], mean: [f64; 4], square: bool| -> [f64; 4] {
-        let mut acc = [_mm256_setzero_pd(); 4];
+    let sums = |rows: &[f32], group: [usize; GROUP], mean: [f64; GROUP], square: bool| {
+        let mut acc = [_mm256_setzero_pd(); GROUP];
         let means = mean.map(|m| _mm256_set1_pd(m));
         for c in 0..chunks {
-            for k in 0..4 {
+            for k in 0..GROUP {
                 // SAFETY: 4 values at 4c + 3 < n ≤ cap in row group[k].
                 let x = unsafe { _mm_loadu_ps(rows.as_ptr().add(group[k] * cap + 4 * c)) };
                 let mut v = _mm256_cvtps_pd(x);
@@ -348,7 +353,7 @@ fn standardize_rows_avx512(rows: &mut [f32], cap: usize, which: &[usize], n: usi
                 acc[k] = _mm256_add_pd(acc[k], v);
             }
         }
-        std::array::from_fn(|k| {
+        std::array::from_fn::<f64, GROUP, _>(|k| {
             let mut lanes = [0.0f64; 4];
             // SAFETY: 4 doubles.
             unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), acc[k]) };
@@ -360,12 +365,13 @@ fn standardize_rows_avx512(rows: &mut [f32], cap: usize, which: &[usize], n: usi
         })
     };
     let count = which.len();
-    for first in (0..count).step_by(4) {
-        // A last group of fewer than 4 rows repeats its last row (computed, not stored twice).
-        let group: [usize; 4] = std::array::from_fn(|k| which[(first + k).min(count - 1)]);
-        let mean = sums(rows, group, [0.0; 4], false).map(|s| s / nf);
+    for first in (0..count).step_by(GROUP) {
+        // A last group of fewer than GROUP rows repeats its last row (computed, not stored
+        // twice).
+        let group: [usize; GROUP] = std::array::from_fn(|k| which[(first + k).min(count - 1)]);
+        let mean = sums(rows, group, [0.0; GROUP], false).map(|s| s / nf);
         let var = sums(rows, group, mean, true).map(|s| s / nf);
-        for k in 0..(count - first).min(4) {
+        for k in 0..(count - first).min(GROUP) {
             let row = &mut rows[group[k] * cap..group[k] * cap + n];
             let sigma = var[k].sqrt();
             if !(sigma > 0.0 && sigma.is_finite()) {
