@@ -83,10 +83,13 @@ inline int bmfr_blocks_across(uint width, int2 off) {
 // frame's spp): silhouettes against the sky and out-of-focus edges mix sky light with a
 // surface's mean albedo, and demodulated by that small mean they are outliers that would ruin
 // their block's least-squares fit.
-inline bool bmfr_kept(__global const FilterVector* f, __global const float4* pos, float spp) {
-    bool light = fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f
+inline bool bmfr_light(__global const FilterVector* f) {
+    return fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f
         && f->indirect[0] == 0.0f && f->indirect[1] == 0.0f && f->indirect[2] == 0.0f;
-    return f->depth >= SKY_DEPTH || light || (*pos).w < spp;
+}
+
+inline bool bmfr_kept(__global const FilterVector* f, __global const float4* pos, float spp) {
+    return f->depth >= SKY_DEPTH || bmfr_light(f) || (*pos).w < spp;
 }
 
 // The pixel's unfiltered light, direct + indirect.

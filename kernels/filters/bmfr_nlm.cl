@@ -7,7 +7,23 @@
 // error). Included at the end of filters/bmfr.cl; the Rust reference does the same float
 // operations in the same order.
 //
-// A pixel takes part when bmfr_surface (filters/bmfr.cl) says so.
+// A pixel takes part by its class (bmfr_nlm_class; src/filters/bmfr/nlm.rs `class` has the
+// reasons) and averages pixels of its class only: a surface (bmfr_surface, filters/bmfr.cl),
+// its light demodulated by the albedo, or an open pixel (sky, or samples that did not all hit
+// a surface, with samples in both halves), its light as it is.
+#define BMFR_NLM_SURFACE 1.0f
+#define BMFR_NLM_OPEN 2.0f
+
+inline float bmfr_nlm_class(__global const FilterVector* f, __global const float4* pos,
+                            float4 odd, float spp) {
+    if (bmfr_surface(f, pos, odd, spp)) return BMFR_NLM_SURFACE;
+    return !bmfr_light(f) && odd.w >= 1.0f && spp - odd.w >= 1.0f ? BMFR_NLM_OPEN : 0.0f;
+}
+
+// What a pixel's light is divided by before the averaging and multiplied by after.
+inline float3 bmfr_nlm_modulation(__global const FilterVector* f, float class) {
+    return class == BMFR_NLM_OPEN ? (float3)(1.0f) : bmfr_albedo(f);
+}
 
 // The even samples' mean from the frame's mean and the odd samples' (the beauty itself when
 // there are no even samples).
@@ -16,8 +32,9 @@ inline float3 bmfr_even(float3 beauty, float4 odd, float spp) {
     return n_even >= 1.0f ? (spp * beauty - odd.w * odd.xyz) / n_even : beauty;
 }
 
-// bmfr_nlm_prep: per surface pixel, (o - e)^2 n_o n_e / n^2, one sample of the variance of the
-// frame's mean per channel (E[(o - e)^2] = s^2 (1/n_o + 1/n_e)), and w = 1; 0 elsewhere.
+// bmfr_nlm_prep: per pixel of a class, (o - e)^2 n_o n_e / n^2, one sample of the variance of
+// the frame's mean per channel (E[(o - e)^2] = s^2 (1/n_o + 1/n_e)), and w = the class; 0
+// elsewhere.
 __kernel void bmfr_nlm_prep(__global const FilterVector* fv,
                             __global const float4* positions,
                             __global const float4* odd_halves,
@@ -28,32 +45,36 @@ __kernel void bmfr_nlm_prep(__global const FilterVector* fv,
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
     float4 odd = odd_halves[i];
-    if (!bmfr_surface(f, positions + i, odd, spp)) {
+    float class = bmfr_nlm_class(f, positions + i, odd, spp);
+    if (class == 0.0f) {
         raw[i] = (float4)(0.0f);
         return;
     }
     float3 d = odd.xyz - bmfr_even(bmfr_beauty(f), odd, spp);
-    raw[i] = (float4)(d * d * (odd.w * (spp - odd.w) / (spp * spp)), 1.0f);
+    raw[i] = (float4)(d * d * (odd.w * (spp - odd.w) / (spp * spp)), class);
 }
 
-// The inputs of the non-local means for pixel (x, y): the demodulated frame mean (w: 1 for a
-// surface pixel), odd half and even half, and the variance of the demodulated frame mean: the
-// mean of `raw` over the surface pixels of the 3 x 3 window (one sample is too noisy to
-// normalise a distance by), over the albedo squared.
+// The inputs of the non-local means for pixel (x, y): the demodulated frame mean (w: the
+// class), odd half and even half, and the variance of the demodulated frame mean: the mean of
+// `raw` over the pixels of the 3 x 3 window of the pixel's class (one sample is too noisy to
+// normalise a distance by; a pixel of no class takes its surface neighbours', as its taps
+// enter their patches), over the modulation squared.
 inline void bmfr_nlm_pixel(__global const FilterVector* fv, __global const float4* odd_halves,
                            int x, int y, uint width, uint height, float spp,
                            __global const float4* raw, float4 u[4]) {
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
-    float3 al = bmfr_albedo(f);
+    float own = raw[i].w;
+    float3 al = bmfr_nlm_modulation(f, own);
     float3 beauty = bmfr_beauty(f);
     float4 odd = odd_halves[i];
+    float class = own == BMFR_NLM_OPEN ? BMFR_NLM_OPEN : BMFR_NLM_SURFACE;
     float3 sum = (float3)(0.0f);
     float count = 0.0f;
     for (int yy = max(y - 1, 0); yy <= min(y + 1, (int)height - 1); ++yy) {
         for (int xx = max(x - 1, 0); xx <= min(x + 1, (int)width - 1); ++xx) {
             float4 r = raw[(uint)yy * width + (uint)xx];
-            if (r.w == 0.0f) continue;
+            if (r.w != class) continue;
             sum += r.xyz;
             count += 1.0f;
         }
@@ -87,7 +108,7 @@ inline void bmfr_nlm_pass_through(__global const FilterVector* f, float4 odd, fl
     out[2] = (float4)(bmfr_even(beauty, odd, spp), 0.0f);
 }
 
-// bmfr_nlm: for each surface pixel p, the weighted mean over the surface pixels q of the
+// bmfr_nlm: for each pixel p of a class, the weighted mean over the pixels q of its class of the
 // (2 BMFR_NLM_RADIUS + 1)^2 window (the halves': (2 BMFR_NLM_ESTIMATE_RADIUS + 1)^2, as they
 // only estimate the frame's error), w = exp(-max(0, d^2)), d^2 the mean over the 3 x 3 patch
 // taps t with p + t and q + t inside the image, and over the channels, of
@@ -97,7 +118,7 @@ inline void bmfr_nlm_pass_through(__global const FilterVector* f, float4 odd, fl
 //   (((u(p + t) - u(q + t))^2 / 2 - (v_a + min(v_a, v_b))) / (eps + k^2 (v_a + v_b)),
 // then remodulated. The nine tap distances are summed per patch row, then the rows in order.
 // Three float4 out per pixel: frame, odd half, even half; a pixel
-// that is not a surface gives its inputs back.
+// of no class gives its inputs back.
 //
 // Work-groups of BMFR_NLM_TILE^2 pixels. A tap's distance depends only on the pixel a = p + t
 // and the offset q - p, so for each offset the group writes the distances of its tile and a
@@ -135,7 +156,8 @@ void bmfr_nlm(__global const FilterVector* fv,
     }
     bool inside = x < w && y < h;
     uint i = inside ? (uint)y * width + (uint)x : 0u;
-    bool active = inside && nlm_in[4 * i].w != 0.0f;
+    float class = inside ? nlm_in[4 * i].w : 0.0f;
+    bool active = class != 0.0f;
     float k2 = BMFR_NLM_K * BMFR_NLM_K;
     float3 acc[3] = {(float3)(0.0f), (float3)(0.0f), (float3)(0.0f)};
     float wsum[3] = {0.0f, 0.0f, 0.0f};
@@ -168,7 +190,7 @@ void bmfr_nlm(__global const FilterVector* fv,
             int qx = x + dx, qy = y + dy;
             if (!active || qx < 0 || qx >= w || qy < 0 || qy >= h) continue;
             uint j = (uint)qy * width + (uint)qx;
-            if (nlm_in[4 * j].w == 0.0f) continue;
+            if (nlm_in[4 * j].w != class) continue;
             // Each patch row's three taps first, then the rows (bmfr_nlm_packed's order).
             float4 t = (float4)(0.0f);
             for (int ty = 0; ty < 3; ++ty) {
@@ -187,7 +209,7 @@ void bmfr_nlm(__global const FilterVector* fv,
     }
     if (!inside) return;
     __global const FilterVector* f = fv + i;
-    float3 al = bmfr_albedo(f);
+    float3 al = bmfr_nlm_modulation(f, class);
     if (!active) {
         bmfr_nlm_pass_through(f, odd_halves[i], spp, nlm_out + 3 * i);
         return;
@@ -196,8 +218,9 @@ void bmfr_nlm(__global const FilterVector* fv,
     for (int m = 0; m < 3; ++m) nlm_out[3 * i + m] = (float4)(acc[m] / wsum[m] * al, 0.0f);
 }
 
-// bmfr_residuals_nlm: per surface pixel, summed over the channels, (V, R, N, 0): V the variance
-// of the frame's mean (as bmfr_residuals), R = (f - y)^2 the fit's residual, and N the
+// bmfr_residuals_nlm: per pixel of a class, summed over the channels, (V, R, N, class): V the
+// variance of the frame's mean (as bmfr_residuals), R = (f - y)^2 the fit's residual (0 for an
+// open pixel, which has no fit), and N the
 // cross-half estimate of the non-local means' squared error at half the samples,
 // ((nlm(o) - e)^2 - v_e + (nlm(e) - o)^2 - v_o) / 2, with v_o = (o - e)^2 n_e / n and
 // v_e = (o - e)^2 n_o / n the variances of the halves' means.
@@ -213,21 +236,22 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
     float4 odd = odd_halves[i];
-    if (!bmfr_surface(f, positions + i, odd, spp)) {
+    float class = bmfr_nlm_class(f, positions + i, odd, spp);
+    if (class == 0.0f) {
         residuals[i] = (float4)(0.0f);
         return;
     }
     float n_odd = odd.w, n_even = spp - odd.w;
     float3 beauty = bmfr_beauty(f);
     float3 even = bmfr_even(beauty, odd, spp);
-    float2 fit = bmfr_fit_error(beauty, fitted[i].xyz, odd, spp);
+    float2 fit = bmfr_fit_error(beauty, class == BMFR_NLM_OPEN ? beauty : fitted[i].xyz, odd, spp);
     float3 oe = odd.xyz - even;
     float3 v_odd = oe * oe * (n_even / spp);
     float3 v_even = oe * oe * (n_odd / spp);
     float3 no = nlm_out[3 * i + 1].xyz - even;
     float3 ne = nlm_out[3 * i + 2].xyz - odd.xyz;
     float3 n = 0.5f * ((no * no - v_even) + (ne * ne - v_odd));
-    residuals[i] = (float4)(fit.y, fit.x, n.x + n.y + n.z, 0.0f);
+    residuals[i] = (float4)(fit.y, fit.x, n.x + n.y + n.z, class);
 }
 
 // bmfr_select_nlm: the window sums V, R, N over the (2 r + 1)^2 pixels around, the three
@@ -235,8 +259,9 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
 // trusted kappa times more than its estimate, as in bmfr_select) and E_n = N / 2 (the non-local
 // means of the whole frame: N is measured at half the samples, and the variance halves with
 // twice the samples), each relative to V and floored at 1e-6, and the blend of the three with
-// weights 1 / E^2. A window with V = 0 keeps the light where R > 0 and the fit where R = 0
-// too (only kept pixels, or one sample: no estimate).
+// weights 1 / E^2; the sums run over the pixels of the pixel's class, and an open pixel blends
+// the light and the non-local means only (it has no fit). A window with V = 0 keeps the light
+// where R > 0 and the fit where R = 0 too (only kept pixels, or one sample: no estimate).
 __kernel void bmfr_select_nlm(__global const FilterVector* fv,
                               uint width, uint height,
                               __global const float4* residuals,
@@ -245,6 +270,7 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     int x = get_global_id(0), y = get_global_id(1);
     if (x >= (int)width || y >= (int)height) return;
     uint i = (uint)y * width + (uint)x;
+    float class = residuals[i].w;
     float3 sum = (float3)(0.0f);
     // Unrolled (the radius is a build constant), so that the kernel has no loop of its own
     // and PoCL packs its work-items into SIMD lanes, as bmfr_apply's; the same sums.
@@ -256,7 +282,8 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
         for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
             int xx = x + dx;
             if (xx < 0 || xx >= (int)width) continue;
-            sum += residuals[(uint)yy * width + (uint)xx].xyz;
+            float4 e = residuals[(uint)yy * width + (uint)xx];
+            if (e.w == class) sum += e.xyz;
         }
     }
     float3 beauty = bmfr_beauty(fv + i);
@@ -268,9 +295,14 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
         return;
     }
     float e_y = 1.0f;
-    float e_f = fmax((sum.y - sum.x) / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
     float e_n = fmax(0.5f * sum.z / sum.x, 1.0e-6f);
-    float w_y = 1.0f / (e_y * e_y), w_f = 1.0f / (e_f * e_f), w_n = 1.0f / (e_n * e_n);
+    float w_y = 1.0f / (e_y * e_y), w_n = 1.0f / (e_n * e_n);
+    if (class == BMFR_NLM_OPEN) {
+        fitted[i] = (float4)((w_y * beauty + w_n * nlm_out[3 * i].xyz) / (w_y + w_n), 0.0f);
+        return;
+    }
+    float e_f = fmax((sum.y - sum.x) / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
+    float w_f = 1.0f / (e_f * e_f);
     float3 out = (w_y * beauty + w_f * fitted[i].xyz + w_n * nlm_out[3 * i].xyz)
         / (w_y + w_f + w_n);
     fitted[i] = (float4)(out, 0.0f);

@@ -19,8 +19,8 @@
 //
 // Layout ("lines", as the a-trous filter's): bmfr_nlm_inputs_lines writes every image row as
 // BMFR_NLM_LINES lines of `stride` floats: lines 0-2 the frame's light (rgb), 3-5 the odd
-// half's, 6-8 the even half's, 9-11 the variance, 12 a 1 (inside the image), 13 the surface
-// flag. Pixel (x, y), line k sits at (y * LINES + k) * stride + BMFR_NLM_PAD + x. The BMFR_NLM_PAD
+// half's, 6-8 the even half's, 9-11 the variance, 12 a 1 (inside the image), 13 the class
+// (bmfr_nlm_class). Pixel (x, y), line k sits at (y * LINES + k) * stride + BMFR_NLM_PAD + x. The BMFR_NLM_PAD
 // floats left of every line and the ones right of the image (stride = PAD + width rounded up
 // to PACK + 2 PAD) are never written, so they stay 0 (the buffer is zeroed once): a tap that
 // reaches past the image's left or right edge reads an "inside" of 0 and counts as invalid, as
@@ -137,13 +137,16 @@ __attribute__((always_inline)) inline void bmfr_nlm_offset(
         int row = r - 1, py = y0 + row, qy = py + dy;
         if (row >= 0 && py < h && qy >= 0 && qy < h) {
             __global const float* q = lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
-            int16 surface = BMFR_NLM_LOAD16(q + 13 * (size_t)stride) != 0.0f;
+            __global const float* p = lines + bmfr_line_at(xv, py, BMFR_NLM_LINES, stride);
+            // q takes part when it is of p's class (and p of one: others pass through).
+            float16 class_q = BMFR_NLM_LOAD16(q + 13 * (size_t)stride);
+            int16 same = class_q == BMFR_NLM_LOAD16(p + 13 * (size_t)stride) && class_q != 0.0f;
             float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
             #pragma unroll
             for (int m = 0; m < 3; ++m) {
                 if (m < images) {
                     float16 d2 = (h0[m] + h1[m]) + h2[m];
-                    float16 wt = surface ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
+                    float16 wt = same ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
                     #pragma unroll
                     for (int c = 0; c < 3; ++c)
                         acc[row][3 * m + c] +=
@@ -198,11 +201,12 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
         for (int lane = 1; lane <= BMFR_NLM_STEP && xv + lane < w; ++lane) {
             uint i = (uint)y * width + (uint)(xv + lane);
             __global const FilterVector* f = fv + i;
-            if (p[13 * (size_t)stride + lane] == 0.0f) {
+            float class = p[13 * (size_t)stride + lane];
+            if (class == 0.0f) {
                 bmfr_nlm_pass_through(f, odd_halves[i], spp, nlm_out + 3 * i);
                 continue;
             }
-            float3 al = bmfr_albedo(f);
+            float3 al = bmfr_nlm_modulation(f, class);
             for (int m = 0; m < 3; ++m)
                 nlm_out[3 * i + m] = (float4)((float3)(mean[3 * m][lane], mean[3 * m + 1][lane],
                                                        mean[3 * m + 2][lane]) * al, 0.0f);

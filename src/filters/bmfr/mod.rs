@@ -54,7 +54,10 @@
 //! where the fit is biased the output follows the samples as they converge. With `nlm`
 //! (nlm.rs) a third candidate joins the blend: non-local means of the light, whose error is
 //! estimated by filtering each half buffer alone, so that where the fit is biased the output
-//! follows a smoothed light rather than the noisy samples.
+//! follows a smoothed light rather than the noisy samples. The non-local means also cover the
+//! sky and the partly covered pixels that the fit keeps (nlm.rs `OPEN`), each averaged with
+//! its own kind only and blended with its unfiltered light alone: through a lens these are as
+//! noisy as the surfaces (Outside DOF 512², 8 spp: MSE-LUV 3.07 → 1.78, results/README.md).
 //!
 //! Albedo prefilter (`albedo_prefilter`, prefilter.rs; on with a thin lens): before the fit,
 //! each pixel's mean albedo is averaged with the neighbours' whose albedo differs by no more

@@ -78,9 +78,40 @@
 
 use rayon::prelude::*;
 
-use super::reference::albedo;
-use super::select::surface;
+use super::reference::{albedo, light};
+use super::select::{surface, window_sum};
 use crate::layout::{FilterVector, Float4};
+
+/// Classes of pixels for the non-local means (kernels/filters/bmfr_nlm.cl `bmfr_nlm_class`):
+/// a pixel averages pixels of its own class only.
+///
+/// * [`SURFACE`] (select.rs `surface`): fitted, its light demodulated by the albedo;
+/// * [`OPEN`]: sky, and pixels whose samples did not all hit a surface (silhouettes against
+///   the sky, out-of-focus edges), with samples in both halves. The fit keeps them as they are
+///   (mod.rs), and without a lens they are nearly noise-free; through a lens the sky's texture
+///   and the edges are as noisy as any surface (Outside DOF: the sky and horizon carried most
+///   of bmfr's error against OIDN's). Their light is averaged as it is (no albedo), and the
+///   selection blends it with the unfiltered light only (there is no fit);
+/// * 0: anything else (lights seen directly, a half without samples): passed through.
+pub const SURFACE: f32 = 1.0;
+pub const OPEN: f32 = 2.0;
+
+/// The pixel's class ([`SURFACE`], [`OPEN`] or 0).
+pub fn class(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32) -> f32 {
+    if surface(f, pos, odd, spp) {
+        SURFACE
+    } else if !light(f) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0 {
+        OPEN
+    } else {
+        0.0
+    }
+}
+
+/// What the light of a pixel of class `class` is divided by before averaging (and multiplied
+/// by after): its albedo on a surface, 1 elsewhere.
+fn modulation(f: &FilterVector, class: f32) -> [f32; 3] {
+    if class == OPEN { [1.0; 3] } else { albedo(f) }
+}
 
 /// ε of the patch distance (as the albedo prefilter's): noise-free pixels (v = 0) are only
 /// averaged with patches of exactly the same light.
@@ -135,29 +166,33 @@ pub fn nlm(
     let raw: Vec<[f32; 4]> = (0..n)
         .into_par_iter()
         .map(|i| {
-            if !surface(&fv[i], &pos[i], &odd[i], spp) {
+            let class = class(&fv[i], &pos[i], &odd[i], spp);
+            if class == 0.0 {
                 return [0.0; 4];
             }
             let e = even(beauty(&fv[i]), &odd[i], spp);
             let factor = odd[i].0[3] * (spp - odd[i].0[3]) / (spp * spp);
             let d: [f32; 3] = std::array::from_fn(|c| odd[i].0[c] - e[c]);
-            [d[0] * d[0] * factor, d[1] * d[1] * factor, d[2] * d[2] * factor, 1.0]
+            [d[0] * d[0] * factor, d[1] * d[1] * factor, d[2] * d[2] * factor, class]
         })
         .collect();
     let (wi, hi) = (w as i32, h as i32);
-    // Per pixel: demodulated frame mean, odd half, even half, variance; and the surface flag.
-    let inputs: Vec<([[f32; 3]; 4], bool)> = (0..n)
+    // Per pixel: demodulated frame mean, odd half, even half, variance; and the class.
+    let inputs: Vec<([[f32; 3]; 4], f32)> = (0..n)
         .into_par_iter()
         .map(|i| {
             let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
-            let al = albedo(&fv[i]);
+            let al = modulation(&fv[i], raw[i][3]);
             let b = beauty(&fv[i]);
+            // The variance from the 3 × 3 pixels of the pixel's class (a pixel of class 0
+            // takes its surface neighbours', as its taps enter their patches).
+            let class = if raw[i][3] == OPEN { OPEN } else { SURFACE };
             let mut sum = [0f32; 3];
             let mut count = 0f32;
             for yy in (y - 1).max(0)..=(y + 1).min(hi - 1) {
                 for xx in (x - 1).max(0)..=(x + 1).min(wi - 1) {
                     let r = raw[(yy as u32 * w + xx as u32) as usize];
-                    if r[3] == 0.0 {
+                    if r[3] != class {
                         continue;
                     }
                     for c in 0..3 {
@@ -180,7 +215,7 @@ pub fn nlm(
                 std::array::from_fn(|c| e[c] / al[c]),
                 v,
             ];
-            (u, raw[i][3] != 0.0)
+            (u, raw[i][3])
         })
         .collect();
     let k2 = k * k;
@@ -189,9 +224,10 @@ pub fn nlm(
         .into_par_iter()
         .map(|i| {
             let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
-            let al = albedo(&fv[i]);
+            let class = inputs[i].1;
+            let al = modulation(&fv[i], class);
             let b = beauty(&fv[i]);
-            if !inputs[i].1 {
+            if class == 0.0 {
                 let o = [odd[i].0[0], odd[i].0[1], odd[i].0[2]];
                 return [b, o, even(b, &odd[i], spp)];
             }
@@ -206,7 +242,7 @@ pub fn nlm(
                         continue;
                     }
                     let j = (qy as u32 * w + qx as u32) as usize;
-                    if !inputs[j].1 {
+                    if inputs[j].1 != class {
                         continue;
                     }
                     // The halves (m = 1, 2) only within the estimate's window.
@@ -267,7 +303,8 @@ pub fn nlm(
         .collect()
 }
 
-/// kernels/filters/bmfr_nlm.cl `bmfr_residuals_nlm` for one pixel: (V, R, N).
+/// kernels/filters/bmfr_nlm.cl `bmfr_residuals_nlm` for one pixel: (V, R, N, class). An
+/// [`OPEN`] pixel has no fit: R = 0.
 pub fn residual(
     f: &FilterVector,
     pos: &Float4,
@@ -275,27 +312,37 @@ pub fn residual(
     spp: f32,
     fit: [f32; 3],
     nlm: &[[f32; 3]; 3],
-) -> [f32; 3] {
-    if !surface(f, pos, odd, spp) {
-        return [0.0; 3];
+) -> [f32; 4] {
+    let class = class(f, pos, odd, spp);
+    if class == 0.0 {
+        return [0.0; 4];
     }
-    let [r, v] = super::select::residual(f, pos, odd, spp, fit);
     let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
-    let e = even(beauty(f), odd, spp);
+    let b = beauty(f);
+    let e = even(b, odd, spp);
+    let [r, v] = if class == SURFACE {
+        super::select::residual(f, pos, odd, spp, fit)
+    } else {
+        let d: [f32; 3] = std::array::from_fn(|c| b[c] - odd.0[c]);
+        let v: [f32; 3] = std::array::from_fn(|c| d[c] * d[c] * (n_odd / n_even));
+        [0.0, v[0] + v[1] + v[2]]
+    };
     let n: [f32; 3] = std::array::from_fn(|c| {
         let oe = odd.0[c] - e[c];
         let (v_odd, v_even) = (oe * oe * (n_even / spp), oe * oe * (n_odd / spp));
         let (no, ne) = (nlm[1][c] - e[c], nlm[2][c] - odd.0[c]);
         0.5 * ((no * no - v_even) + (ne * ne - v_odd))
     });
-    [v, r, n[0] + n[1] + n[2]]
+    [v, r, n[0] + n[1] + n[2], class]
 }
 
-/// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` for pixel (x, y).
+/// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` for pixel (x, y): the window sums over the
+/// pixels of its class, then the blend of the light, the fit and the non-local means (an
+/// [`OPEN`] pixel: of the light and the non-local means).
 #[allow(clippy::too_many_arguments)]
 pub fn select(
     f: &FilterVector,
-    residuals: &[[f32; 3]],
+    residuals: &[[f32; 4]],
     (width, height): (u32, u32),
     (x, y): (i32, i32),
     radius: i32,
@@ -303,14 +350,19 @@ pub fn select(
     fit: [f32; 3],
     nlm: [f32; 3],
 ) -> [f32; 3] {
-    let sum = super::select::window_sum(residuals, (width, height), (x, y), radius);
+    let class = residuals[(y as u32 * width + x as u32) as usize][3];
+    let sum = window_sum(residuals, (width, height), (x, y), radius, |e| e[3] == class);
     let b = beauty(f);
     if !(sum[0] > 0.0) {
         return if sum[1] > 0.0 { b } else { fit };
     }
     let e_y = 1f32;
-    let e_f = ((sum[1] - sum[0]) / scale / sum[0]).max(1.0e-6);
     let e_n = (0.5 * sum[2] / sum[0]).max(1.0e-6);
-    let (w_y, w_f, w_n) = (1.0 / (e_y * e_y), 1.0 / (e_f * e_f), 1.0 / (e_n * e_n));
+    let (w_y, w_n) = (1.0 / (e_y * e_y), 1.0 / (e_n * e_n));
+    if class == OPEN {
+        return std::array::from_fn(|c| (w_y * b[c] + w_n * nlm[c]) / (w_y + w_n));
+    }
+    let e_f = ((sum[1] - sum[0]) / scale / sum[0]).max(1.0e-6);
+    let w_f = 1.0 / (e_f * e_f);
     std::array::from_fn(|c| (w_y * b[c] + w_f * fit[c] + w_n * nlm[c]) / (w_y + w_f + w_n))
 }

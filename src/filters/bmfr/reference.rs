@@ -25,8 +25,13 @@ pub(super) fn albedo(f: &FilterVector) -> [f32; 3] {
 /// kernels/filters/bmfr.cl `bmfr_kept`: sky, a light seen directly (albedo 1 in its largest
 /// channel and no indirect light), or a pixel whose samples did not all hit a surface.
 pub fn kept(f: &FilterVector, p: &Float4, spp: f32) -> bool {
-    let light = f.albedo[0].max(f.albedo[1].max(f.albedo[2])) >= 1.0 && f.indirect == [0.0; 3];
-    f.depth >= SKY_DEPTH || light || p.0[3] < spp
+    f.depth >= SKY_DEPTH || light(f) || p.0[3] < spp
+}
+
+/// kernels/filters/bmfr.cl `bmfr_light`: a light seen directly, its albedo the emission's
+/// chromaticity (largest channel 1) and no indirect light (paths end at emitters).
+pub(super) fn light(f: &FilterVector) -> bool {
+    f.albedo[0].max(f.albedo[1].max(f.albedo[2])) >= 1.0 && f.indirect == [0.0; 3]
 }
 
 fn raw(f: &FilterVector, p: &Float4) -> [f32; 4] {
@@ -284,7 +289,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         let odd: &[Float4] = frame.host_slice(BufferId::OddHalves)?;
         let (r, k) = ((s.nlm_radius, s.estimate_radius()), s.nlm_k as f32);
         let smooth = nlm::nlm(fv, pos, odd, (w, h), spp, r, k);
-        let residuals: Vec<[f32; 3]> = (0..pixels.len())
+        let residuals: Vec<[f32; 4]> = (0..pixels.len())
             .into_par_iter()
             .map(|i| nlm::residual(&fv[i], &pos[i], &odd[i], spp, pixels[i], &smooth[i]))
             .collect();

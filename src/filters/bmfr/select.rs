@@ -74,13 +74,14 @@ pub fn surface(f: &FilterVector, p: &Float4, odd: &Float4, spp: f32) -> bool {
     !kept(f, p, spp) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0
 }
 
-/// The per-pixel estimates summed over the (2 radius + 1)² window around (x, y) inside the
-/// image, row by row, as the kernels' selection loops do.
+/// The per-pixel estimates that `take` accepts summed over the (2 radius + 1)² window around
+/// (x, y) inside the image, row by row, as the kernels' selection loops do.
 pub fn window_sum<const N: usize>(
     estimates: &[[f32; N]],
     (width, height): (u32, u32),
     (x, y): (i32, i32),
     radius: i32,
+    take: impl Fn(&[f32; N]) -> bool,
 ) -> [f32; N] {
     let mut sum = [0f32; N];
     for yy in (y - radius)..=(y + radius) {
@@ -92,6 +93,9 @@ pub fn window_sum<const N: usize>(
                 continue;
             }
             let e = &estimates[(yy as u32 * width + xx as u32) as usize];
+            if !take(e) {
+                continue;
+            }
             for (s, v) in sum.iter_mut().zip(e) {
                 *s += v;
             }
@@ -110,7 +114,7 @@ pub fn select(
     scale: f32,
     fit: [f32; 3],
 ) -> [f32; 3] {
-    let [sum_r, sum_v] = window_sum(residuals, (width, height), (x, y), radius);
+    let [sum_r, sum_v] = window_sum(residuals, (width, height), (x, y), radius, |_| true);
     let lambda = if sum_r > 0.0 {
         1f32.min(scale * sum_v / sum_r)
     } else {
