@@ -1,6 +1,7 @@
 //! Blockwise feature regression (single-frame BMFR, Koskela et al. 2019): the OpenCL fit and
 //! blend against the plain Rust reference on rendered frames, the fit reproducing light that is
-//! exactly a combination of the features, sky untouched, settings refused with their reasons,
+//! exactly a combination of the features, sky kept by the fit and smoothed by the non-local
+//! means through a lens, settings refused with their reasons,
 //! and the error on the bundled Cornell diffuse scene against unfiltered.
 
 mod common;
@@ -425,6 +426,46 @@ fn filters_the_bundled_cornell_diffuse_scene_well_below_the_unfiltered_error() {
     // Measured on PoCL: unfiltered 31.09, bmfr 9.60 (ratio 0.31); the bound 0.4.
     assert!(
         filtered < noisy * 0.4,
+        "bmfr {filtered} against unfiltered {noisy}"
+    );
+}
+
+/// Through a lens the sky and the partly covered pixels (silhouettes, defocused edges), which
+/// the fit keeps as they are, are as noisy as any surface: the non-local means average them
+/// among themselves (src/filters/bmfr/nlm.rs `OPEN`). Their error must fall well below the
+/// unfiltered light's; kept as they were before, it would be the same.
+#[test]
+fn sky_and_silhouettes_through_a_lens_are_filtered() {
+    let scene = bundled_scene("outside_dof");
+    let (w, h) = (128, 128);
+    let truth = reference_image(&scene, w, h, 512, 99);
+    let frame = render(&scene, w, h, 8, 3);
+    let fv = frame.filter_vectors().unwrap();
+    let pos: &[Float4] = frame.host_slice(BufferId::Positions).unwrap();
+    let open: Vec<bool> = (0..fv.len())
+        .map(|i| fv[i].depth >= SKY_DEPTH || pos[i].0[3] < 8.0)
+        .collect();
+    let count = open.iter().filter(|&&o| o).count();
+    // The error of the open pixels alone: every other pixel set to the truth.
+    let error = |img: &RgbImage| {
+        let mut only = truth.clone();
+        for (i, &o) in open.iter().enumerate() {
+            if o {
+                only.pixels[i] = img.pixels[i];
+            }
+        }
+        mse_luv(&only, &truth).unwrap()
+    };
+    let noisy = error(&frame.beauty().unwrap());
+    let filtered = error(&device(&frame, &BmfrSettings::default()));
+    eprintln!(
+        "outside_dof 128x128 8 spp, {count} open pixels: unfiltered {noisy:.4}, bmfr {filtered:.4}"
+    );
+    assert!(count > 1000, "{count} open pixels");
+    // Measured on PoCL: unfiltered 1.632, bmfr 0.819 (ratio 0.50; kept as before the class,
+    // 1.0); the bound 0.6.
+    assert!(
+        filtered < noisy * 0.6,
         "bmfr {filtered} against unfiltered {noisy}"
     );
 }

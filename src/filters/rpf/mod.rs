@@ -36,7 +36,7 @@
 //! * draws: 16 at a time on speculation, hashed at their stream positions (`draws.rs`);
 //! * acceptance test: exact f32 intervals on 64-byte feature lines, prefetched ([`select`]);
 //! * gather: 16 × 16 transposes of the feature and sample lines ([`gather`]);
-//! * standardisation: four rows' f64 sums side by side, each in the plain order
+//! * standardisation: eight rows' f64 sums side by side, each in the plain order
 //!   ([`preprocess::standardize_rows`]);
 //! * mutual information: buckets as bitsets, joint counts by population count (`bitsets.rs`);
 //! * eq. 5.18: the pixel's samples in f64 lanes, glibc's `expf` reproduced bit for bit
