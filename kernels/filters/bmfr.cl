@@ -70,19 +70,19 @@ inline int bmfr_blocks_across(uint width, int2 off) {
     return ((int)width + off.x + BMFR_BLOCK - 1) / BMFR_BLOCK;
 }
 
-// Sky, or a light seen directly: kept as it is, and no row of any fit. A light's albedo is its
-// emission's chromaticity (kernels/render/materials.cl surface_albedo), whose largest channel
-// is exactly 1 (e / max(e)), and the running mean of 1s stays 1; a light's emission would
-// otherwise be fitted by the block's smooth polynomial and spread as a halo around it. Paths
-// end at an emitter (kernels/render/pathtrace.cl), so a light's indirect light is exactly 0;
-// a surface whose albedo is 1 in a channel (a white texel, clear glass) has some, and is
-// fitted like any other (until stop 31 it was kept: on Outside, 512², 8 spp, its glass
-// sphere and white tiles then carried 4.8 of bmfr's MSE-LUV of 6.74; fitted, the image's is
-// 3.58). In a direct-light-only render (max_depth 1) such a surface has none and is kept.
-// So is a pixel whose samples did not all hit a surface (position.w, the hits, below the
-// frame's spp): silhouettes against the sky and out-of-focus edges mix sky light with a
-// surface's mean albedo, and demodulated by that small mean they are outliers that would ruin
-// their block's least-squares fit.
+// Sky, or a light seen directly: kept as it is by the fit, and no row of any fit (with `nlm` the
+// selection then filters the sky and the partly covered pixels: bmfr_nlm.cl's open class). A
+// light's albedo is its emission's chromaticity (kernels/render/materials.cl surface_albedo), whose
+// largest channel is exactly 1 (e / max(e)), and the running mean of 1s stays 1; a light's emission
+// would otherwise be fitted by the block's smooth polynomial and spread as a halo around it. Paths
+// end at an emitter (kernels/render/pathtrace.cl), so a light's indirect light is exactly 0; a
+// surface whose albedo is 1 in a channel (a white texel, clear glass) has some, and is fitted like
+// any other (until stop 31 it was kept: on Outside, 512², 8 spp, its glass sphere and white tiles
+// then carried 4.8 of bmfr's MSE-LUV of 6.74; fitted, the image's is 3.58). In a direct-light-only
+// render (max_depth 1) such a surface has none and is kept. So is a pixel whose samples did not all
+// hit a surface (position.w, the hits, below the frame's spp): silhouettes against the sky and
+// out-of-focus edges mix sky light with a surface's mean albedo, and demodulated by that small mean
+// they are outliers that would ruin their block's least-squares fit.
 inline bool bmfr_light(__global const FilterVector* f) {
     return fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f
         && f->indirect[0] == 0.0f && f->indirect[1] == 0.0f && f->indirect[2] == 0.0f;

@@ -20,8 +20,8 @@
 // Layout ("lines", as the a-trous filter's): bmfr_nlm_inputs_lines writes every image row as
 // BMFR_NLM_LINES lines of `stride` floats: lines 0-2 the frame's light (rgb), 3-5 the odd
 // half's, 6-8 the even half's, 9-11 the variance, 12 a 1 (inside the image), 13 the class
-// (bmfr_nlm_class). Pixel (x, y), line k sits at (y * LINES + k) * stride + BMFR_NLM_PAD + x. The BMFR_NLM_PAD
-// floats left of every line and the ones right of the image (stride = PAD + width rounded up
+// (bmfr_nlm_class). Pixel (x, y), line k sits at (y * LINES + k) * stride + BMFR_NLM_PAD + x.
+// The BMFR_NLM_PAD floats left of every line and the ones right of the image (stride = PAD + width rounded up
 // to PACK + 2 PAD) are never written, so they stay 0 (the buffer is zeroed once): a tap that
 // reaches past the image's left or right edge reads an "inside" of 0 and counts as invalid, as
 // bmfr_nlm's bounds test makes it. Rows above and below the image are skipped (the same for
