@@ -129,7 +129,8 @@ fn every_instruction_set_gives_the_same_bytes() {
 fn the_fast_selection_is_the_plain_one() {
     let set = scene(41, 37, 5, 9);
     let lines: Vec<FeatureLine> = set.samples.iter().map(FeatureLine::of).collect();
-    for b in [55, 17, 7, 2] {
+    // 71: a table of more than 64 offsets, drawn by the batched stream (draws.rs `Stream`).
+    for b in [71, 55, 17, 7, 2] {
         let table = OffsetTable::new(b);
         let sel = Selection {
             samples: &set.samples,

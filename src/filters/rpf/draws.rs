@@ -12,8 +12,10 @@
 //!   at their stream positions, offsets looked up in the alias table by permutes) and the
 //!   ones before the first redraw kept; that draw is redone serially and the next 16 start
 //!   after it;
-//! * AVX-512 elsewhere (boxes cut hard by the border): values hashed and mapped 64 at a time
-//!   ([`Stream`]), consumed serially.
+//! * AVX-512 elsewhere (boxes cut hard by the border): values hashed and mapped 64 at a time,
+//!   which pairs a draw accepts found as one bit mask, and the draws walked through it without
+//!   a branch per pair ([`draw_rejecting`]); a table of more than 64 offsets (a box over 63)
+//!   consumes such batches serially ([`Stream`]).
 
 use super::cpu::Level;
 use super::preprocess::{OffsetTable, PixelRng, mix64};
@@ -53,9 +55,15 @@ pub(super) fn draw(
     match level {
         #[cfg(target_arch = "x86_64")]
         Level::Avx512 => {
-            if let (true, Some(small)) = (mostly_accepted(table, clip), table.small_table()) {
+            if let Some(small) = table.small_table() {
                 // SAFETY: the CPU has AVX-512 F, DQ, VL, BW (`Level::detect`).
-                return unsafe { draw_speculating(table, small, spp, draws, clip, rng, visited) };
+                return unsafe {
+                    if mostly_accepted(table, clip) {
+                        draw_speculating(table, small, spp, draws, clip, rng, visited)
+                    } else {
+                        draw_rejecting(table, small, spp, draws, clip, rng, visited)
+                    }
+                };
             }
             let mut stream = Stream::new(rng);
             for _ in 0..draws {
@@ -228,6 +236,74 @@ fn draw_speculating(
     }
 }
 
+/// [`draw`] for a `clip` that rejects many draws (a box cut by the image's border): the
+/// stream's values 64 at a time from the current position (offsets and sample numbers as in
+/// [`draw_speculating`]), which pairs of them a draw would accept as one bit mask, and the
+/// draws walked through it without a branch per pair: a pair at position j accepted marks
+/// (dx, dy, s) = values (j, j + 1, j + 2) and moves on by 3, a rejected one by 2 (its key,
+/// which is inside the box either way, ORs in nothing). The serial loop's branch on each
+/// pair was mispredicted about as often as the border rejects (12-26 ns a draw near the
+/// border against 2.3 inside).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx512bw")]
+fn draw_rejecting(
+    table: &OffsetTable,
+    small: &([u32; 64], [u32; 64]),
+    spp: u32,
+    draws: usize,
+    clip: Clip,
+    rng: &mut PixelRng,
+    visited: &mut [u64],
+) {
+    let state = *rng.raw();
+    let half = table.half;
+    let side = 2 * half as usize + 1;
+    let golden8 = |first: u64| {
+        let at = |k: u64| ((first + k).wrapping_mul(GOLDEN)) as i64;
+        _mm512_set_epi64(at(7), at(6), at(5), at(4), at(3), at(2), at(1), at(0))
+    };
+    let offs: [__m512i; 8] = std::array::from_fn(|k| golden8(8 * k as u64));
+    let mut offset = [0i32; 64];
+    let mut sample = [0u32; 64];
+    let (mut p, mut done) = (0u64, 0usize);
+    let words = visited.as_mut_ptr();
+    while done < draws {
+        // Values p .. p + 63 of the stream.
+        let (mut inx, mut iny, mut zero) = (0u64, 0u64, 0u64);
+        for q in 0..4 {
+            let z = [hash8(state, p, offs[2 * q]), hash8(state, p, offs[2 * q + 1])];
+            let o = offsets16(z, table, small);
+            let s = scale16(z, spp);
+            let inside = |(lo, hi): (i32, i32)| {
+                _mm512_cmpge_epi32_mask(o, _mm512_set1_epi32(lo))
+                    & _mm512_cmple_epi32_mask(o, _mm512_set1_epi32(hi))
+            };
+            inx |= (inside(clip.x) as u64) << (16 * q);
+            iny |= (inside(clip.y) as u64) << (16 * q);
+            zero |= (_mm512_cmpeq_epi32_mask(o, _mm512_setzero_si512()) as u64) << (16 * q);
+            // SAFETY: 16 values at 16 q < 64.
+            unsafe {
+                _mm512_storeu_si512(offset.as_mut_ptr().add(16 * q) as *mut __m512i, o);
+                _mm512_storeu_si512(sample.as_mut_ptr().add(16 * q) as *mut __m512i, s);
+            }
+        }
+        // Bit j: the pair (j, j + 1) is a draw the serial loop accepts.
+        let accepted = inx & (iny >> 1) & !(zero & (zero >> 1));
+        let mut j = 0usize;
+        while j + 2 < 64 && done < draws {
+            let a = ((accepted >> j) & 1) as usize;
+            let (dx, dy, s) = (offset[j], offset[j + 1], sample[j + 2]);
+            let key = ((dy + half) as usize * side + (dx + half) as usize) * spp as usize + s as usize;
+            // SAFETY: |dx|, |dy| ≤ half and s < spp, so key < side² · spp ≤ 64 · visited.len().
+            debug_assert!(key / 64 < visited.len());
+            unsafe { *words.add(key / 64) |= (a as u64) << (key % 64) };
+            j += 2 + a;
+            done += a;
+        }
+        p += j as u64;
+    }
+}
+
 /// The random numbers of a pixel, hashed and mapped 64 at a time (AVX-512): value k of the
 /// stream is the same as the k-th `rng.next_u64()`, seen as an offset ([`OffsetTable::sample`])
 /// and as a sample number (`PixelRng::below(spp)`).
@@ -315,4 +391,3 @@ impl<'r> Stream<'r> {
         *state = state.wrapping_add(GOLDEN.wrapping_mul(BATCH as u64));
     }
 }
-
