@@ -90,8 +90,9 @@ use crate::layout::{FilterVector, Float4};
 ///   the sky, out-of-focus edges), with samples in both halves. The fit keeps them as they are
 ///   (mod.rs), and without a lens they are nearly noise-free; through a lens the sky's texture
 ///   and the edges are as noisy as any surface (Outside DOF 512², 8 spp: kept, they held 1.50
-///   of bmfr's MSE-LUV of 3.07, results/README.md). Their light is averaged as it is (no
-///   albedo), and the selection blends it with the unfiltered light only (there is no fit);
+///   of bmfr's MSE-LUV of 3.07; examples/bmfr_pixel_classes.rs, results/README.md). Their
+///   light is averaged as it is (no albedo), and the selection blends it with the unfiltered
+///   light only (there is no fit);
 /// * 0: anything else (lights seen directly, a half without samples): passed through.
 pub const SURFACE: f32 = 1.0;
 pub const OPEN: f32 = 2.0;
