@@ -34,6 +34,7 @@
 //   BMFR_SELECT_RADIUS                 half width of the selection's window, pixels
 //   BMFR_SELECT_SCALE                  kappa, the trust in the fit (float literal)
 //   BMFR_PREFILTER_K, BMFR_PREFILTER_EPSILON   the albedo prefilter's k and epsilon (literals)
+//   BMFR_PREFILTER_GEOMETRY, BMFR_GEOMETRY_K   0/1: the prefilter averages the geometry too; its k
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -42,7 +43,8 @@
 #if !defined(BMFR_BLOCK) || !defined(BMFR_WG) || !defined(BMFR_GRIDS) || !defined(BMFR_DEPTH) \
     || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
     || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
-    || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON)
+    || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON) \
+    || !defined(BMFR_PREFILTER_GEOMETRY) || !defined(BMFR_GEOMETRY_K)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif
 
@@ -442,22 +444,49 @@ __kernel void bmfr_select(__global const FilterVector* fv,
 // the (2 radius + 1)^2 window (Rousselle et al. 2012 eq. 4 at patch size 1: the distance less
 // the noise the two means' variances explain), the variance of a mean being the Welford sum
 // times `factor` (1 / (n - 1)) over spp. Kept pixels neither change nor lend their albedo.
+// With BMFR_PREFILTER_GEOMETRY the normal, the depth and the positions' xyz (into `pos_out`)
+// are averaged too, weighted by the same distance over albedo, normal and depth at
+// BMFR_GEOMETRY_K (NFOR's feature prefilter: out of focus the fit would reproduce their noise,
+// which is the light's); without it `pos_out` is a copy of the positions.
 inline float3 bmfr_albedo_variance(__global const WelfordSums* s, float factor, float spp) {
     return (float3)(s->albedo[0] * factor / spp, s->albedo[1] * factor / spp,
                     s->albedo[2] * factor / spp);
 }
+
+// One channel's term of the prefilter's distances.
+inline float bmfr_prefilter_term(float a, float b, float va, float vb, float k2) {
+    float diff = a - b;
+    return (diff * diff - (va + fmin(va, vb))) / (BMFR_PREFILTER_EPSILON + k2 * (va + vb));
+}
+
+#if BMFR_PREFILTER_GEOMETRY
+// The geometry distance's seven channels (albedo, normal, depth) and their mean's variances.
+inline void bmfr_geometry(__global const FilterVector* f, __global const WelfordSums* s,
+                          float factor, float spp, float* g, float* v) {
+    for (int c = 0; c < 3; ++c) {
+        g[c] = f->albedo[c];
+        g[3 + c] = f->normal[c];
+        v[c] = s->albedo[c] * factor / spp;
+        v[3 + c] = s->normal[c] * factor / spp;
+    }
+    g[6] = f->depth;
+    v[6] = s->depth * factor / spp;
+}
+#endif
 
 __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
                                     __global const WelfordSums* sums,
                                     __global const float4* positions,
                                     uint width, uint height, float spp, float factor,
                                     uint radius,
-                                    __global FilterVector* out) {
+                                    __global FilterVector* out,
+                                    __global float4* pos_out) {
     int x = get_global_id(0), y = get_global_id(1);
     if (x >= (int)width || y >= (int)height) return;
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
     out[i] = *f;
+    pos_out[i] = positions[i];
     if (bmfr_kept(f, positions + i, spp)) return;
     float k2 = BMFR_PREFILTER_K * BMFR_PREFILTER_K;
     int r = (int)radius;
@@ -466,6 +495,17 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
     float vis[3] = {vi.x, vi.y, vi.z};
     float sum[3] = {0.0f, 0.0f, 0.0f};
     float wsum = 0.0f;
+#if BMFR_PREFILTER_GEOMETRY
+    float kg2 = BMFR_GEOMETRY_K * BMFR_GEOMETRY_K;
+    float gi[7], gvi[7], gj[7], gvj[7];
+    bmfr_geometry(f, sums + i, factor, spp, gi, gvi);
+    // Differences from the pixel's own values are averaged (prefilter.rs: a feature constant
+    // over the window stays exactly so).
+    float4 pi = positions[i];
+    float own[7] = {gi[3], gi[4], gi[5], gi[6], pi.x, pi.y, pi.z};
+    float gsum[7] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    float gwsum = 0.0f;
+#endif
     for (int yy = max(y - r, 0); yy <= min(y + r, (int)height - 1); ++yy) {
         for (int xx = max(x - r, 0); xx <= min(x + r, (int)width - 1); ++xx) {
             uint j = (uint)yy * width + (uint)xx;
@@ -474,17 +514,30 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
             float3 vj = bmfr_albedo_variance(sums + j, factor, spp);
             float vjs[3] = {vj.x, vj.y, vj.z};
             float d2 = 0.0f;
-            for (int c = 0; c < 3; ++c) {
-                float diff = ai[c] - g->albedo[c];
-                d2 += (diff * diff - (vis[c] + fmin(vis[c], vjs[c])))
-                    / (BMFR_PREFILTER_EPSILON + k2 * (vis[c] + vjs[c]));
-            }
+            for (int c = 0; c < 3; ++c) d2 += bmfr_prefilter_term(ai[c], g->albedo[c], vis[c], vjs[c], k2);
             float wt = exp(-fmax(d2 / 3.0f, 0.0f));
             for (int c = 0; c < 3; ++c) sum[c] += wt * g->albedo[c];
             wsum += wt;
+#if BMFR_PREFILTER_GEOMETRY
+            bmfr_geometry(g, sums + j, factor, spp, gj, gvj);
+            float dg = 0.0f;
+            for (int c = 0; c < 7; ++c) dg += bmfr_prefilter_term(gi[c], gj[c], gvi[c], gvj[c], kg2);
+            float wg = exp(-fmax(dg / 7.0f, 0.0f));
+            float4 q = positions[j];
+            float values[7] = {gj[3], gj[4], gj[5], gj[6], q.x, q.y, q.z};
+            for (int c = 0; c < 7; ++c) gsum[c] += wg * (values[c] - own[c]);
+            gwsum += wg;
+#endif
         }
     }
     for (int c = 0; c < 3; ++c) out[i].albedo[c] = sum[c] / wsum;
+#if BMFR_PREFILTER_GEOMETRY
+    float m[7];
+    for (int c = 0; c < 7; ++c) m[c] = own[c] + gsum[c] / gwsum;
+    for (int c = 0; c < 3; ++c) out[i].normal[c] = m[c];
+    out[i].depth = m[3];
+    pos_out[i] = (float4)(m[4], m[5], m[6], positions[i].w);
+#endif
 }
 
 #include "filters/bmfr_fit_packed.cl"

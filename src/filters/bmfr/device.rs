@@ -10,7 +10,10 @@ use ocl::{Buffer, Kernel};
 use super::nlm::{
     MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
 };
-use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, PREFILTER_PACKED_LINES};
+use super::prefilter::{
+    MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, PREFILTER_PACKED_GEOMETRY_LINES,
+    PREFILTER_PACKED_LINES,
+};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
     grid_blocks, grid_offset,
@@ -42,6 +45,9 @@ struct Prefilter {
     /// `bmfr_albedo_prefilter_packed` and its input lines (`packed_nlm`).
     packed: Option<(Kernel, Buffer<f32>)>,
     copy: Buffer<u8>,
+    /// The positions the other kernels then read: with `prefilter_geometry` their xyz
+    /// averaged, else a copy.
+    positions: Buffer<u8>,
 }
 
 /// Floats per line of the packed kernels' inputs (kernels/filters/bmfr_nlm_packed.cl): the
@@ -128,6 +134,8 @@ impl BmfrKernel {
             ("BMFR_SELECT_SCALE", format!("{:e}f", s.select_scale as f32)),
             ("BMFR_PREFILTER_K", format!("{PREFILTER_K:e}f")),
             ("BMFR_PREFILTER_EPSILON", format!("{PREFILTER_EPSILON:e}f")),
+            ("BMFR_PREFILTER_GEOMETRY", flag(s.prefilter_geometry)),
+            ("BMFR_GEOMETRY_K", format!("{:e}f", s.geometry_k as f32)),
             ("BMFR_NLM_RADIUS", s.nlm_radius.to_string()),
             ("BMFR_NLM_ESTIMATE_RADIUS", s.estimate_radius().to_string()),
             ("BMFR_NLM_K", format!("{:e}f", s.nlm_k as f32)),
@@ -317,13 +325,22 @@ impl BmfrKernel {
                 pixels * std::mem::size_of::<FilterVector>(),
                 "bmfr prefiltered F",
             )?;
+            let positions = gpu.zeroed::<u8>(
+                pixels * std::mem::size_of::<Float4>(),
+                "bmfr prefiltered positions",
+            )?;
+            let lines_per_row = if s.prefilter_geometry {
+                PREFILTER_PACKED_GEOMETRY_LINES
+            } else {
+                PREFILTER_PACKED_LINES
+            };
             // On CPU devices the packed kernel (bmfr_prefilter_packed.cl) over its inputs as
             // lines; elsewhere one work-item per pixel.
             let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
             let stride = line_stride(width);
             let lines = if packed {
                 Some(gpu.zeroed::<f32>(
-                    (PREFILTER_PACKED_LINES * stride) as usize * height as usize,
+                    (lines_per_row * stride) as usize * height as usize,
                     "bmfr albedo prefilter lines",
                 )?)
             } else {
@@ -343,7 +360,10 @@ impl BmfrKernel {
             if let Some(lines) = &lines {
                 kb.name("bmfr_prefilter_lines").arg(stride).arg(lines);
             } else {
-                kb.name("bmfr_albedo_prefilter").arg(s.albedo_radius).arg(&copy);
+                kb.name("bmfr_albedo_prefilter")
+                    .arg(s.albedo_radius)
+                    .arg(&copy)
+                    .arg(&positions);
             }
             let inputs = kb
                 .build()
@@ -357,12 +377,14 @@ impl BmfrKernel {
                         .global_work_size([width.div_ceil(PACK) as usize, height as usize])
                         .local_work_size([1, 1])
                         .arg_named("fv", None::<&Buffer<u8>>)
+                        .arg_named("positions", None::<&Buffer<u8>>)
                         .arg(width)
                         .arg(height)
                         .arg(&lines)
                         .arg(stride)
                         .arg(s.albedo_radius)
                         .arg(&copy)
+                        .arg(&positions)
                         .build()
                         .context("creating the packed bmfr albedo prefilter kernel")?;
                     Some((kernel, lines))
@@ -373,6 +395,7 @@ impl BmfrKernel {
                 inputs,
                 packed,
                 copy,
+                positions,
             })
         } else {
             None
@@ -400,7 +423,7 @@ impl BmfrKernel {
         frame.check_size(self.width, self.height, "the bmfr filter")?;
         frame.require(self.needs, "the bmfr filter")?;
         let mut fv = frame.device(&self.gpu, BufferId::FilterVectors)?;
-        let pos = frame.device(&self.gpu, BufferId::Positions)?;
+        let mut pos = frame.device(&self.gpu, BufferId::Positions)?;
         let spp = frame.info().spp as f32;
         let mut events = Vec::with_capacity(self.fits.len() + 4);
         if let Some(p) = &self.prefilter {
@@ -416,9 +439,11 @@ impl BmfrKernel {
             events.push(unsafe { enqueue(&p.inputs, "the bmfr albedo prefilter")? });
             if let Some((kernel, _)) = &p.packed {
                 kernel.set_arg("fv", fv)?;
+                kernel.set_arg("positions", pos)?;
                 events.push(unsafe { enqueue(kernel, "the packed bmfr albedo prefilter")? });
             }
             fv = &p.copy;
+            pos = &p.positions;
         }
         if let Some((kernel, _)) = &self.rows {
             kernel.set_arg("fv", fv)?;

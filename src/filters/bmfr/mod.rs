@@ -62,7 +62,10 @@
 //! Albedo prefilter (`albedo_prefilter`, prefilter.rs; on with a thin lens): before the fit,
 //! each pixel's mean albedo is averaged with the neighbours' whose albedo differs by no more
 //! than the two means' noise explains, so that a defocused texture's noisy mean is not
-//! multiplied back into the output unfiltered.
+//! multiplied back into the output unfiltered; with `prefilter_geometry` the normal, depth and
+//! position are averaged too, so that the fit cannot reproduce the light's noise through them
+//! (a defocused light's edge: the share of a pixel's samples that hit the light moves its mean
+//! position and its light together).
 
 mod device;
 pub mod nlm;
@@ -149,6 +152,14 @@ crate::filter_settings! {
         /// 512², 8 spp): radius 1 / 2 / 5 / 7 gave 6.08 / 5.72 / 6.03 / 6.33 on
         /// cornell_diffuse_dof; 3 was 0.2-1.1 % worse than 2 on the four depth-of-field scenes.
         pub albedo_radius: u32 = 2,
+        /// With the albedo prefilter, also average the first hit's normal, depth and
+        /// position over its window, each pixel with the neighbours whose albedo, normal and
+        /// depth differ by no more than their noise explains (prefilter.rs): out of focus
+        /// their noise is the light's, and the fit would reproduce it.
+        pub prefilter_geometry: bool = true,
+        /// k of the geometry's distance: how many standard deviations of a difference of
+        /// albedo, normal or depth count as noise (prefilter.rs).
+        pub geometry_k: f64 = prefilter::GEOMETRY_K as f64,
         /// The fit with one work-item per block, its rows on float16 lanes
         /// (kernels/filters/bmfr_fit_packed.cl): the same bytes as the work-group fit (paper
         /// Algorithm 1), which PoCL runs on scalar floats. auto: on CPU devices.
@@ -233,6 +244,12 @@ impl BmfrSettings {
             bail!(
                 "the bmfr albedo_radius must be at most {MAX_ALBEDO_RADIUS} pixels, got {}",
                 self.albedo_radius
+            );
+        }
+        if !(self.geometry_k > 0.0 && self.geometry_k <= 1000.0) {
+            bail!(
+                "the bmfr geometry_k must be a number in (0, 1000], got {}",
+                self.geometry_k
             );
         }
         if !(self.noise >= 0.0 && self.noise <= 1.0) {

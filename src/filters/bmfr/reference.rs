@@ -206,7 +206,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     let pos: &[Float4] = frame.host_slice(BufferId::Positions)?;
     let spp = frame.info().spp as f32;
     let prefiltered;
-    let fv: &[FilterVector] = if s.prefilters_albedo() {
+    let (fv, pos): (&[FilterVector], &[Float4]) = if s.prefilters_albedo() {
         let sums = frame.host_slice(BufferId::WelfordSums)?;
         let factor = frame.variance_factor();
         prefiltered = prefilter(
@@ -217,10 +217,11 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
             spp,
             factor,
             s.albedo_radius,
+            s.prefilter_geometry.then_some(s.geometry_k as f32),
         );
-        &prefiltered
+        (&prefiltered.0, &prefiltered.1)
     } else {
-        frame.filter_vectors()?
+        (frame.filter_vectors()?, pos)
     };
     let b = s.block_size;
     let k = s.features();
