@@ -35,6 +35,7 @@
 //   BMFR_SELECT_SCALE                  kappa, the trust in the fit (float literal)
 //   BMFR_PREFILTER_K, BMFR_PREFILTER_EPSILON   the albedo prefilter's k and epsilon (literals)
 //   BMFR_PREFILTER_GEOMETRY, BMFR_GEOMETRY_K   0/1: the prefilter averages the geometry too; its k
+//   BMFR_PREFILTER_LINES               lines per row of the packed prefilter's input
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -44,7 +45,7 @@
     || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
     || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
     || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON) \
-    || !defined(BMFR_PREFILTER_GEOMETRY) || !defined(BMFR_GEOMETRY_K)
+    || !defined(BMFR_PREFILTER_GEOMETRY) || !defined(BMFR_GEOMETRY_K) || !defined(BMFR_PREFILTER_LINES)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif
 

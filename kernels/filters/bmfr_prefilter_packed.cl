@@ -13,10 +13,11 @@
 // the image or on a kept pixel has weight 0 here where the scalar kernel skips it (0 x a
 // finite albedo adds nothing). Measured against the Rust reference: tests/bmfr.rs.
 
-#if BMFR_PREFILTER_GEOMETRY
-#define BMFR_PREFILTER_LINES 18
-#else
-#define BMFR_PREFILTER_LINES 7
+// BMFR_PREFILTER_LINES comes from the build options (src/filters/bmfr/prefilter.rs
+// prefilter_packed_lines), which size the lines' buffer.
+#if (BMFR_PREFILTER_GEOMETRY && BMFR_PREFILTER_LINES != 18) \
+    || (!BMFR_PREFILTER_GEOMETRY && BMFR_PREFILTER_LINES != 7)
+#error "noisefree: BMFR_PREFILTER_LINES does not match the lines this file writes"
 #endif
 
 // bmfr_albedo_prefilter's inputs into lines. Global size: width x height.

@@ -10,10 +10,7 @@ use ocl::{Buffer, Kernel};
 use super::nlm::{
     MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
 };
-use super::prefilter::{
-    MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, PREFILTER_PACKED_GEOMETRY_LINES,
-    PREFILTER_PACKED_LINES,
-};
+use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, prefilter_packed_lines};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
     grid_blocks, grid_offset,
@@ -136,6 +133,10 @@ impl BmfrKernel {
             ("BMFR_PREFILTER_EPSILON", format!("{PREFILTER_EPSILON:e}f")),
             ("BMFR_PREFILTER_GEOMETRY", flag(s.prefilter_geometry)),
             ("BMFR_GEOMETRY_K", format!("{:e}f", s.geometry_k as f32)),
+            (
+                "BMFR_PREFILTER_LINES",
+                prefilter_packed_lines(s.prefilter_geometry).to_string(),
+            ),
             ("BMFR_NLM_RADIUS", s.nlm_radius.to_string()),
             ("BMFR_NLM_ESTIMATE_RADIUS", s.estimate_radius().to_string()),
             ("BMFR_NLM_K", format!("{:e}f", s.nlm_k as f32)),
@@ -329,18 +330,14 @@ impl BmfrKernel {
                 pixels * std::mem::size_of::<Float4>(),
                 "bmfr prefiltered positions",
             )?;
-            let lines_per_row = if s.prefilter_geometry {
-                PREFILTER_PACKED_GEOMETRY_LINES
-            } else {
-                PREFILTER_PACKED_LINES
-            };
             // On CPU devices the packed kernel (bmfr_prefilter_packed.cl) over its inputs as
             // lines; elsewhere one work-item per pixel.
             let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
             let stride = line_stride(width);
             let lines = if packed {
                 Some(gpu.zeroed::<f32>(
-                    (lines_per_row * stride) as usize * height as usize,
+                    (prefilter_packed_lines(s.prefilter_geometry) * stride) as usize
+                        * height as usize,
                     "bmfr albedo prefilter lines",
                 )?)
             } else {

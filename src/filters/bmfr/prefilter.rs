@@ -40,7 +40,6 @@
 //! fit's mean residual there 0.026 against a variance of the light of 2.95 (a scratch
 //! program over these functions, not in the repository; results/README.md has the study's
 //! figures). Positions keep their fourth lane (the hits).
-
 //!
 //! Cost. `bmfr_albedo_prefilter` loops over its window per work-item, so PoCL runs it on
 //! scalar floats: 40-56 ms of bmfr's time at 512² (radius 2, 2 cores) on the depth-of-field
@@ -71,14 +70,12 @@ pub const PREFILTER_EPSILON: f32 = 1.0e-10;
 /// of focus the geometry is averaged over the window, in focus it is kept.
 pub const GEOMETRY_K: f32 = 32.0;
 
-/// Lines per image row of the packed prefilter's input with the geometry
-/// (BMFR_PREFILTER_LINES of bmfr_prefilter_packed.cl with BMFR_PREFILTER_GEOMETRY): the albedo
-/// lines, then normal, depth, their variances and the position.
-pub const PREFILTER_PACKED_GEOMETRY_LINES: u32 = 18;
-
-/// Lines per image row of the packed prefilter's input (kernels/filters/
-/// bmfr_prefilter_packed.cl BMFR_PREFILTER_LINES).
-pub const PREFILTER_PACKED_LINES: u32 = 7;
+/// Lines per image row of the packed prefilter's input, passed to the kernels as
+/// `-D BMFR_PREFILTER_LINES` (kernels/filters/bmfr_prefilter_packed.cl has their layout): the
+/// albedo's 7, and with the geometry its 11 more (normal, depth, their variances, position).
+pub fn prefilter_packed_lines(geometry: bool) -> u32 {
+    if geometry { 18 } else { 7 }
+}
 
 /// The largest window half width (a 15 × 15 window).
 pub const MAX_ALBEDO_RADIUS: u32 = 7;
@@ -89,7 +86,7 @@ fn variance(s: &WelfordSums, factor: f32, spp: f32) -> [f32; 3] {
 }
 
 /// The seven channels of the geometry's distance, and the variances of their means
-/// (kernels/filters/bmfr.cl `bmfr_geometry_variance`): albedo, normal, depth.
+/// (kernels/filters/bmfr.cl `bmfr_geometry`): albedo, normal, depth.
 fn geometry(f: &FilterVector, s: &WelfordSums, factor: f32, spp: f32) -> ([f32; 7], [f32; 7]) {
     let a = f.albedo;
     let n = f.normal;
@@ -122,9 +119,7 @@ pub fn prefilter(
     geometry_k: Option<f32>,
 ) -> (Vec<FilterVector>, Vec<Float4>) {
     let k2 = PREFILTER_K * PREFILTER_K;
-    let geometry_too = geometry_k.is_some();
-    let kg = geometry_k.unwrap_or(0.0);
-    let kg2 = kg * kg;
+    let kg2 = geometry_k.map(|k| k * k);
     let r = radius as i32;
     (0..fv.len())
         .into_par_iter()
@@ -162,7 +157,7 @@ pub fn prefilter(
                         sum[c] += wt * aj[c];
                     }
                     wsum += wt;
-                    if geometry_too {
+                    if let Some(kg2) = kg2 {
                         let (gj, gvj) = geometry(&fv[j], &sums[j], factor, spp);
                         let mut dg = 0f32;
                         for c in 0..7 {
@@ -180,7 +175,7 @@ pub fn prefilter(
             }
             // The pixel itself is in its window with weights 1, so the sums of weights are ≥ 1.
             out.albedo = std::array::from_fn(|c| sum[c] / wsum);
-            if geometry_too {
+            if kg2.is_some() {
                 // The pixel's value plus the mean difference: a feature that is the same over
                 // the window (a flat wall's z) stays exactly so. Averaging the values themselves
                 // rounds them apart by an ulp, and the fit, which rescales each block's
