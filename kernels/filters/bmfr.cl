@@ -33,6 +33,7 @@
 //   BMFR_NOISE, BMFR_ALBEDO_EPSILON, BMFR_PIVOT_MIN   float literals
 //   BMFR_SELECT_RADIUS                 half width of the selection's window, pixels
 //   BMFR_SELECT_SCALE                  kappa, the trust in the fit (float literal)
+//   BMFR_SELECT_FLOOR                  c, the floor of the fit's evidence (literal; 0: none)
 //   BMFR_PREFILTER_K, BMFR_PREFILTER_EPSILON   the albedo prefilter's k and epsilon (literals)
 //   BMFR_PREFILTER_GEOMETRY, BMFR_GEOMETRY_K   0/1: the prefilter averages the geometry too; its k
 //   BMFR_PREFILTER_LINES               lines per row of the packed prefilter's input
@@ -44,7 +45,7 @@
 #if !defined(BMFR_BLOCK) || !defined(BMFR_WG) || !defined(BMFR_GRIDS) || !defined(BMFR_DEPTH) \
     || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
     || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
-    || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON) \
+    || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_SELECT_FLOOR) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON) \
     || !defined(BMFR_PREFILTER_GEOMETRY) || !defined(BMFR_GEOMETRY_K) || !defined(BMFR_PREFILTER_LINES)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif

@@ -262,6 +262,8 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
 // weights 1 / E^2; the sums run over the pixels of the pixel's class, and an open pixel blends
 // the light and the non-local means only (it has no fit). A window with V = 0 keeps the light
 // where R > 0 and the fit where R = 0 too (only kept pixels, or one sample: no estimate).
+// With BMFR_SELECT_FLOOR c > 0, R - V is summed again, each pixel's term no lower than -c times
+// the window's mean V (src/filters/bmfr/nlm.rs, "The floor").
 __kernel void bmfr_select_nlm(__global const FilterVector* fv,
                               uint width, uint height,
                               __global const float4* residuals,
@@ -272,6 +274,7 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     uint i = (uint)y * width + (uint)x;
     float class = residuals[i].w;
     float3 sum = (float3)(0.0f);
+    float count = 0.0f;
     // Unrolled (the radius is a build constant), so that the kernel has no loop of its own
     // and PoCL packs its work-items into SIMD lanes, as bmfr_apply's; the same sums.
     #pragma unroll
@@ -283,7 +286,10 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
             int xx = x + dx;
             if (xx < 0 || xx >= (int)width) continue;
             float4 e = residuals[(uint)yy * width + (uint)xx];
-            if (e.w == class) sum += e.xyz;
+            if (e.w == class) {
+                sum += e.xyz;
+                count += 1.0f;
+            }
         }
     }
     float3 beauty = bmfr_beauty(fv + i);
@@ -301,7 +307,24 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
         fitted[i] = (float4)((w_y * beauty + w_n * nlm_out[3 * i].xyz) / (w_y + w_n), 0.0f);
         return;
     }
-    float e_f = fmax((sum.y - sum.x) / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
+    float excess = sum.y - sum.x;
+    if (BMFR_SELECT_FLOOR > 0.0f) {
+        float floor_ = -BMFR_SELECT_FLOOR * (sum.x / count);
+        excess = 0.0f;
+        #pragma unroll
+        for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) {
+            int yy = y + dy;
+            if (yy < 0 || yy >= (int)height) continue;
+            #pragma unroll
+            for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
+                int xx = x + dx;
+                if (xx < 0 || xx >= (int)width) continue;
+                float4 e = residuals[(uint)yy * width + (uint)xx];
+                if (e.w == class) excess += fmax(e.y - e.x, floor_);
+            }
+        }
+    }
+    float e_f = fmax(excess / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
     float w_f = 1.0f / (e_f * e_f);
     float3 out = (w_y * beauty + w_f * fitted[i].xyz + w_n * nlm_out[3 * i].xyz)
         / (w_y + w_f + w_n);

@@ -129,6 +129,7 @@ impl BmfrKernel {
             ("BMFR_PIVOT_MIN", format!("{PIVOT_MIN:e}f")),
             ("BMFR_SELECT_RADIUS", s.select_radius.to_string()),
             ("BMFR_SELECT_SCALE", format!("{:e}f", s.select_scale as f32)),
+            ("BMFR_SELECT_FLOOR", format!("{:e}f", s.select_floor())),
             ("BMFR_PREFILTER_K", format!("{PREFILTER_K:e}f")),
             ("BMFR_PREFILTER_EPSILON", format!("{PREFILTER_EPSILON:e}f")),
             ("BMFR_PREFILTER_GEOMETRY", flag(s.prefilter_geometry)),

@@ -133,6 +133,11 @@ crate::filter_settings! {
         /// κ, the trust in the fit: the blend weight is min(1, κ V / R) (select.rs); with
         /// `nlm`, the fit's error estimate is divided by κ (nlm.rs).
         pub select_scale: f64 = 2.0,
+        /// c, the floor of the fit's evidence (with `nlm`): each pixel's R − V enters the
+        /// window's sum no lower than −c × the window's mean V, so that a few pixels whose
+        /// noise the fit reproduces cannot vouch for the fit over their whole window (nlm.rs);
+        /// 0: no floor; auto: 6 with a thin lens, none with a pinhole camera.
+        pub select_floor: Auto<f32> = Auto::Auto,
         /// A third candidate of the selection: non-local means of the light, its error
         /// estimated by filtering each half buffer alone (nlm.rs).
         pub nlm: bool = true,
@@ -201,6 +206,12 @@ impl BmfrSettings {
         self.albedo_prefilter.or(false)
     }
 
+    /// c of the selection's floor (`select_floor`; auto: none, as [`Bmfr`] resolves it
+    /// for a pinhole camera).
+    pub fn select_floor(&self) -> f32 {
+        self.select_floor.or(0.0)
+    }
+
     /// Number of features K (columns of the fit, the constant included).
     pub fn features(&self) -> usize {
         10 + self.depth as usize + 3 * self.texture as usize + 3 * self.texture2 as usize
@@ -226,6 +237,12 @@ impl BmfrSettings {
             bail!(
                 "the bmfr select_scale must be a number in [1, 100], got {}",
                 self.select_scale
+            );
+        }
+        if !(self.select_floor() >= 0.0 && self.select_floor() <= 1000.0) {
+            bail!(
+                "the bmfr select_floor must be a number in [0, 1000], got {}",
+                self.select_floor()
             );
         }
         if self.nlm_radius > MAX_NLM_RADIUS {
@@ -319,6 +336,19 @@ impl FilterKind for Bmfr {
                     "a pinhole camera, so every pixel's mean albedo is exact after a few samples"
                 }
             ));
+        }
+        if s.select_floor.is_auto() {
+            let lens = scene.camera.lens_radius > 0.0;
+            s.select_floor = Auto::Set(if lens { nlm::LENS_SELECT_FLOOR } else { 0.0 });
+            notes.push(if lens {
+                format!(
+                    "select_floor = {}: a thin lens, so a defocused light's edge has pixels whose \
+                     noise the fit reproduces (nlm.rs)",
+                    nlm::LENS_SELECT_FLOOR
+                )
+            } else {
+                "select_floor = 0: a pinhole camera (the floor cost error there, nlm.rs)".to_string()
+            });
         }
         notes
     }

@@ -57,6 +57,40 @@
 //!   diffuse 512² (`noisefree filter --profile`, binaries alternating). The quality study's
 //!   rows with the new default are in results/README.md (bmfr, "Stop 34").
 //!
+//! The floor (`select_floor`, c). R − V is summed over the window before it is compared with
+//! V, so one pixel whose residual falls far below its variance outweighs its neighbours'
+//! evidence against the fit. Through a lens that pixel exists beside every defocused light:
+//! the share of its samples that hit the light moves its mean position and its light
+//! together, the block's polynomial follows it (prefilter.rs), R ≈ 0 against a V of the
+//! emission's size, and E_f floors at 1e-6 over the whole window, so the ceiling pixels beside
+//! the light, which no light sample reached, take the fit's bleed of the light (on one 8-spp
+//! 512² frame of cornell_diffuse_dof, pixel (192, 10): 0.51 where the reference has 0.012).
+//! With c > 0 each pixel's R − V enters a second sum no lower than −c × the window's mean V;
+//! the estimate stays unbiased where the window's variances are alike (a term below −c V̄ is
+//! then rare). One 8-spp 512² AOV file per scene (`noisefree render S --spp 8 --filter bmfr
+//! --aovs a.exr`, `noisefree filter a.exr --filter bmfr --bmfr-select-floor C --exr b.exr`,
+//! `noisefree compare b.exr <the 2048-spp reference>`), MSE-LUV / relMSE at c = 0 / 3 / 6 / 12:
+//!
+//! | scene | 0 (no floor) | 3 | 6 | 12 |
+//! |---|---|---|---|---|
+//! | cornell_diffuse_dof | 2.180 / 0.00778 | 2.110 / 0.00476 | 2.092 / 0.00593 | 2.143 / 0.00712 |
+//! | cornell_glossy_dof | 5.576 / 0.01498 | 5.510 / 0.01153 | 5.427 / 0.01219 | 5.505 / 0.01385 |
+//! | cornell_plane_dof | 4.017 / 0.01235 | 3.981 / 0.00923 | 3.928 / 0.01076 | 3.991 / 0.01213 |
+//! | outside_dof | 1.589 / 0.00379 | 1.614 / 0.00387 | 1.597 / 0.00381 | 1.591 / 0.00380 |
+//! | cornell_diffuse | 1.485 / 0.00145 | 1.596 / 0.00155 | 1.504 / 0.00146 | 1.485 / 0.00145 |
+//! | cornell_glossy | 5.011 / 0.00819 | 5.150 / 0.00839 | 5.029 / 0.00820 | 5.006 / 0.00818 |
+//! | outside | 2.284 / 0.00515 | 2.308 / 0.00520 | 2.293 / 0.00517 | 2.285 / 0.00515 |
+//!
+//! Without a lens the floor only costs (a small c cuts the heavy tail of ordinary pixels'
+//! estimates, and the fit is trusted less), and its second pass over the window took
+//! `bmfr_select_nlm` from 10.6 to 25.8 ms (`noisefree filter a.exr --filter bmfr --repeat 5
+//! --profile`, Cornell diffuse DOF, PoCL, 2 cores), so it is on with a thin lens only
+//! ([`LENS_SELECT_FLOOR`]). Tried in a prototype of this function and not kept: weighting
+//! each window pixel by 1 / (V_i + V_j + ε) (Cornell diffuse DOF MSE-LUV 5.17 at ε 1e-3, the
+//! weights favour pixels whose V came out small by chance), a floor at −c V_j of the pixel's
+//! own variance (c 0: 2.46, c 0.5: 2.33; Cornell diffuse 1.93 / 1.74), and the same floor
+//! on the non-local means' N as well (no better).
+//!
 //! Cost: 121 offsets for the frame and 49 for each half per pixel, most of bmfr's time on a
 //! CPU. Two kernels do the same float operations in the same order (each patch row's three
 //! taps summed first, then the rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16
@@ -79,7 +113,7 @@
 use rayon::prelude::*;
 
 use super::reference::{albedo, light};
-use super::select::{surface, window_sum};
+use super::select::{surface, window_for_each, window_sum};
 use crate::layout::{FilterVector, Float4};
 
 /// Classes of pixels for the non-local means (kernels/filters/bmfr_nlm.cl `bmfr_nlm_class`):
@@ -133,6 +167,9 @@ pub const NLM_PACKED_PAD: u32 = 16;
 /// Lines per image row of the packed non-local means' input (bmfr_nlm_packed.cl
 /// BMFR_NLM_LINES).
 pub const NLM_PACKED_LINES: u32 = 14;
+
+/// c of the selection's floor with a thin lens (`select_floor` auto; module docs, "The floor").
+pub const LENS_SELECT_FLOOR: f32 = 6.0;
 
 /// The largest search window half width (a 21 × 21 window).
 pub const MAX_NLM_RADIUS: u32 = 10;
@@ -339,7 +376,8 @@ pub fn residual(
 
 /// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` for pixel (x, y): the window sums over the
 /// pixels of its class, then the blend of the light, the fit and the non-local means (an
-/// [`OPEN`] pixel: of the light and the non-local means).
+/// [`OPEN`] pixel: of the light and the non-local means). `(scale, floor)`: κ and c
+/// (`select_scale`, `select_floor`; module docs).
 #[allow(clippy::too_many_arguments)]
 pub fn select(
     f: &FilterVector,
@@ -347,7 +385,7 @@ pub fn select(
     (width, height): (u32, u32),
     (x, y): (i32, i32),
     radius: i32,
-    scale: f32,
+    (scale, floor): (f32, f32),
     fit: [f32; 3],
     nlm: [f32; 3],
 ) -> [f32; 3] {
@@ -363,7 +401,25 @@ pub fn select(
     if class == OPEN {
         return std::array::from_fn(|c| (w_y * b[c] + w_n * nlm[c]) / (w_y + w_n));
     }
-    let e_f = ((sum[1] - sum[0]) / scale / sum[0]).max(1.0e-6);
+    let mut excess = sum[1] - sum[0];
+    if floor > 0.0 {
+        // The floor (module docs): the window's pixels of the class counted, as the kernel's
+        // first loop does, then R − V summed again with each term floored.
+        let mut count = 0f32;
+        window_for_each(residuals, (width, height), (x, y), radius, |e| {
+            if e[3] == class {
+                count += 1.0;
+            }
+        });
+        let floor = -floor * (sum[0] / count);
+        excess = 0.0;
+        window_for_each(residuals, (width, height), (x, y), radius, |e| {
+            if e[3] == class {
+                excess += (e[1] - e[0]).max(floor);
+            }
+        });
+    }
+    let e_f = (excess / scale / sum[0]).max(1.0e-6);
     let w_f = 1.0 / (e_f * e_f);
     std::array::from_fn(|c| (w_y * b[c] + w_f * fit[c] + w_n * nlm[c]) / (w_y + w_f + w_n))
 }

@@ -299,8 +299,8 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
             .map(|i| {
                 let xy = ((i as u32 % w) as i32, (i as u32 / w) as i32);
                 let r = s.select_radius as i32;
-                let scale = s.select_scale as f32;
-                nlm::select(&fv[i], &residuals, (w, h), xy, r, scale, pixels[i], smooth[i][0])
+                let trust = (s.select_scale as f32, s.select_floor());
+                nlm::select(&fv[i], &residuals, (w, h), xy, r, trust, pixels[i], smooth[i][0])
             })
             .collect()
     } else if s.select {

@@ -78,12 +78,31 @@ pub fn surface(f: &FilterVector, p: &Float4, odd: &Float4, spp: f32) -> bool {
 /// (x, y) inside the image, row by row, as the kernels' selection loops do.
 pub fn window_sum<const N: usize>(
     estimates: &[[f32; N]],
-    (width, height): (u32, u32),
-    (x, y): (i32, i32),
+    dims: (u32, u32),
+    xy: (i32, i32),
     radius: i32,
     take: impl Fn(&[f32; N]) -> bool,
 ) -> [f32; N] {
     let mut sum = [0f32; N];
+    window_for_each(estimates, dims, xy, radius, |e| {
+        if take(e) {
+            for (s, v) in sum.iter_mut().zip(e) {
+                *s += v;
+            }
+        }
+    });
+    sum
+}
+
+/// Calls `visit` with the estimates of the (2 radius + 1)² window around (x, y) inside the
+/// image, row by row, as the kernels' selection loops visit them.
+pub fn window_for_each<const N: usize>(
+    estimates: &[[f32; N]],
+    (width, height): (u32, u32),
+    (x, y): (i32, i32),
+    radius: i32,
+    mut visit: impl FnMut(&[f32; N]),
+) {
     for yy in (y - radius)..=(y + radius) {
         if yy < 0 || yy >= height as i32 {
             continue;
@@ -92,16 +111,9 @@ pub fn window_sum<const N: usize>(
             if xx < 0 || xx >= width as i32 {
                 continue;
             }
-            let e = &estimates[(yy as u32 * width + xx as u32) as usize];
-            if !take(e) {
-                continue;
-            }
-            for (s, v) in sum.iter_mut().zip(e) {
-                *s += v;
-            }
+            visit(&estimates[(yy as u32 * width + xx as u32) as usize]);
         }
     }
-    sum
 }
 
 /// kernels/filters/bmfr.cl `bmfr_select` for pixel (x, y): the window sums, then the blend.
