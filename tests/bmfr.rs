@@ -440,15 +440,20 @@ fn filters_the_bundled_cornell_diffuse_scene_well_below_the_unfiltered_error() {
     );
 }
 
-/// MSE-LUV of `img` on the pixels `mask` marks alone: every other pixel set to the truth.
-fn error_on(mask: &[bool], img: &RgbImage, truth: &RgbImage) -> f64 {
+/// `metric` of `img` on the pixels `mask` marks alone: every other pixel set to the truth.
+fn error_on(
+    mask: &[bool],
+    img: &RgbImage,
+    truth: &RgbImage,
+    metric: fn(&RgbImage, &RgbImage) -> anyhow::Result<f64>,
+) -> f64 {
     let mut only = truth.clone();
     for (i, &m) in mask.iter().enumerate() {
         if m {
             only.pixels[i] = img.pixels[i];
         }
     }
-    mse_luv(&only, truth).unwrap()
+    metric(&only, truth).unwrap()
 }
 
 /// Through a lens the sky and the partly covered pixels (silhouettes, defocused edges), which
@@ -468,7 +473,7 @@ fn sky_and_silhouettes_through_a_lens_are_filtered() {
         .collect();
     let count = open.iter().filter(|&&o| o).count();
     // The error of the open pixels alone.
-    let error = |img: &RgbImage| error_on(&open, img, &truth);
+    let error = |img: &RgbImage| error_on(&open, img, &truth, mse_luv);
     let noisy = error(&frame.beauty().unwrap());
     let filtered = error(&device(&frame, &BmfrSettings::default()));
     eprintln!(
@@ -522,7 +527,7 @@ fn a_defocused_light_edge_is_not_fitted_through_noisy_geometry() {
     let frame = render(&scene, w, h, 8, 3);
     let edge = light_edge(&frame, |_| true);
     let count = edge.iter().filter(|&&e| e).count();
-    let error = |img: &RgbImage| error_on(&edge, img, &truth);
+    let error = |img: &RgbImage| error_on(&edge, img, &truth, mse_luv);
     let lens = BmfrSettings {
         albedo_prefilter: Auto::Set(true),
         ..Default::default()
@@ -561,15 +566,7 @@ fn a_few_noisy_pixels_cannot_vouch_for_the_fit_over_their_window() {
     let frame = render(&scene, w, h, 8, 3);
     let unlit = light_edge(&frame, |f| f.direct == [0.0; 3]);
     let count = unlit.iter().filter(|&&e| e).count();
-    let error = |img: &RgbImage| {
-        let mut only = truth.clone();
-        for (i, &m) in unlit.iter().enumerate() {
-            if m {
-                only.pixels[i] = img.pixels[i];
-            }
-        }
-        rel_mse(&only, &truth).unwrap()
-    };
+    let error = |img: &RgbImage| error_on(&unlit, img, &truth, rel_mse);
     let lens = BmfrSettings {
         albedo_prefilter: Auto::Set(true),
         select_floor: Auto::Set(LENS_SELECT_FLOOR),

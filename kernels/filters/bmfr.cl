@@ -412,6 +412,23 @@ __kernel void bmfr_residuals(__global const FilterVector* fv,
 // bmfr_select: the window sums R (residuals) and V (variances) over the (2 r + 1)^2 pixels
 // around, row by row, and the blend y + lambda (f - y) with lambda = min(1, kappa V / R) (1
 // when R = 0: no estimate).
+// The selection's window: runs the statements given for each pixel j of the
+// (2 BMFR_SELECT_RADIUS + 1)^2 window around (x, y) inside the image, row by row, as
+// src/filters/bmfr/select.rs `window_for_each` does. Unrolled (the radius is a build constant),
+// so that the kernel has no loop of its own and PoCL packs its work-items into SIMD lanes, as
+// bmfr_apply's.
+#define BMFR_SELECT_WINDOW(...)                                                     \
+    _Pragma("unroll") for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) { \
+        int yy = y + dy;                                                            \
+        if (yy < 0 || yy >= (int)height) continue;                                  \
+        _Pragma("unroll") for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) { \
+            int xx = x + dx;                                                        \
+            if (xx < 0 || xx >= (int)width) continue;                               \
+            uint j = (uint)yy * width + (uint)xx;                                   \
+            __VA_ARGS__                                                             \
+        }                                                                           \
+    }
+
 __kernel void bmfr_select(__global const FilterVector* fv,
                           uint width, uint height,
                           __global const float2* residuals,
@@ -420,21 +437,11 @@ __kernel void bmfr_select(__global const FilterVector* fv,
     if (x >= (int)width || y >= (int)height) return;
     uint i = (uint)y * width + (uint)x;
     float sum_r = 0.0f, sum_v = 0.0f;
-    // Unrolled (the radius is a build constant), so that the kernel has no loop of its own
-    // and PoCL packs its work-items into SIMD lanes, as bmfr_apply's; the same sums.
-    #pragma unroll
-    for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) {
-        int yy = y + dy;
-        if (yy < 0 || yy >= (int)height) continue;
-        #pragma unroll
-        for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
-            int xx = x + dx;
-            if (xx < 0 || xx >= (int)width) continue;
-            float2 e = residuals[(uint)yy * width + (uint)xx];
-            sum_r += e.x;
-            sum_v += e.y;
-        }
-    }
+    BMFR_SELECT_WINDOW(
+        float2 e = residuals[j];
+        sum_r += e.x;
+        sum_v += e.y;
+    )
     float lambda = sum_r > 0.0f ? fmin(1.0f, BMFR_SELECT_SCALE * sum_v / sum_r) : 1.0f;
     float3 beauty = bmfr_beauty(fv + i);
     float3 fit = fitted[i].xyz;

@@ -275,23 +275,13 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     float class = residuals[i].w;
     float3 sum = (float3)(0.0f);
     float count = 0.0f;
-    // Unrolled (the radius is a build constant), so that the kernel has no loop of its own
-    // and PoCL packs its work-items into SIMD lanes, as bmfr_apply's; the same sums.
-    #pragma unroll
-    for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) {
-        int yy = y + dy;
-        if (yy < 0 || yy >= (int)height) continue;
-        #pragma unroll
-        for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
-            int xx = x + dx;
-            if (xx < 0 || xx >= (int)width) continue;
-            float4 e = residuals[(uint)yy * width + (uint)xx];
-            if (e.w == class) {
-                sum += e.xyz;
-                count += 1.0f;
-            }
+    BMFR_SELECT_WINDOW(
+        float4 e = residuals[j];
+        if (e.w == class) {
+            sum += e.xyz;
+            count += 1.0f;
         }
-    }
+    )
     float3 beauty = bmfr_beauty(fv + i);
     if (!(sum.x > 0.0f)) {
         // No variance: with a residual the light is noise-free and the fit is off (a light
@@ -311,18 +301,10 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     if (BMFR_SELECT_FLOOR > 0.0f) {
         float floor_ = -BMFR_SELECT_FLOOR * (sum.x / count);
         excess = 0.0f;
-        #pragma unroll
-        for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) {
-            int yy = y + dy;
-            if (yy < 0 || yy >= (int)height) continue;
-            #pragma unroll
-            for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {
-                int xx = x + dx;
-                if (xx < 0 || xx >= (int)width) continue;
-                float4 e = residuals[(uint)yy * width + (uint)xx];
-                if (e.w == class) excess += fmax(e.y - e.x, floor_);
-            }
-        }
+        BMFR_SELECT_WINDOW(
+            float4 e = residuals[j];
+            if (e.w == class) excess += fmax(e.y - e.x, floor_);
+        )
     }
     float e_f = fmax(excess / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
     float w_f = 1.0f / (e_f * e_f);

@@ -85,7 +85,8 @@
 //! estimates, and the fit is trusted less), and its second pass over the window took
 //! `bmfr_select_nlm` from 10.6 to 25.8 ms (`noisefree filter a.exr --filter bmfr --repeat 5
 //! --profile`, Cornell diffuse DOF, PoCL, 2 cores), so it is on with a thin lens only
-//! ([`LENS_SELECT_FLOOR`]). Tried in a prototype of this function and not kept: weighting
+//! ([`LENS_SELECT_FLOOR`]). Tried in scratch changes to this function, not in the repository
+//! (so these figures cannot be re-run), and not kept: weighting
 //! each window pixel by 1 / (V_i + V_j + ε) (Cornell diffuse DOF MSE-LUV 5.17 at ε 1e-3, the
 //! weights favour pixels whose V came out small by chance), a floor at −c V_j of the pixel's
 //! own variance (c 0: 2.46, c 0.5: 2.33; Cornell diffuse 1.93 / 1.74), and the same floor
