@@ -50,6 +50,10 @@ typedef struct {
                                          // centre's receiver (ShadowTerms)
     float3 shadow_unshadowed[SHADOW_PLANES]; // and albedo x the light's unoccluded term there
 #endif
+#if OUTPUT_EMISSION
+    float4 emitted;         // light of an emitter the camera ray hit (rgb, part of direct) and
+                            // whether it hit one (w: 1 or 0)
+#endif
 #if OUTPUT_LENS_SHADOWS
     uint receiver;          // the shadow planes whose receiver's object the first hit is on
                             // (the planes whose shadow_direct it records), a bit each
@@ -82,6 +86,9 @@ inline PathSample path_sample_empty(void) {
         ps.shadow_unshadowed[l] = (float3)(0.0f);
     }
 #endif
+#if OUTPUT_EMISSION
+    ps.emitted = (float4)(0.0f);
+#endif
 #if OUTPUT_LENS_SHADOWS
     ps.receiver = 0u;
     ps.receiver_albedo = (float3)(0.0f);
@@ -110,6 +117,10 @@ typedef struct {
 #if OUTPUT_HALVES
     float odd[4];                          // mean light of the odd-numbered samples, count
 #endif
+#if OUTPUT_EMISSION
+    float emission[4];                     // mean light of emitters seen directly, their share
+    float odd_emission[4];                 // the same over the odd-numbered samples, count
+#endif
 } PixelStats;
 
 inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
@@ -133,6 +144,10 @@ inline void pixel_stats_load(PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
 #if OUTPUT_HALVES
     vstore4(vload4(pixel, odd_halves), 0, p->odd);
 #endif
+#if OUTPUT_EMISSION
+    vstore4(vload4(pixel, first_emission), 0, p->emission);
+    vstore4(vload4(pixel, odd_emission), 0, p->odd_emission);
+#endif
 }
 
 inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pixel) {
@@ -155,6 +170,10 @@ inline void pixel_stats_store(const PixelStats* p, RENDER_OUTPUT_PARAMS, uint pi
 #endif
 #if OUTPUT_HALVES
     vstore4(vload4(0, p->odd), pixel, odd_halves);
+#endif
+#if OUTPUT_EMISSION
+    vstore4(vload4(0, p->emission), pixel, first_emission);
+    vstore4(vload4(0, p->odd_emission), pixel, odd_emission);
 #endif
 }
 
@@ -276,6 +295,20 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count, uin
     }
 #else
     (void)sample;
+#endif
+#if OUTPUT_EMISSION
+    // Means over all the samples, as F's (so renders of sample ranges merge as F does).
+    running_mean(&p->emission[0], ps->emitted.x, n);
+    running_mean(&p->emission[1], ps->emitted.y, n);
+    running_mean(&p->emission[2], ps->emitted.z, n);
+    running_mean(&p->emission[3], ps->emitted.w, n);
+    if (sample & 1u) {                   // the odd half, as the halves output's
+        p->odd_emission[3] += 1.0f;
+        float m = p->odd_emission[3];
+        running_mean(&p->odd_emission[0], ps->emitted.x, m);
+        running_mean(&p->odd_emission[1], ps->emitted.y, m);
+        running_mean(&p->odd_emission[2], ps->emitted.z, m);
+    }
 #endif
 }
 

@@ -6,10 +6,10 @@
 
 // Every output buffer of the megakernel, one parameter each, in table order. A
 // buffer whose output is off is bound to a one-element stand-in.
-#define RENDER_OUTPUT_PARAMS __global float* filter_vectors, __global float* depth_shifts, __global float* welford_sums, __global float* welford_state, __global float* positions, __global float* sample_vectors, __global float* shadow_terms, __global float* shadow_pixels, __global float* odd_halves, __global float* light_field, __global float* indirect_pixels, __global float* lens_field, __global float* lens_shadow
-#define RENDER_OUTPUT_ARGS filter_vectors, depth_shifts, welford_sums, welford_state, positions, sample_vectors, shadow_terms, shadow_pixels, odd_halves, light_field, indirect_pixels, lens_field, lens_shadow
+#define RENDER_OUTPUT_PARAMS __global float* filter_vectors, __global float* depth_shifts, __global float* welford_sums, __global float* welford_state, __global float* positions, __global float* sample_vectors, __global float* shadow_terms, __global float* shadow_pixels, __global float* odd_halves, __global float* light_field, __global float* indirect_pixels, __global float* lens_field, __global float* lens_shadow, __global float* first_emission, __global float* odd_emission
+#define RENDER_OUTPUT_ARGS filter_vectors, depth_shifts, welford_sums, welford_state, positions, sample_vectors, shadow_terms, shadow_pixels, odd_halves, light_field, indirect_pixels, lens_field, lens_shadow, first_emission, odd_emission
 
-#if !defined(OUTPUT_FEATURES) || !defined(OUTPUT_VARIANCE) || !defined(OUTPUT_POSITION) || !defined(OUTPUT_SAMPLES) || !defined(OUTPUT_SHADOWS) || !defined(OUTPUT_HALVES) || !defined(OUTPUT_LIGHT_FIELD) || !defined(OUTPUT_INDIRECT) || !defined(OUTPUT_LENS_SHADOWS)
+#if !defined(OUTPUT_FEATURES) || !defined(OUTPUT_VARIANCE) || !defined(OUTPUT_POSITION) || !defined(OUTPUT_SAMPLES) || !defined(OUTPUT_SHADOWS) || !defined(OUTPUT_HALVES) || !defined(OUTPUT_LIGHT_FIELD) || !defined(OUTPUT_INDIRECT) || !defined(OUTPUT_LENS_SHADOWS) || !defined(OUTPUT_EMISSION)
 #error "noisefree: an output switch is missing from the build options"
 #endif
 #if OUTPUT_VARIANCE && !OUTPUT_FEATURES

@@ -151,6 +151,9 @@ inline bool path_vertex(const SceneRefs* s, PathState* st, const Hit* hit,
         // Lights emit from their front (outside) only, matching connect_light.
         if ((st->flags & PATH_COUNT_EMISSION) && sf.entering) {
             add_light(ps, bounce, st->throughput * m->emission.xyz);
+#if OUTPUT_EMISSION
+            if (bounce == 0u) ps->emitted.xyz = st->throughput * m->emission.xyz;
+#endif
 #if OUTPUT_SHADOWS
             // Without light sampling, the shadow light's direct term arrives here.
             int plane = sf.light >= 0 ? shadow_plane(shadow_lights, (uint)sf.light) : -1;
@@ -164,6 +167,9 @@ inline bool path_vertex(const SceneRefs* s, PathState* st, const Hit* hit,
             ps->normal = sf.ns;
             ps->albedo = surface_albedo(s, &sf);
         }
+#endif
+#if OUTPUT_EMISSION
+        if (bounce == 0u) ps->emitted.w = 1.0f;
 #endif
         return false;
     }
@@ -244,6 +250,9 @@ inline void path_finish(const SceneRefs* s, PathState* st) {
             ps->indirect *= k;
 #if OUTPUT_SHADOWS
             for (uint l = 0u; l < SHADOW_PLANES; ++l) ps->shadow_direct[l] *= k;
+#endif
+#if OUTPUT_EMISSION
+            ps->emitted.xyz *= k;
 #endif
         }
     }

@@ -60,6 +60,11 @@ pub enum Output {
     /// lens sample's light less the filtered lights' direct term on the pixel centre's
     /// receiver, that sample's albedo, and the lights' unoccluded terms.
     LensShadows,
+    /// The light of lights seen directly (emitters hit by the camera ray), the part of the
+    /// FilterVector's direct light that is no surface's reflection: its mean over the pixel's
+    /// samples and the share of samples whose camera ray hit an emitter. A filter that models
+    /// reflected light (bmfr's fit) takes it out of its target and treats it apart.
+    Emission,
 }
 
 /// A device buffer of the megakernel.
@@ -78,6 +83,8 @@ pub enum BufferId {
     IndirectPixels,
     LensFieldPixels,
     LensShadowPixels,
+    FirstEmission,
+    OddEmission,
 }
 
 /// How many elements a buffer holds.
@@ -405,6 +412,26 @@ pub const BUFFERS: &[BufferDecl] = &[
         merge: Merge::Identical,
         doc: "sheared shadows with depth of field: each lens sample's albedo and each light's \
               unoccluded term",
+    },
+    BufferDecl {
+        id: FirstEmission,
+        name: "first_emission",
+        element: "float4",
+        element_bytes: size_of::<Float4>(),
+        per: Per::Pixel,
+        merge: Merge::Means,
+        doc: "mean light of emitters seen directly per pixel (rgb) and the share of samples \
+              whose camera ray hit an emitter (w)",
+    },
+    BufferDecl {
+        id: OddEmission,
+        name: "odd_emission",
+        element: "float4",
+        element_bytes: size_of::<Float4>(),
+        per: Per::Pixel,
+        merge: Merge::HitMeans,
+        doc: "mean light of emitters seen directly by the odd-numbered samples (rgb) and how \
+              many (w)",
     },
 ];
 
@@ -960,6 +987,26 @@ pub const OUTPUTS: &[OutputDecl] = &[
         doc: "sheared soft shadows with depth of field (Yan et al.'s appendix): the lens field \
               less the filtered lights' direct term, each lens sample's albedo, the lights' \
               unoccluded terms",
+    },
+    OutputDecl {
+        output: Output::Emission,
+        name: "emission",
+        switch: Some("OUTPUT_EMISSION"),
+        requires: &[Output::Colour],
+        buffers: &[FirstEmission, OddEmission],
+        channels: &[
+            ch("emitted.R", FirstEmission, 0),
+            ch("emitted.G", FirstEmission, 1),
+            ch("emitted.B", FirstEmission, 2),
+            ch("emitted.share", FirstEmission, 3),
+            ch("emitted_odd.R", OddEmission, 0),
+            ch("emitted_odd.G", OddEmission, 1),
+            ch("emitted_odd.B", OddEmission, 2),
+            ch("emitted_odd.samples", OddEmission, 3),
+        ],
+        doc: "mean light of emitters seen directly (part of F's direct light), the share of \
+              samples whose camera ray hit an emitter, and the mean of the odd-numbered samples \
+              alone (the emission's half buffers, as the halves output's)",
     },
 ];
 

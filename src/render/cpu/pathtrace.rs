@@ -329,6 +329,11 @@ pub struct PathSample {
     /// The first hit is a diffuse point of the receiver's object (kernels/render/film.cl
     /// PathSample.receiver, one plane).
     pub receiver: bool,
+    /// The light of an emitter the camera ray hit, part of `direct` (kernels/render/film.cl
+    /// PathSample.emitted, the emission output).
+    pub emitted: Vec3,
+    /// The camera ray hit an emitter (front or back).
+    pub on_emitter: bool,
 }
 
 impl PathSample {
@@ -345,6 +350,8 @@ impl PathSample {
             shadow_direct: Vec3::ZERO,
             shadow_unshadowed: Vec3::ZERO,
             receiver: false,
+            emitted: Vec3::ZERO,
+            on_emitter: false,
         }
     }
 
@@ -460,6 +467,9 @@ pub fn trace_path_from(
         if m.kind == MATERIAL_EMITTER {
             if count_emission && sf.entering {
                 ps.add_light(bounce, throughput * m.emission.xyz());
+                if bounce == 0 {
+                    ps.emitted = throughput * m.emission.xyz();
+                }
                 let light = match hit.prim {
                     Prim::Triangle(k) => s.tri_shading[k as usize].light,
                     Prim::Sphere(i) => s.spheres[i as usize].light,
@@ -472,6 +482,7 @@ pub fn trace_path_from(
                 ps.depth = hit.t;
                 ps.normal = sf.ns;
                 ps.albedo = surface_albedo(s, &sf);
+                ps.on_emitter = true;
             }
             break;
         }
@@ -526,6 +537,7 @@ pub fn trace_path_from(
             ps.indirect *= k;
             ps.total *= k;
             ps.shadow_direct *= k;
+            ps.emitted *= k;
         }
     }
     ps
