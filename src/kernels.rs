@@ -113,6 +113,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_prefilter_packed.cl"),
     ),
     (
+        "filters/bmfr_emission.cl",
+        include_str!("../kernels/filters/bmfr_emission.cl"),
+    ),
+    (
         "filters/aaf_pass.cl",
         include_str!("../kernels/filters/aaf_pass.cl"),
     ),

@@ -553,3 +553,4 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
 #include "filters/bmfr_nlm.cl"
 #include "filters/bmfr_nlm_packed.cl"
 #include "filters/bmfr_prefilter_packed.cl"
+#include "filters/bmfr_emission.cl"

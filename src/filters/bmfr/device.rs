@@ -10,6 +10,7 @@ use ocl::{Buffer, Kernel};
 use super::nlm::{
     MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
 };
+use super::emission::{EMISSION_EPSILON, EMISSION_PATCH};
 use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, prefilter_packed_lines};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
@@ -45,6 +46,17 @@ struct Prefilter {
     /// The positions the other kernels then read: with `prefilter_geometry` their xyz
     /// averaged, else a copy.
     positions: Buffer<u8>,
+}
+
+/// With `emission` (emission.rs): `bmfr_reflected`, which writes the copies of F and the odd
+/// half that the other kernels then read, `bmfr_emission_prep`, and `bmfr_emission_nlm`, which
+/// adds the filtered emission to the image last.
+struct Emission {
+    reflected: Kernel,
+    prep: Kernel,
+    nlm: Kernel,
+    fv: Buffer<u8>,
+    odd: Buffer<u8>,
 }
 
 /// Floats per line of the packed kernels' inputs (kernels/filters/bmfr_nlm_packed.cl): the
@@ -83,6 +95,7 @@ pub struct BmfrKernel {
     select: Vec<(Kernel, FrameArgs)>,
     /// With `albedo_prefilter` (prefilter.rs).
     prefilter: Option<Prefilter>,
+    emission: Option<Emission>,
     needs: OutputSet,
     _weights: Buffer<f32>,
     _info: Buffer<f32>,
@@ -144,6 +157,10 @@ impl BmfrKernel {
             ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
             ("BMFR_NLM_TILE", NLM_TILE.to_string()),
             ("BMFR_NLM_ROWS", NLM_PACKED_ROWS.to_string()),
+            ("BMFR_EMISSION_RADIUS", s.emission_radius.to_string()),
+            ("BMFR_EMISSION_PATCH", EMISSION_PATCH.to_string()),
+            ("BMFR_EMISSION_K", format!("{:e}f", s.emission_k as f32)),
+            ("BMFR_EMISSION_EPSILON", format!("{EMISSION_EPSILON:e}f")),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -398,6 +415,59 @@ impl BmfrKernel {
         } else {
             None
         };
+        let emission = if s.splits_emission() {
+            let fv = gpu.zeroed::<u8>(
+                pixels * std::mem::size_of::<FilterVector>(),
+                "bmfr reflected F",
+            )?;
+            let odd = gpu.zeroed::<u8>(
+                pixels * std::mem::size_of::<Float4>(),
+                "bmfr reflected odd half",
+            )?;
+            let prep_out = gpu.zeroed::<Float2>(pixels, "bmfr emission patches")?;
+            let frame_kernel = |name: &'static str| {
+                let mut kb = Kernel::builder();
+                kb.program(&program)
+                    .name(name)
+                    .queue(gpu.queue.clone())
+                    .global_work_size([width as usize, height as usize]);
+                kb
+            };
+            let mut kb = frame_kernel("bmfr_reflected");
+            kb.arg_named("fv", None::<&Buffer<u8>>)
+                .arg_named("odd_halves", None::<&Buffer<u8>>)
+                .arg_named("emission", None::<&Buffer<u8>>)
+                .arg_named("odd_emission", None::<&Buffer<u8>>)
+                .arg(width)
+                .arg(height)
+                .arg(&fv)
+                .arg(&odd);
+            let reflected = kb.build().context("creating the bmfr reflected-light kernel")?;
+            let mut kb = frame_kernel("bmfr_emission_prep");
+            kb.arg_named("emission", None::<&Buffer<u8>>)
+                .arg_named("odd_emission", None::<&Buffer<u8>>)
+                .arg(width)
+                .arg(height)
+                .arg_named("spp", 0f32)
+                .arg(&prep_out);
+            let prep = kb.build().context("creating the bmfr emission kernel")?;
+            let mut kb = frame_kernel("bmfr_emission_nlm");
+            kb.arg_named("emission", None::<&Buffer<u8>>)
+                .arg(&prep_out)
+                .arg(width)
+                .arg(height)
+                .arg(&out);
+            let nlm = kb.build().context("creating the bmfr emission kernel")?;
+            Some(Emission {
+                reflected,
+                prep,
+                nlm,
+                fv,
+                odd,
+            })
+        } else {
+            None
+        };
         Ok(BmfrKernel {
             gpu,
             rows,
@@ -405,6 +475,7 @@ impl BmfrKernel {
             apply,
             select,
             prefilter,
+            emission,
             needs: s.needs(),
             _weights: weights,
             _info: info,
@@ -424,6 +495,25 @@ impl BmfrKernel {
         let mut pos = frame.device(&self.gpu, BufferId::Positions)?;
         let spp = frame.info().spp as f32;
         let mut events = Vec::with_capacity(self.fits.len() + 4);
+        let mut odd = frame.device(&self.gpu, BufferId::OddHalves).ok();
+        if let Some(em) = &self.emission {
+            let e = frame.device(&self.gpu, BufferId::FirstEmission)?;
+            let e_odd = frame.device(&self.gpu, BufferId::OddEmission)?;
+            em.reflected.set_arg("fv", fv)?;
+            em.reflected.set_arg("odd_halves", odd.context("the odd half")?)?;
+            em.reflected.set_arg("emission", e)?;
+            em.reflected.set_arg("odd_emission", e_odd)?;
+            em.prep.set_arg("emission", e)?;
+            em.prep.set_arg("odd_emission", e_odd)?;
+            em.prep.set_arg("spp", spp)?;
+            em.nlm.set_arg("emission", e)?;
+            // SAFETY: the buffers are sized for the image; the in-order queue runs every
+            // other kernel on the copies after these, and we wait for every event below.
+            events.push(unsafe { enqueue(&em.reflected, "the bmfr reflected light")? });
+            events.push(unsafe { enqueue(&em.prep, "the bmfr emission")? });
+            fv = &em.fv;
+            odd = Some(&em.odd);
+        }
         if let Some(p) = &self.prefilter {
             p.inputs.set_arg("fv", fv)?;
             p.inputs
@@ -463,7 +553,7 @@ impl BmfrKernel {
                 k.set_arg("positions", pos)?;
             }
             if args.odd_halves {
-                k.set_arg("odd_halves", frame.device(&self.gpu, BufferId::OddHalves)?)?;
+                k.set_arg("odd_halves", odd.context("the bmfr selection needs the odd half")?)?;
             }
             if args.spp {
                 k.set_arg("spp", spp)?;
@@ -475,6 +565,10 @@ impl BmfrKernel {
             // sized for the image and the grids the kernels were built for; the in-order queue
             // runs the blend after the fits, and the selection's steps after the blend in turn.
             events.push(unsafe { enqueue(k, "a bmfr filter kernel")? });
+        }
+        if let Some(em) = &self.emission {
+            // SAFETY: as above; the in-order queue adds the emission after the selection.
+            events.push(unsafe { enqueue(&em.nlm, "the bmfr emission")? });
         }
         let mut kernel_time = Duration::ZERO;
         for e in &events {

@@ -68,6 +68,7 @@
 //! position and its light together).
 
 mod device;
+pub mod emission;
 pub mod nlm;
 pub mod prefilter;
 mod reference;
@@ -175,6 +176,16 @@ crate::filter_settings! {
         /// same order as the kernels with one work-item per pixel, which PoCL runs on scalar
         /// floats. auto: on CPU devices.
         pub packed_nlm: Auto<bool> = Auto::Auto,
+        /// Take the light of lights seen directly (the render's emission output) out of the
+        /// light the fit, the selection and the non-local means see, and filter it apart by
+        /// non-local means over its own half buffers (emission.rs): a defocused light's edge
+        /// no longer bends the fit. auto: on when the camera has a thin lens.
+        pub emission: Auto<bool> = Auto::Auto,
+        /// Half width of the emission's non-local means' search window, pixels.
+        pub emission_radius: u32 = 7,
+        /// k of the emission's patch distance: how many standard deviations of a difference
+        /// count as noise.
+        pub emission_k: f64 = 0.7,
     }
 }
 
@@ -182,11 +193,16 @@ impl BmfrSettings {
     /// The outputs the filter reads.
     pub fn needs(&self) -> OutputSet {
         let mut outputs = vec![Output::Colour, Output::Features, Output::Position];
-        if self.select {
+        // The emission's non-local means read its own half buffers, and the reflected light's
+        // halves are the frame's less them.
+        if self.select || self.splits_emission() {
             outputs.push(Output::Halves);
         }
         if self.prefilters_albedo() {
             outputs.push(Output::Variance);
+        }
+        if self.splits_emission() {
+            outputs.push(Output::Emission);
         }
         OutputSet::of(&outputs)
     }
@@ -204,6 +220,12 @@ impl BmfrSettings {
     /// Whether the albedo prefilter runs (`auto` reads as off until specialised).
     pub fn prefilters_albedo(&self) -> bool {
         self.albedo_prefilter.or(false)
+    }
+
+    /// Whether the light of lights seen directly is filtered apart (`auto` reads as off until
+    /// specialised).
+    pub fn splits_emission(&self) -> bool {
+        self.emission.or(false)
     }
 
     /// c of the selection's floor (`select_floor`; auto: none, as [`Bmfr`] resolves it
@@ -261,6 +283,19 @@ impl BmfrSettings {
             bail!(
                 "the bmfr albedo_radius must be at most {MAX_ALBEDO_RADIUS} pixels, got {}",
                 self.albedo_radius
+            );
+        }
+        if self.emission_radius > emission::MAX_EMISSION_RADIUS {
+            bail!(
+                "the bmfr emission_radius must be at most {} pixels, got {}",
+                emission::MAX_EMISSION_RADIUS,
+                self.emission_radius
+            );
+        }
+        if !(self.emission_k > 0.0 && self.emission_k <= 100.0) {
+            bail!(
+                "the bmfr emission_k must be a number in (0, 100], got {}",
+                self.emission_k
             );
         }
         if !(self.geometry_k > 0.0 && self.geometry_k <= 1000.0) {
@@ -334,6 +369,19 @@ impl FilterKind for Bmfr {
                     "a thin lens, so defocused pixels' mean albedo is noisy (prefilter.rs)"
                 } else {
                     "a pinhole camera, so every pixel's mean albedo is exact after a few samples"
+                }
+            ));
+        }
+        if s.emission.is_auto() {
+            let lens = scene.camera.lens_radius > 0.0;
+            s.emission = Auto::Set(lens);
+            notes.push(format!(
+                "emission = {lens}: {}",
+                if lens {
+                    "a thin lens, so a defocused light's edge spreads over pixels whose samples \
+                     partly hit it (emission.rs)"
+                } else {
+                    "a pinhole camera, so a light's edge is one pixel wide"
                 }
             ));
         }
