@@ -526,16 +526,21 @@ fn light_edge(frame: &Frame, take: impl Fn(&FilterVector) -> bool) -> Vec<bool> 
             !light && f.direct.iter().fold(0f32, |a, &b| a.max(b)) > 1.0
         })
         .collect();
-    (0..fv.len())
+    let near = within_two(&lit, w, h);
+    (0..fv.len()).map(|i| take(&fv[i]) && near[i]).collect()
+}
+
+/// The pixels of a `w` × `h` image within 2 (a 5 × 5 window) of a pixel of `seeds`.
+fn within_two(seeds: &[bool], w: i32, h: i32) -> Vec<bool> {
+    (0..w * h)
         .map(|i| {
-            let (x, y) = (i as i32 % w, i as i32 / w);
-            take(&fv[i])
-                && (-2..=2).any(|dy| {
-                    (-2..=2).any(|dx| {
-                        let (xx, yy) = (x + dx, y + dy);
-                        (0..w).contains(&xx) && (0..h).contains(&yy) && lit[(yy * w + xx) as usize]
-                    })
+            let (x, y) = (i % w, i / w);
+            (-2..=2).any(|dy| {
+                (-2..=2).any(|dx| {
+                    let (u, v) = (x + dx, y + dy);
+                    (0..w).contains(&u) && (0..h).contains(&v) && seeds[(v * w + u) as usize]
                 })
+            })
         })
         .collect()
 }
@@ -635,18 +640,7 @@ fn a_defocused_lights_emission_is_filtered_apart_from_the_reflected_light() {
         .iter()
         .map(|e| e.0[3] > 0.0 && e.0[3] < 1.0)
         .collect();
-    let (wi, hi) = (w as i32, h as i32);
-    let edge: Vec<bool> = (0..share.len() as i32)
-        .map(|i| {
-            let (x, y) = (i % wi, i / wi);
-            (-2..=2).any(|dy| {
-                (-2..=2).any(|dx| {
-                    let (u, v) = (x + dx, y + dy);
-                    (0..wi).contains(&u) && (0..hi).contains(&v) && share[(v * wi + u) as usize]
-                })
-            })
-        })
-        .collect();
+    let edge = within_two(&share, w as i32, h as i32);
     let count = edge.iter().filter(|&&e| e).count();
     let lens = BmfrSettings {
         albedo_prefilter: Auto::Set(true),

@@ -32,6 +32,7 @@ fn every_bundled_scene_gives_the_megakernels_bytes() {
             Output::Position,
             Output::Samples,
             Output::Halves,
+            Output::Emission,
         ]);
         o.sample_capacity = 3;
         // Waves of three rows: a launch traces five waves one after the other.

@@ -495,12 +495,14 @@ impl BmfrKernel {
         let mut pos = frame.device(&self.gpu, BufferId::Positions)?;
         let spp = frame.info().spp as f32;
         let mut events = Vec::with_capacity(self.fits.len() + 4);
-        let mut odd = frame.device(&self.gpu, BufferId::OddHalves).ok();
+        // The odd half the selection reads: the frame's, or with `emission` its reflected copy.
+        let mut odd = None;
         if let Some(em) = &self.emission {
             let e = frame.device(&self.gpu, BufferId::FirstEmission)?;
             let e_odd = frame.device(&self.gpu, BufferId::OddEmission)?;
             em.reflected.set_arg("fv", fv)?;
-            em.reflected.set_arg("odd_halves", odd.context("the odd half")?)?;
+            em.reflected
+                .set_arg("odd_halves", frame.device(&self.gpu, BufferId::OddHalves)?)?;
             em.reflected.set_arg("emission", e)?;
             em.reflected.set_arg("odd_emission", e_odd)?;
             em.prep.set_arg("emission", e)?;
@@ -553,7 +555,11 @@ impl BmfrKernel {
                 k.set_arg("positions", pos)?;
             }
             if args.odd_halves {
-                k.set_arg("odd_halves", odd.context("the bmfr selection needs the odd half")?)?;
+                let odd = match odd {
+                    Some(odd) => odd,
+                    None => frame.device(&self.gpu, BufferId::OddHalves)?,
+                };
+                k.set_arg("odd_halves", odd)?;
             }
             if args.spp {
                 k.set_arg("spp", spp)?;

@@ -33,9 +33,13 @@
 //! patches (radius 5, k 1, 3 × 3 patches: 1.85 / 0.00327; a Gaussian blur of E instead: 2.76 /
 //! 0.0208 at σ 0.7, worse with σ, as it spreads the light over pixels that truly see none).
 
+use anyhow::Result;
 use rayon::prelude::*;
 
+use super::BmfrSettings;
+use crate::layout::outputs::BufferId;
 use crate::layout::{FilterVector, Float4};
+use crate::render::Frame;
 
 /// Half width of the patches the emission's non-local means compare (a 5 × 5 patch).
 pub const EMISSION_PATCH: i32 = 2;
@@ -46,6 +50,32 @@ pub const MAX_EMISSION_RADIUS: u32 = 12;
 /// Added to the denominator of the patch distance: no pixel's E has a variance estimate when
 /// none of its samples saw a light.
 pub const EMISSION_EPSILON: f32 = 1.0e-4;
+
+/// A frame's light split in two, as the kernels split it (the reference's input).
+pub struct Split {
+    /// F less the light of lights seen directly ([`reflected`]).
+    pub fv: Vec<FilterVector>,
+    /// The odd half less the emission's.
+    pub odd: Vec<Float4>,
+    /// The emission filtered by its non-local means ([`emission_nlm`]), added to the output.
+    pub emitted: Vec<[f32; 3]>,
+}
+
+/// The frame's [`Split`] with the settings' window and k.
+pub fn split(frame: &Frame, s: &BmfrSettings) -> Result<Split> {
+    let (w, h, spp) = (frame.width(), frame.height(), frame.info().spp as f32);
+    let fv = frame.filter_vectors()?;
+    let odd: &[Float4] = frame.host_slice(BufferId::OddHalves)?;
+    let e: &[Float4] = frame.host_slice(BufferId::FirstEmission)?;
+    let e_odd: &[Float4] = frame.host_slice(BufferId::OddEmission)?;
+    let (fv, odd) = (0..fv.len())
+        .map(|i| reflected(&fv[i], &odd[i], &e[i], &e_odd[i]))
+        .unzip();
+    let patches = prep(e, e_odd, (w, h), spp);
+    let radius = s.emission_radius as i32;
+    let emitted = emission_nlm(e, &patches, (w, h), radius, s.emission_k as f32);
+    Ok(Split { fv, odd, emitted })
+}
 
 /// kernels/filters/bmfr_emission.cl `bmfr_reflected`: pixel `i`'s F and odd half with the
 /// light of emitters seen directly taken out.

@@ -193,8 +193,8 @@ impl BmfrSettings {
     /// The outputs the filter reads.
     pub fn needs(&self) -> OutputSet {
         let mut outputs = vec![Output::Colour, Output::Features, Output::Position];
-        // The emission's non-local means read its own half buffers, and the reflected light's
-        // halves are the frame's less them.
+        // With `emission`, bmfr_reflected reads the odd half (and writes it less the
+        // emission's, for the selection).
         if self.select || self.splits_emission() {
             outputs.push(Output::Halves);
         }
@@ -360,8 +360,8 @@ impl FilterKind for Bmfr {
 
     fn specialise(s: &mut BmfrSettings, scene: &SceneInfo) -> Vec<String> {
         let mut notes = Vec::new();
+        let lens = scene.camera.lens_radius > 0.0;
         if s.albedo_prefilter.is_auto() {
-            let lens = scene.camera.lens_radius > 0.0;
             s.albedo_prefilter = Auto::Set(lens);
             notes.push(format!(
                 "albedo_prefilter = {lens}: {}",
@@ -373,7 +373,6 @@ impl FilterKind for Bmfr {
             ));
         }
         if s.emission.is_auto() {
-            let lens = scene.camera.lens_radius > 0.0;
             s.emission = Auto::Set(lens);
             notes.push(format!(
                 "emission = {lens}: {}",
@@ -386,7 +385,6 @@ impl FilterKind for Bmfr {
             ));
         }
         if s.select_floor.is_auto() {
-            let lens = scene.camera.lens_radius > 0.0;
             s.select_floor = Auto::Set(if lens { nlm::LENS_SELECT_FLOOR } else { 0.0 });
             notes.push(if lens {
                 format!(

@@ -206,25 +206,19 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     let pos: &[Float4] = frame.host_slice(BufferId::Positions)?;
     let spp = frame.info().spp as f32;
     // With `emission`: F and the odd half less the light of lights seen directly (emission.rs).
-    let (fv_frame, odd_frame): (&[FilterVector], &[Float4]) =
-        (frame.filter_vectors()?, frame.host_slice(BufferId::OddHalves).unwrap_or(&[]));
-    let mut split = None;
-    let emitted = if s.splits_emission() {
-        let e: &[Float4] = frame.host_slice(BufferId::FirstEmission)?;
-        let e_odd: &[Float4] = frame.host_slice(BufferId::OddEmission)?;
-        split = Some(
-            (0..fv_frame.len())
-                .map(|i| emission::reflected(&fv_frame[i], &odd_frame[i], &e[i], &e_odd[i]))
-                .unzip::<_, _, Vec<_>, Vec<_>>(),
-        );
-        let prep = emission::prep(e, e_odd, (w, h), spp);
-        Some(emission::emission_nlm(e, &prep, (w, h), s.emission_radius as i32, s.emission_k as f32))
-    } else {
-        None
+    let split = match s.splits_emission() {
+        true => Some(emission::split(frame, s)?),
+        false => None,
     };
-    let (fv_frame, odd_frame) = match &split {
-        Some((f, o)) => (&f[..], &o[..]),
-        _ => (fv_frame, odd_frame),
+    let fv_frame = match &split {
+        Some(sp) => &sp.fv[..],
+        None => frame.filter_vectors()?,
+    };
+    let odd_frame = || -> Result<&[Float4]> {
+        match &split {
+            Some(sp) => Ok(&sp.odd[..]),
+            None => frame.host_slice(BufferId::OddHalves),
+        }
     };
     let prefiltered;
     let (fv, pos): (&[FilterVector], &[Float4]) = if s.prefilters_albedo() {
@@ -308,7 +302,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         })
         .collect::<Vec<[f32; 3]>>();
     let pixels = if s.uses_nlm() {
-        let odd = odd_frame;
+        let odd = odd_frame()?;
         let (r, k) = ((s.nlm_radius, s.estimate_radius()), s.nlm_k as f32);
         let smooth = nlm::nlm(fv, pos, odd, (w, h), spp, r, k);
         let residuals: Vec<[f32; 4]> = (0..pixels.len())
@@ -325,7 +319,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
             })
             .collect()
     } else if s.select {
-        let odd = odd_frame;
+        let odd = odd_frame()?;
         let residuals: Vec<[f32; 2]> = (0..pixels.len())
             .into_par_iter()
             .map(|i| select::residual(&fv[i], &pos[i], &odd[i], spp, pixels[i]))
@@ -342,10 +336,10 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     } else {
         pixels
     };
-    let pixels = match emitted {
-        Some(e) => pixels
+    let pixels = match &split {
+        Some(sp) => pixels
             .iter()
-            .zip(&e)
+            .zip(&sp.emitted)
             .map(|(p, e)| std::array::from_fn(|c| p[c] + e[c]))
             .collect(),
         None => pixels,
