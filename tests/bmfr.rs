@@ -162,13 +162,20 @@ fn variants() -> Vec<BmfrSettings> {
             prefilter_geometry: false,
             ..d.clone()
         },
-        // Lights seen directly filtered apart (emission.rs): as with a thin lens, at another
-        // window and k, the widest window, and without the selection.
+        // Lights seen directly filtered apart (emission.rs): as with a thin lens (packed and
+        // in work-groups), at another window and k, the widest window, and without the
+        // selection.
         BmfrSettings {
             albedo_prefilter: Auto::Set(true),
             select_floor: Auto::Set(LENS_SELECT_FLOOR),
             emission: Auto::Set(true),
             ..d.clone()
+        },
+        BmfrSettings {
+            albedo_prefilter: Auto::Set(true),
+            select_floor: Auto::Set(LENS_SELECT_FLOOR),
+            emission: Auto::Set(true),
+            ..groups.clone()
         },
         BmfrSettings {
             emission: Auto::Set(true),
@@ -231,8 +238,9 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
             // depth-of-field frame (1.3e-5 on the spheres frame; the albedo alone 1.44e-5),
             // bound 5e-5; with the selection 7.0e-6 (spheres) and 2.6e-6 (depth of field).
             // The emission's non-local means (emission.rs) add exps too: with the lens's
-            // settings 5.6e-6 on the depth-of-field frame, 4.7e-7 at radius 3 without the
-            // prefilter, 1.9e-7 at radius 12 without the selection.
+            // settings 5.6e-6 on the depth-of-field frame (8.6e-6 with the work-group kernels),
+            // 4.7e-7 at radius 3 without the prefilter, 1.1e-7 at radius 12 without the
+            // selection.
             let bound = match (s.albedo_prefilter == Auto::Set(true), s.uses_nlm()) {
                 (true, _) => 5e-5,
                 (false, true) => 5e-6,

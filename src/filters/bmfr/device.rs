@@ -10,7 +10,10 @@ use ocl::{Buffer, Kernel};
 use super::nlm::{
     MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
 };
-use super::emission::{EMISSION_EPSILON, EMISSION_PATCH};
+use super::emission::{
+    EMISSION_EPSILON, EMISSION_LINES, EMISSION_PACKED_ROWS, EMISSION_PACKED_STEP, EMISSION_PATCH,
+    EMISSION_TILE,
+};
 use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, prefilter_packed_lines};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
@@ -55,8 +58,11 @@ struct Emission {
     reflected: Kernel,
     prep: Kernel,
     nlm: Kernel,
+    /// Whether `nlm` is the packed kernel (which reads E from the lines only).
+    packed: bool,
     fv: Buffer<u8>,
     odd: Buffer<u8>,
+    _lines: Buffer<f32>,
 }
 
 /// Floats per line of the packed kernels' inputs (kernels/filters/bmfr_nlm_packed.cl): the
@@ -159,6 +165,9 @@ impl BmfrKernel {
             ("BMFR_NLM_ROWS", NLM_PACKED_ROWS.to_string()),
             ("BMFR_EMISSION_RADIUS", s.emission_radius.to_string()),
             ("BMFR_EMISSION_PATCH", EMISSION_PATCH.to_string()),
+            ("BMFR_EMISSION_TILE", EMISSION_TILE.to_string()),
+            ("BMFR_EMISSION_LINES", EMISSION_LINES.to_string()),
+            ("BMFR_EMISSION_ROWS", EMISSION_PACKED_ROWS.to_string()),
             ("BMFR_EMISSION_K", format!("{:e}f", s.emission_k as f32)),
             ("BMFR_EMISSION_EPSILON", format!("{EMISSION_EPSILON:e}f")),
         ]
@@ -424,7 +433,12 @@ impl BmfrKernel {
                 pixels * std::mem::size_of::<Float4>(),
                 "bmfr reflected odd half",
             )?;
-            let prep_out = gpu.zeroed::<Float2>(pixels, "bmfr emission patches")?;
+            // E's lines (bmfr_emission.cl), padded either side and zeroed once.
+            let stride = line_stride(width);
+            let lines = gpu.zeroed::<f32>(
+                (EMISSION_LINES * stride) as usize * height as usize,
+                "bmfr emission lines",
+            )?;
             let frame_kernel = |name: &'static str| {
                 let mut kb = Kernel::builder();
                 kb.program(&program)
@@ -449,21 +463,41 @@ impl BmfrKernel {
                 .arg(width)
                 .arg(height)
                 .arg_named("spp", 0f32)
-                .arg(&prep_out);
+                .arg(stride)
+                .arg(&lines);
             let prep = kb.build().context("creating the bmfr emission kernel")?;
-            let mut kb = frame_kernel("bmfr_emission_nlm");
-            kb.arg_named("emission", None::<&Buffer<u8>>)
-                .arg(&prep_out)
-                .arg(width)
-                .arg(height)
-                .arg(&out);
+            // Packed on CPU devices (`packed_nlm`, bmfr_emission_nlm_packed), else work-groups
+            // of a tile.
+            let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
+            let mut kb = Kernel::builder();
+            kb.program(&program).queue(gpu.queue.clone());
+            if packed {
+                kb.name("bmfr_emission_nlm_packed")
+                    .global_work_size([
+                        width.div_ceil(EMISSION_PACKED_STEP) as usize,
+                        height.div_ceil(EMISSION_PACKED_ROWS) as usize,
+                    ])
+                    .local_work_size([1, 1]);
+            } else {
+                let tile = EMISSION_TILE as usize;
+                kb.name("bmfr_emission_nlm")
+                    .global_work_size([
+                        (width as usize).next_multiple_of(tile),
+                        (height as usize).next_multiple_of(tile),
+                    ])
+                    .local_work_size([tile, tile])
+                    .arg_named("emission", None::<&Buffer<u8>>);
+            }
+            kb.arg(&lines).arg(stride).arg(width).arg(height).arg(&out);
             let nlm = kb.build().context("creating the bmfr emission kernel")?;
             Some(Emission {
                 reflected,
                 prep,
                 nlm,
+                packed,
                 fv,
                 odd,
+                _lines: lines,
             })
         } else {
             None
@@ -508,7 +542,9 @@ impl BmfrKernel {
             em.prep.set_arg("emission", e)?;
             em.prep.set_arg("odd_emission", e_odd)?;
             em.prep.set_arg("spp", spp)?;
-            em.nlm.set_arg("emission", e)?;
+            if !em.packed {
+                em.nlm.set_arg("emission", e)?;
+            }
             // SAFETY: the buffers are sized for the image; the in-order queue runs every
             // other kernel on the copies after these, and we wait for every event below.
             events.push(unsafe { enqueue(&em.reflected, "the bmfr reflected light")? });

@@ -24,7 +24,18 @@
 //!    luminance, the variance of each pixel's mean from E's two half buffers, averaged over 3 × 3
 //!    pixels; the result is added to the filtered reflected light. Along a defocused edge the
 //!    patches find the pixels of the same coverage, so E is averaged along the edge, not
-//!    across it.
+//!    across it. A pixel whose window holds no light is left alone (most of the image).
+//!
+//! The kernels compute it in the box-filter form of non-local means: a patch term depends only
+//! on the pixel a = p + t and the offset q − p, so for one offset each term is evaluated once
+//! and summed along the patch's rows and then its columns, shared by the 25 patches that hold
+//! it (in local memory over a work-group's tile, `bmfr_emission_nlm`; on 16 float lanes over a
+//! work-item's 12 × 16 pixels on CPU devices, `bmfr_emission_nlm_packed`, `packed_nlm`). The
+//! reference sums in their order: each patch row's taps left to right, then the rows. On the
+//! 8-spp 512² frame of cornell_diffuse_dof (PoCL, 2 cores, `noisefree filter S.exr --filter bmfr
+//! --repeat 3 --profile`), the first kernel, 25 terms per pixel and offset, took 177 ms; the
+//! box form in work-groups 58 ms; packed 6.3 ms (conference_dof: 89 ms in work-groups, 16 ms
+//! packed).
 //!
 //! Measured on the 8-spp 512² frame of cornell_diffuse_dof at `render`'s seed, a scratch
 //! prototype of these two steps (not in the repository) before the kernels: MSE-LUV / relMSE
@@ -43,6 +54,23 @@ use crate::render::Frame;
 
 /// Half width of the patches the emission's non-local means compare (a 5 × 5 patch).
 pub const EMISSION_PATCH: i32 = 2;
+
+/// Side of the emission's non-local means' square work-groups (kernels/filters/
+/// bmfr_emission.cl `bmfr_emission_nlm`): the tile whose patch terms are shared through local
+/// memory.
+pub const EMISSION_TILE: u32 = 16;
+
+/// Lines per image row of the emission's inputs (kernels/filters/bmfr_emission.cl: E's rgb, its
+/// luminance, its variance, inside).
+pub const EMISSION_LINES: u32 = 6;
+
+/// Rows of pixels per work-item of the packed emission kernel (`bmfr_emission_nlm_packed`,
+/// `packed_nlm`); its lanes are 16 pixels of each row, 12 of them its own.
+pub const EMISSION_PACKED_ROWS: u32 = 16;
+
+/// Pixels of a row per work-item of the packed emission kernel (16 lanes less the patch's
+/// border either side).
+pub const EMISSION_PACKED_STEP: u32 = 16 - 2 * EMISSION_PATCH as u32;
 
 /// The largest `emission_radius` (a 25 × 25 window).
 pub const MAX_EMISSION_RADIUS: u32 = 12;
@@ -104,6 +132,10 @@ fn luminance(e: &Float4) -> f32 {
 /// mean E, (even − odd)² / 4 per channel (the halves' means differ by twice the mean's
 /// standard deviation when they hold half the samples each), averaged over the channels.
 fn variance_raw(e: &Float4, e_odd: &Float4, spp: f32) -> f32 {
+    // No sample saw a light: both halves' E are 0 (the kernel skips reading the odd half).
+    if e.0[3] == 0.0 {
+        return 0.0;
+    }
     let n_odd = e_odd.0[3];
     let n_even = spp - n_odd;
     if n_odd <= 0.0 || n_even <= 0.0 {
@@ -152,11 +184,32 @@ fn lit_window(prep: &[[f32; 2]], (w, h): (i32, i32), (x, y): (i32, i32), radius:
     })
 }
 
+/// How many of a patch's taps along one axis lie inside [0, n) both at c + t and at c + dc
+/// (kernels/filters/bmfr_emission.cl `bmfr_emission_taps`): the patch distance's count is the
+/// product of the two axes'.
+fn taps(c: i32, dc: i32, n: i32) -> i32 {
+    let lo = (-EMISSION_PATCH).max(-c).max(-c - dc);
+    let hi = EMISSION_PATCH.min(n - 1 - c).min(n - 1 - c - dc);
+    (hi - lo + 1).max(0)
+}
+
 /// kernels/filters/bmfr_emission.cl `bmfr_emission_nlm`: E of every pixel filtered by
-/// non-local means over the (2 radius + 1)² window (0 where the window holds no light).
+/// non-local means over the (2 radius + 1)² window (0 where the window holds no light). The
+/// kernel's order of float operations (its box-filter form): each patch row's taps left to
+/// right, an invalid tap adding 0, then the rows top to bottom.
 pub fn emission_nlm(e: &[Float4], prep: &[[f32; 2]], (w, h): (u32, u32), radius: i32, k: f32) -> Vec<[f32; 3]> {
     let (w, h) = (w as i32, h as i32);
     let k2 = k * k;
+    let term = |a: (i32, i32), b: (i32, i32)| {
+        let inside = |(x, y): (i32, i32)| x >= 0 && y >= 0 && x < w && y < h;
+        if !inside(a) || !inside(b) {
+            return 0.0;
+        }
+        let p = prep[(a.1 * w + a.0) as usize];
+        let q = prep[(b.1 * w + b.0) as usize];
+        let diff = p[0] - q[0];
+        (diff * diff - (p[1] + p[1].min(q[1]))) / (EMISSION_EPSILON + k2 * (p[1] + q[1]))
+    };
     (0..e.len())
         .into_par_iter()
         .map(|i| {
@@ -172,21 +225,15 @@ pub fn emission_nlm(e: &[Float4], prep: &[[f32; 2]], (w, h): (u32, u32), radius:
                     if u < 0 || v < 0 || u >= w || v >= h {
                         continue;
                     }
-                    let (mut d, mut n) = (0.0f32, 0.0f32);
+                    let mut d = 0.0f32;
                     for py in -EMISSION_PATCH..=EMISSION_PATCH {
+                        let mut row = 0.0f32;
                         for px in -EMISSION_PATCH..=EMISSION_PATCH {
-                            let (a1, b1, a2, b2) = (x + px, y + py, u + px, v + py);
-                            if a1 < 0 || b1 < 0 || a1 >= w || b1 >= h || a2 < 0 || b2 < 0 || a2 >= w || b2 >= h {
-                                continue;
-                            }
-                            let p = prep[(b1 * w + a1) as usize];
-                            let q = prep[(b2 * w + a2) as usize];
-                            let diff = p[0] - q[0];
-                            d += (diff * diff - (p[1] + p[1].min(q[1])))
-                                / (EMISSION_EPSILON + k2 * (p[1] + q[1]));
-                            n += 1.0;
+                            row += term((x + px, y + py), (u + px, v + py));
                         }
+                        d += row;
                     }
+                    let n = (taps(x, dx, w) * taps(y, dy, h)) as f32;
                     let wt = (-(d / n).max(0.0)).exp();
                     let j = (v * w + u) as usize;
                     for (a, v) in acc.iter_mut().zip(&e[j].0) {
