@@ -308,3 +308,51 @@ fn ctrl_c_keeps_outputs_or_saves_partial() {
         }
     }
 }
+
+/// Runs `args` with stdout a pipe whose reader has gone (`noisefree ... | head -0`); returns
+/// (exit code, stderr).
+fn run_with_closed_stdout(args: &[&str]) -> (Option<i32>, String) {
+    let mut child = noisefree()
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_reader_that_closed_the_pipe_does_not_stop_the_command() {
+    // Before: `println!` panicked on the broken pipe (exit 101) before `filter` wrote its image.
+    let dir = tempdir("cli-pipe");
+    let scene = write_scene(&dir, GOOD);
+    let (aovs, png, exr) = (dir.join("a.exr"), dir.join("x.png"), dir.join("b.exr"));
+    let render = [
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        png.to_str().unwrap(),
+        "--aovs",
+        aovs.to_str().unwrap(),
+        "--no-exr",
+    ];
+    let filter = [
+        "filter",
+        aovs.to_str().unwrap(),
+        "--filter",
+        "atrous",
+        "--exr",
+        exr.to_str().unwrap(),
+    ];
+    for (args, file) in [(&render[..], &aovs), (&filter[..], &exr)] {
+        let (code, stderr) = run_with_closed_stdout(args);
+        assert_eq!(code, Some(0), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(file.is_file(), "{args:?} wrote no {}", file.display());
+    }
+}

@@ -122,7 +122,7 @@ pub fn run(args: &FilterCommandArgs, registry: &Registry) -> Result<()> {
     if let Some(p) = &args.exr {
         imaging::write_exr(p, &image)?;
     }
-    println!(
+    say!(
         "filtered {}x{} ({} spp) from {input} with {name}",
         image.width,
         image.height,
@@ -226,10 +226,13 @@ fn print_profile(runs: &[Vec<profile::KernelTime>]) {
         .map(|r| r.iter().map(|k| k.time.as_secs_f64() * 1e3).sum())
         .collect();
     let total = median(totals);
-    println!("kernels per run (median over {} run(s)):", runs.len());
-    println!(
+    say!("kernels per run (median over {} run(s)):", runs.len());
+    say!(
         "  {:<40} {:>8} {:>11} {:>7}",
-        "kernel", "launches", "ms", "share"
+        "kernel",
+        "launches",
+        "ms",
+        "share"
     );
     for k in first {
         let ms = median(
@@ -242,13 +245,18 @@ fn print_profile(runs: &[Vec<profile::KernelTime>]) {
                 .collect(),
         );
         let share = if total > 0.0 { 100.0 * ms / total } else { 0.0 };
-        println!(
+        say!(
             "  {:<40} {:>8} {:>11.3} {:>6.1}%",
-            k.kernel, k.launches, ms, share
+            k.kernel,
+            k.launches,
+            ms,
+            share
         );
     }
-    println!(
+    say!(
         "  {:<40} {:>8} {:>11.3}",
-        "all kernels (median run)", "", total
+        "all kernels (median run)",
+        "",
+        total
     );
 }

@@ -71,7 +71,7 @@ pub fn run(args: &MergeArgs, registry: &Registry) -> Result<()> {
         let id = &plan.identity;
         let path = args.partial.as_ref().expect("checked above");
         plan.write_bundle(path)?;
-        println!(
+        say!(
             "bundled {} piece(s) of {} ({}x{}, {} spp) -> {}",
             plan.order.len(),
             id.scene,
@@ -118,7 +118,7 @@ pub fn run(args: &MergeArgs, registry: &Registry) -> Result<()> {
     if let Some(p) = &args.aovs {
         crate::stats::aov::write_aov_exr(p, &merged.frame, &merged.record)?;
     }
-    println!(
+    say!(
         "merged {} piece(s) from {} file(s): {} at {}x{}, {} spp, {} -> {}",
         plan.order.len(),
         plan.files.len(),
@@ -139,7 +139,7 @@ pub fn run(args: &MergeArgs, registry: &Registry) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    println!("{}", describe_cost(&merged.cost));
+    say!("{}", describe_cost(&merged.cost));
     Ok(())
 }
 

@@ -1,6 +1,16 @@
 //! The command line: `noisefree devices | render | view | filter | merge | compare | reference |
 //! bench | cache`.
 
+/// `println!` for the commands' reports: a reader that closed the pipe (`noisefree ... | head`)
+/// is not an error, and the command goes on to write its files and exits as it would have
+/// (`println!` panics there).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 mod filter_cmd;
 mod interrupt;
 mod merge_cmd;
@@ -164,10 +174,10 @@ fn devices() -> Result<()> {
     let mut platform = String::new();
     for d in list {
         if d.platform != platform {
-            println!("platform: {}", d.platform);
+            say!("platform: {}", d.platform);
             platform = d.platform.clone();
         }
-        println!(
+        say!(
             "  [{}] {} ({}) — {} compute units, {} local memory, max work-group {}, {} global memory, {}, driver {}",
             d.index,
             d.name,
@@ -186,7 +196,7 @@ fn devices() -> Result<()> {
 /// Prints min / median / max filter kernel times (the thesis reports lower and upper bounds).
 pub(crate) fn print_timings(label: &str, times: &[std::time::Duration]) {
     if let Some((lo, med, hi)) = crate::filters::time_summary(times) {
-        println!(
+        say!(
             "{label} over {} run(s): min {:.3} ms, median {:.3} ms, max {:.3} ms",
             times.len(),
             lo.as_secs_f64() * 1e3,

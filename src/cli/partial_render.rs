@@ -95,7 +95,7 @@ pub fn write_part(
     let samples = info.samples.clone();
     let piece = Piece::of_frame(frame, info)?;
     partial::write(path, &identity, &[piece])?;
-    println!(
+    say!(
         "{what} of {}x{}: samples {}..{} of {spp} in {:.2} s (kernel {:.2} s): {:.2} spp/s, \
          {:.2} Mrays/s -> {}",
         identity.width,

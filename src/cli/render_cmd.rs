@@ -464,21 +464,21 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         );
     }
     if args.explain {
-        println!("kernel features for {}:", args.scene.display());
+        say!("kernel features for {}:", args.scene.display());
         for f in &renderer.features.features {
-            println!(
+            say!(
                 "  {:<24} {:<3}  {}",
                 f.define,
                 if f.on { "on" } else { "off" },
                 f.why
             );
         }
-        println!("  camera: {}", renderer.arrays.focus_note);
-        println!("  outputs: {}", renderer.outputs().names().join(", "));
+        say!("  camera: {}", renderer.arrays.focus_note);
+        say!("  outputs: {}", renderer.outputs().names().join(", "));
         if let Some(c) = chosen {
-            println!("filter {} ({}):", c.name(), args.scene.display());
+            say!("filter {} ({}):", c.name(), args.scene.display());
             for line in c.describe().lines() {
-                println!("  {line}");
+                say!("  {line}");
             }
         }
     }
@@ -577,7 +577,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
         filter_times,
         ..summary
     };
-    println!(
+    say!(
         "{}x{} {} spp in {:.2} s (kernel {:.2} s): {:.2} spp/s, {:.2} Mrays/s -> {}{}",
         summary.width,
         summary.height,
@@ -630,7 +630,7 @@ pub fn render(args: &RenderArgs, registry: &Registry) -> Result<RenderSummary> {
 /// One line on an adaptive sampling pass (AAF's shadow or indirect samples): the average spp
 /// the seed reports (Σn/N²), per receiver, the largest, and what the passes cost.
 fn print_pass_stats(what: &str, stats: &crate::render::ShadowStats, sparse: u32, max: u32) {
-    println!(
+    say!(
         "{what}: {:.2} spp on average over the image (Σn/N²), {:.2} over its {} receivers, {} \
          at most (sparse {sparse}, max {max}); {:.1} Mrays in {:.3} s",
         stats.average_spp,

@@ -132,12 +132,12 @@ impl Job {
         let env = self.env(&noisefree, &workdir);
         let tasks = self.tasks as usize * self.renders.len();
         if dry_run {
-            println!(
+            say!(
                 "# {}/job.env (--dry-run: nothing written or submitted)",
                 dir.display()
             );
-            print!("{env}");
-            println!(
+            let _ = std::io::Write::write_all(&mut std::io::stdout().lock(), env.as_bytes());
+            say!(
                 "# {}/submit.sh would run, from {}:\n#   sbatch --parsable --array=0-{} \
                  render.sbatch\n#   sbatch --parsable --dependency=afterany:<array job> \
                  merge.sbatch",
@@ -171,7 +171,7 @@ impl Job {
         let out = Command::new(dir.join("submit.sh"))
             .output()
             .with_context(|| format!("running {}/submit.sh", dir.display()))?;
-        print!("{}", String::from_utf8_lossy(&out.stdout));
+        let _ = std::io::Write::write_all(&mut std::io::stdout().lock(), &out.stdout);
         if !out.status.success() {
             bail!(
                 "submitting the job failed ({}): {}; the job folder {} is written, submit it \

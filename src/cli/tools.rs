@@ -25,16 +25,6 @@ pub struct CompareArgs {
     pub error_map: Option<PathBuf>,
 }
 
-/// Prints `text` and a newline to stdout; a reader that closed the pipe (`compare | head`) is
-/// not an error (`println!` panics on it).
-fn print_to_pipe(text: &str) -> Result<()> {
-    use std::io::Write;
-    match writeln!(std::io::stdout().lock(), "{text}") {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        r => Ok(r?),
-    }
-}
-
 pub fn compare(args: &CompareArgs) -> Result<()> {
     if let Some(p) = &args.error_map {
         imaging::check_output_path(p)?;
@@ -53,7 +43,7 @@ pub fn compare(args: &CompareArgs) -> Result<()> {
     } else {
         m.to_string()
     };
-    print_to_pipe(&text)?;
+    say!("{text}");
     if let Some(p) = &args.error_map {
         let map = metrics::error_map(&test, &reference, ErrorScale::default())?;
 
@@ -150,13 +140,13 @@ pub fn reference(args: &ReferenceArgs) -> Result<()> {
     }
     if !args.from_parts.is_empty() {
         let (file, cost) = ground_truth::store_merged(&req, &cache, &args.from_parts)?;
-        println!("merged: {}", file.display());
-        println!("{}", super::merge_cmd::describe_cost(&cost));
+        say!("merged: {}", file.display());
+        say!("{}", super::merge_cmd::describe_cost(&cost));
         return Ok(());
     }
     let gpu = Gpu::open(args.device)?;
     let (_, file, cached) = ground_truth::get_or_render(&gpu, &req, &cache, args.quiet)?;
-    println!(
+    say!(
         "{} {}",
         if cached { "cached:" } else { "rendered:" },
         file.display()
@@ -187,14 +177,14 @@ pub fn cache(args: &CacheArgs) -> Result<()> {
         for f in &files {
             std::fs::remove_file(f.path())?;
         }
-        println!(
+        say!(
             "removed {} kernel binaries ({}) from {}",
             files.len(),
             crate::gpu::human_bytes(bytes),
             dir.display()
         );
     } else {
-        println!(
+        say!(
             "{}: {} kernel binaries, {}",
             dir.display(),
             files.len(),

@@ -216,7 +216,10 @@ pub fn run(args: &ViewArgs, registry: &Registry) -> Result<()> {
     if let Some(p) = &args.save_scene {
         save_scene(&viewer, p)?;
     }
-    println!(
+    // A closed pipe is not an error (as the command line's `say!`).
+    use std::io::Write as _;
+    let _ = writeln!(
+        std::io::stdout().lock(),
         "view: {frame} frames, {} spp at the end, {} x {}, filter {}, {}",
         viewer.film.samples_done(),
         viewer.film.width(),
