@@ -33,9 +33,9 @@
 //! work-item's 12 × 16 pixels on CPU devices, `bmfr_emission_nlm_packed`, `packed_nlm`). The
 //! reference sums in their order: each patch row's taps left to right, then the rows. On the
 //! 8-spp 512² frame of cornell_diffuse_dof (PoCL, 2 cores, `noisefree filter S.exr --filter bmfr
-//! --repeat 3 --profile`), the first kernel, 25 terms per pixel and offset, took 177 ms; the
-//! box form in work-groups 58 ms; packed 6.3 ms (conference_dof: 89 ms in work-groups, 16 ms
-//! packed).
+//! --repeat 5 --profile`, binaries alternating), the first kernel, 25 terms per pixel and
+//! offset, took 155-162 ms; the box form in work-groups 44 ms; packed 6.1-6.3 ms
+//! (conference_dof: 219-221, 64-67 and 11.7-12.0 ms; results/README.md, "Its cost").
 //!
 //! Measured on the 8-spp 512² frame of cornell_diffuse_dof at `render`'s seed, a scratch
 //! prototype of these two steps (not in the repository) before the kernels: MSE-LUV / relMSE
