@@ -114,8 +114,8 @@ inline int bmfr_emission_taps(int c, int dc, int n) {
 }
 
 __kernel __attribute__((reqd_work_group_size(BMFR_EMISSION_TILE, BMFR_EMISSION_TILE, 1)))
-void bmfr_emission_nlm(__global const float4* emission, __global const float* lines,
-                       uint stride, uint width, uint height, __global float4* out) {
+void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uint height,
+                       __global float4* out) {
     // prep over the tile and a RADIUS + PATCH apron (0 outside the image), the offset's terms
     // over the tile and a PATCH border, and their patch-row sums over the tile's columns.
     __local float2 input[BMFR_EMISSION_INPUT * BMFR_EMISSION_INPUT];
@@ -192,10 +192,10 @@ void bmfr_emission_nlm(__global const float4* emission, __global const float* li
             for (int py = 0; py <= 2 * pr; ++py) d += rows[(ly + py) * BMFR_EMISSION_TILE + lx];
             float n = (float)(bmfr_emission_taps(x, dx, w) * bmfr_emission_taps(y, dy, h));
             float wt = exp(-fmax(d / n, 0.0f));
-            float4 e = emission[v * w + u];
-            acc.x += wt * e.x;
-            acc.y += wt * e.y;
-            acc.z += wt * e.z;
+            __global const float* e = lines + bmfr_line_at(u, v, BMFR_EMISSION_LINES, stride);
+            acc.x += wt * e[0];
+            acc.y += wt * e[stride];
+            acc.z += wt * e[2 * (size_t)stride];
             wsum += wt;
         }
     if (!lit) return;

@@ -58,8 +58,6 @@ struct Emission {
     reflected: Kernel,
     prep: Kernel,
     nlm: Kernel,
-    /// Whether `nlm` is the packed kernel (which reads E from the lines only).
-    packed: bool,
     fv: Buffer<u8>,
     odd: Buffer<u8>,
     _lines: Buffer<f32>,
@@ -485,8 +483,7 @@ impl BmfrKernel {
                         (width as usize).next_multiple_of(tile),
                         (height as usize).next_multiple_of(tile),
                     ])
-                    .local_work_size([tile, tile])
-                    .arg_named("emission", None::<&Buffer<u8>>);
+                    .local_work_size([tile, tile]);
             }
             kb.arg(&lines).arg(stride).arg(width).arg(height).arg(&out);
             let nlm = kb.build().context("creating the bmfr emission kernel")?;
@@ -494,7 +491,6 @@ impl BmfrKernel {
                 reflected,
                 prep,
                 nlm,
-                packed,
                 fv,
                 odd,
                 _lines: lines,
@@ -542,9 +538,6 @@ impl BmfrKernel {
             em.prep.set_arg("emission", e)?;
             em.prep.set_arg("odd_emission", e_odd)?;
             em.prep.set_arg("spp", spp)?;
-            if !em.packed {
-                em.nlm.set_arg("emission", e)?;
-            }
             // SAFETY: the buffers are sized for the image; the in-order queue runs every
             // other kernel on the copies after these, and we wait for every event below.
             events.push(unsafe { enqueue(&em.reflected, "the bmfr reflected light")? });
