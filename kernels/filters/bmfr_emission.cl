@@ -92,7 +92,7 @@ __kernel void bmfr_emission_prep(__global const float4* emission,
 // window holds no light gives 0 and is skipped, and so is a work-group none of whose pixels'
 // windows does (most of the image).
 //
-// The box-filter form of non-local means (Darbon et al. 2008; Rousselle et al. 2012 §4): a
+// The box-filter form of non-local means (Darbon et al. 2008, "Fast nonlocal filtering"): a
 // patch term depends only on the pixel a = p + t and the offset d = q - p, so for each offset
 // the work-group writes the terms of its tile and a BMFR_EMISSION_PATCH border to local memory
 // once, sums each patch row's 5 terms once per column, and each pixel sums its patch's 5 row

@@ -52,14 +52,16 @@ struct Prefilter {
 }
 
 /// With `emission` (emission.rs): `bmfr_reflected`, which writes the copies of F and the odd
-/// half that the other kernels then read, `bmfr_emission_prep`, and `bmfr_emission_nlm`, which
-/// adds the filtered emission to the image last.
+/// half that the other kernels then read, `bmfr_emission_prep`, which writes E's lines, and
+/// `bmfr_emission_nlm` (or `bmfr_emission_nlm_packed`), which adds the filtered emission to the
+/// image last.
 struct Emission {
     reflected: Kernel,
     prep: Kernel,
     nlm: Kernel,
     fv: Buffer<u8>,
     odd: Buffer<u8>,
+    /// E's lines (bmfr_emission.cl), which `prep` writes and `nlm` reads.
     _lines: Buffer<f32>,
 }
 
