@@ -273,7 +273,7 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
             int16 lo = max((int16)(-pr), max(-xs, -xs - dx));
             int16 hi = min((int16)(pr), min(w - 1 - xs, w - 1 - xs - dx));
             float16 taps_x = convert_float16(max(hi - lo + 1, (int16)(0)));
-            // The row sums of rows r - 4 .. r: the patch rows of output row r - 2.
+            // The row sums of rows rr - 4 .. rr: the patch rows of output row rr - 2.
             float16 h0 = 0.0f, h1 = 0.0f, h2 = 0.0f, h3 = 0.0f, h4 = 0.0f;
             for (int rr = -pr; rr < BMFR_EMISSION_ROWS + pr; ++rr) {
                 int ay = y0 + rr, by = ay + dy;
