@@ -436,6 +436,8 @@ pub const BUFFERS: &[BufferDecl] = &[
 ];
 
 /// Every output. The AOV file lists the channels in this order.
+// `BASE + 0` beside `BASE + 1`, ... keeps each channel's float offset readable as a column.
+#[allow(clippy::identity_op)]
 pub const OUTPUTS: &[OutputDecl] = &[
     OutputDecl {
         output: Output::Colour,

@@ -330,8 +330,8 @@ pub fn nlm(
                     }
                     for m in 0..images {
                         let wt = (-(d2[m] / taps).max(0.0)).exp();
-                        for c in 0..3 {
-                            acc[m][c] += wt * inputs[j].0[m][c];
+                        for (a, v) in acc[m].iter_mut().zip(&inputs[j].0[m]) {
+                            *a += wt * v;
                         }
                         wsum[m] += wt;
                     }
