@@ -159,7 +159,7 @@ impl BmfrKernel {
             ),
             ("BMFR_NLM_RADIUS", s.nlm_radius.to_string()),
             ("BMFR_NLM_ESTIMATE_RADIUS", s.estimate_radius().to_string()),
-            ("BMFR_NLM_K", format!("{:e}f", s.nlm_k as f32)),
+            ("BMFR_NLM_K", format!("{:e}f", s.nlm_k() as f32)),
             ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
             ("BMFR_NLM_TILE", NLM_TILE.to_string()),
             ("BMFR_NLM_ROWS", NLM_PACKED_ROWS.to_string()),

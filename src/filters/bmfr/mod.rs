@@ -148,8 +148,9 @@ crate::filter_settings! {
         /// estimate the candidate's error (nlm.rs), pixels; `nlm_radius` where that is smaller.
         pub nlm_estimate_radius: u32 = 3,
         /// k of the non-local means' patch distance: how many standard deviations of a
-        /// difference count as noise.
-        pub nlm_k: f64 = 0.7,
+        /// difference count as noise; auto: 1.0 with a thin lens, 0.7 with a pinhole camera
+        /// (nlm.rs).
+        pub nlm_k: Auto<f64> = Auto::Auto,
         /// Filter each pixel's mean albedo by the neighbours whose albedo differs by no more
         /// than its noise explains, before the fit (prefilter.rs): out of focus each lens
         /// sample sees another texel. auto: on when the camera has a thin lens.
@@ -234,6 +235,12 @@ impl BmfrSettings {
         self.select_floor.or(0.0)
     }
 
+    /// k of the non-local means (`nlm_k`; auto: the pinhole camera's, as [`Bmfr`] resolves
+    /// it without a lens).
+    pub fn nlm_k(&self) -> f64 {
+        self.nlm_k.or(nlm::PINHOLE_NLM_K)
+    }
+
     /// Number of features K (columns of the fit, the constant included).
     pub fn features(&self) -> usize {
         10 + self.depth as usize + 3 * self.texture as usize + 3 * self.texture2 as usize
@@ -273,10 +280,10 @@ impl BmfrSettings {
                 self.nlm_radius
             );
         }
-        if !(self.nlm_k > 0.0 && self.nlm_k <= 100.0) {
+        if !(self.nlm_k() > 0.0 && self.nlm_k() <= 100.0) {
             bail!(
                 "the bmfr nlm_k must be a number in (0, 100], got {}",
-                self.nlm_k
+                self.nlm_k()
             );
         }
         if self.albedo_radius > MAX_ALBEDO_RADIUS {
@@ -383,6 +390,17 @@ impl FilterKind for Bmfr {
                     "a pinhole camera, so a light's edge is one pixel wide"
                 }
             ));
+        }
+        if s.nlm_k.is_auto() {
+            s.nlm_k = Auto::Set(if lens { nlm::LENS_NLM_K } else { nlm::PINHOLE_NLM_K });
+            notes.push(if lens {
+                format!(
+                    "nlm_k = {}: a thin lens, so the light is smooth over wider patches (nlm.rs)",
+                    nlm::LENS_NLM_K
+                )
+            } else {
+                format!("nlm_k = {}: a pinhole camera (nlm.rs)", nlm::PINHOLE_NLM_K)
+            });
         }
         if s.select_floor.is_auto() {
             s.select_floor = Auto::Set(if lens { nlm::LENS_SELECT_FLOOR } else { 0.0 });

@@ -41,6 +41,19 @@
 //!   8.83 / 1.86; radius 5, k 1.0: 6.10 / 2.68 / 8.38 / 1.88; radius 7, k 0.45 (the 2012
 //!   paper's): 9.20 / 2.50 / 10.54 / 2.45. Radius 5 is 121 offsets against radius 7's 225.
 //!   (The prototype's non-local means equal this reference's to 2.4e-6, relative.)
+//! - k with a lens (`nlm_k` auto: [`LENS_NLM_K`] 1.0 with a thin lens, [`PINHOLE_NLM_K`] 0.7
+//!   without; stop 42). With the emission filtered apart (emission.rs), k 1.0 lowered bmfr's
+//!   error on every depth-of-field scene (the 8-spp 512² frames at `render`'s seed, `noisefree
+//!   filter S.exr --filter bmfr --bmfr-nlm-k K`, MSE-LUV / relMSE at k 0.7 → 1.0):
+//!   cornell_diffuse_dof 1.613 / 0.00255 → 1.516 / 0.00242, cornell_glossy_dof 4.912 / 0.00840
+//!   → 4.590 / 0.00689, cornell_plane_dof 3.600 / 0.00594 → 3.369 / 0.00562, conference_dof
+//!   3.320 / 0.00763 → 3.058 / 0.00659, outside_dof 1.597 / 0.00381 → 1.595 / 0.00374,
+//!   toasters_dof 1.808 / 0.00286 → 1.746 / 0.00279 (k 1.4: better on conference_dof, worse on
+//!   the others; 2.0 worse still). Without a lens it helped the Cornell boxes and conference
+//!   (cornell_diffuse 1.485 → 1.436, cornell_glossy 5.011 → 4.811, conference 3.768 → 3.556)
+//!   but not Outside (2.284 / 0.00515 → 2.480 / 0.00560), where the non-local means alone was
+//!   already best at 0.7 (above), so a pinhole camera keeps 0.7. Out of focus the light varies
+//!   slowly over the patch, so a wider tolerance finds more of the same light.
 //! - the selection window radius 4 (`select_radius`; the two-way blend's best was 2): with
 //!   this filter, radius 2 / 3 / 4 gave Cornell glossy 5.60 / 5.25 / 5.10, Outside 2.30 /
 //!   2.28 / 2.28, Cornell plane DOF 6.44 / 6.28 / 6.29, Cornell diffuse 1.61 / 1.53 / 1.50
@@ -168,6 +181,12 @@ pub const NLM_PACKED_PAD: u32 = 16;
 /// Lines per image row of the packed non-local means' input (bmfr_nlm_packed.cl
 /// BMFR_NLM_LINES).
 pub const NLM_PACKED_LINES: u32 = 14;
+
+/// k of the non-local means with a pinhole camera (`nlm_k` auto; module docs).
+pub const PINHOLE_NLM_K: f64 = 0.7;
+
+/// k of the non-local means with a thin lens (`nlm_k` auto; module docs, "k with a lens").
+pub const LENS_NLM_K: f64 = 1.0;
 
 /// c of the selection's floor with a thin lens (`select_floor` auto; module docs, "The floor").
 pub const LENS_SELECT_FLOOR: f32 = 6.0;

@@ -303,7 +303,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         .collect::<Vec<[f32; 3]>>();
     let pixels = if s.uses_nlm() {
         let odd = odd_frame()?;
-        let (r, k) = ((s.nlm_radius, s.estimate_radius()), s.nlm_k as f32);
+        let (r, k) = ((s.nlm_radius, s.estimate_radius()), s.nlm_k() as f32);
         let smooth = nlm::nlm(fv, pos, odd, (w, h), spp, r, k);
         let residuals: Vec<[f32; 4]> = (0..pixels.len())
             .into_par_iter()
