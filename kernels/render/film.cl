@@ -182,6 +182,20 @@ inline void running_mean(float* mean, float x, float n) {
     *mean += (x - *mean) / n;
 }
 
+// running_mean of each channel of x into mean[0..2], in the order x, y, z.
+inline void running_mean3(float* mean, float3 x, float n) {
+    running_mean(&mean[0], x.x, n);
+    running_mean(&mean[1], x.y, n);
+    running_mean(&mean[2], x.z, n);
+}
+
+// A mean over only some samples (those that hit a surface, the odd-numbered ones): mean[3]
+// counts them, and this one is folded into mean[0..2] by running_mean3.
+inline void counted_mean3(float* mean, float3 x) {
+    mean[3] += 1.0f;
+    running_mean3(mean, x, mean[3]);
+}
+
 // Eqs. 6.5 and 6.6 (Knuth, after Welford): the running mean and
 // S_n = S_{n-1} + (x_n - mu_{n-1}) (x_n - mu_n), with S_1 = 0 (mu_1 = x_1 makes the product 0).
 // This is the one update every statistic uses; its mean is exactly running_mean's. Each term is
@@ -217,9 +231,7 @@ inline void accumulate3(PixelStats* p, int f_lane, int s_lane, float3 x, float n
     welford(&p->mean[f_lane + 1], &p->s[s_lane + 1], &c[s_lane + 1], x.y, n);
     welford(&p->mean[f_lane + 2], &p->s[s_lane + 2], &c[s_lane + 2], x.z, n);
 #else
-    running_mean(&p->mean[f_lane], x.x, n);
-    running_mean(&p->mean[f_lane + 1], x.y, n);
-    running_mean(&p->mean[f_lane + 2], x.z, n);
+    running_mean3(&p->mean[f_lane], x, n);
 #endif
 }
 
@@ -229,12 +241,8 @@ inline void accumulate3(PixelStats* p, int f_lane, int s_lane, float3 x, float n
 inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count, uint sample) {
     float n = (float)count;
     // Colour: means only (GB holds no colour variance, eq. 6.2).
-    running_mean(&p->mean[FILTER_VECTOR_DIRECT], ps->direct.x, n);
-    running_mean(&p->mean[FILTER_VECTOR_DIRECT + 1], ps->direct.y, n);
-    running_mean(&p->mean[FILTER_VECTOR_DIRECT + 2], ps->direct.z, n);
-    running_mean(&p->mean[FILTER_VECTOR_INDIRECT], ps->indirect.x, n);
-    running_mean(&p->mean[FILTER_VECTOR_INDIRECT + 1], ps->indirect.y, n);
-    running_mean(&p->mean[FILTER_VECTOR_INDIRECT + 2], ps->indirect.z, n);
+    running_mean3(&p->mean[FILTER_VECTOR_DIRECT], ps->direct, n);
+    running_mean3(&p->mean[FILTER_VECTOR_INDIRECT], ps->indirect, n);
 #if OUTPUT_FEATURES
     if (count == 1u) {
         p->depth[DEPTH_SHIFT_SHIFT] = ps->depth;
@@ -263,52 +271,28 @@ inline void film_accumulate(PixelStats* p, const PathSample* ps, uint count, uin
 #if OUTPUT_SHADOWS
     for (uint l = 0u; l < SHADOW_PLANES; ++l) {
         float* sh = p->shadow + l * SHADOW_TERMS_FLOATS;
-        running_mean(&sh[SHADOW_TERMS_DIRECT], ps->shadow_direct[l].x, n);
-        running_mean(&sh[SHADOW_TERMS_DIRECT + 1], ps->shadow_direct[l].y, n);
-        running_mean(&sh[SHADOW_TERMS_DIRECT + 2], ps->shadow_direct[l].z, n);
-        running_mean(&sh[SHADOW_TERMS_UNSHADOWED], ps->shadow_unshadowed[l].x, n);
-        running_mean(&sh[SHADOW_TERMS_UNSHADOWED + 1], ps->shadow_unshadowed[l].y, n);
-        running_mean(&sh[SHADOW_TERMS_UNSHADOWED + 2], ps->shadow_unshadowed[l].z, n);
+        running_mean3(&sh[SHADOW_TERMS_DIRECT], ps->shadow_direct[l], n);
+        running_mean3(&sh[SHADOW_TERMS_UNSHADOWED], ps->shadow_unshadowed[l], n);
     }
 #endif
 #if OUTPUT_POSITION
     // The mean over the samples whose camera ray hit a surface; w counts them. A pixel whose
     // every sample escaped keeps (0, 0, 0, 0).
-    if (ps->hit) {
-        p->position[3] += 1.0f;
-        float h = p->position[3];
-        running_mean(&p->position[0], ps->world1.x, h);
-        running_mean(&p->position[1], ps->world1.y, h);
-        running_mean(&p->position[2], ps->world1.z, h);
-    }
+    if (ps->hit) counted_mean3(p->position, ps->world1);
 #endif
 #if OUTPUT_HALVES
     // The odd half: a running mean over the odd-numbered samples; w counts them. The even
     // half is what F's light holds beyond it (src/filters/bmfr/select.rs).
-    if (sample & 1u) {
-        p->odd[3] += 1.0f;
-        float m = p->odd[3];
-        float3 light = ps->direct + ps->indirect;
-        running_mean(&p->odd[0], light.x, m);
-        running_mean(&p->odd[1], light.y, m);
-        running_mean(&p->odd[2], light.z, m);
-    }
+    if (sample & 1u) counted_mean3(p->odd, ps->direct + ps->indirect);
 #else
     (void)sample;
 #endif
 #if OUTPUT_EMISSION
     // Means over all the samples, as F's (so renders of sample ranges merge as F does).
-    running_mean(&p->emission[0], ps->emitted.x, n);
-    running_mean(&p->emission[1], ps->emitted.y, n);
-    running_mean(&p->emission[2], ps->emitted.z, n);
+    running_mean3(p->emission, ps->emitted.xyz, n);
     running_mean(&p->emission[3], ps->emitted.w, n);
-    if (sample & 1u) {                   // the odd half, as the halves output's
-        p->odd_emission[3] += 1.0f;
-        float m = p->odd_emission[3];
-        running_mean(&p->odd_emission[0], ps->emitted.x, m);
-        running_mean(&p->odd_emission[1], ps->emitted.y, m);
-        running_mean(&p->odd_emission[2], ps->emitted.z, m);
-    }
+    // The odd half, as the halves output's.
+    if (sample & 1u) counted_mean3(p->odd_emission, ps->emitted.xyz);
 #endif
 }
 
