@@ -275,11 +275,20 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     float class = residuals[i].w;
     float3 sum = (float3)(0.0f);
     float count = 0.0f;
+    // With the floor: R - V summed in the same order as the floor's pass below, and its least
+    // term. Where no term lies below the floor that pass would add the same terms in the same
+    // order (fmax(e, f) is e when e >= f), so its sum is this one, bit for bit, and the pass is
+    // skipped. A NaN term makes the sum NaN and takes the pass (which floors it).
+    float excess_sum = 0.0f, excess_min = INFINITY;
     BMFR_SELECT_WINDOW(
         float4 e = residuals[j];
         if (e.w == class) {
             sum += e.xyz;
             count += 1.0f;
+            if (BMFR_SELECT_FLOOR > 0.0f) {
+                excess_sum += e.y - e.x;
+                excess_min = fmin(excess_min, e.y - e.x);
+            }
         }
     )
     float3 beauty = bmfr_beauty(fv + i);
@@ -300,11 +309,14 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     float excess = sum.y - sum.x;
     if (BMFR_SELECT_FLOOR > 0.0f) {
         float floor_ = -BMFR_SELECT_FLOOR * (sum.x / count);
-        excess = 0.0f;
-        BMFR_SELECT_WINDOW(
-            float4 e = residuals[j];
-            if (e.w == class) excess += fmax(e.y - e.x, floor_);
-        )
+        excess = excess_sum;
+        if (!(excess_min >= floor_) || isnan(excess_sum)) {
+            excess = 0.0f;
+            BMFR_SELECT_WINDOW(
+                float4 e = residuals[j];
+                if (e.w == class) excess += fmax(e.y - e.x, floor_);
+            )
+        }
     }
     float e_f = fmax(excess / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
     float w_f = 1.0f / (e_f * e_f);
