@@ -8,6 +8,7 @@ use anyhow::{Result, bail};
 pub const SOURCES: &[(&str, &str)] = &[
     ("layout.cl", include_str!("../kernels/layout.cl")),
     ("geometry.cl", include_str!("../kernels/geometry.cl")),
+    ("vectors.cl", include_str!("../kernels/vectors.cl")),
     (
         "arrays/trace.cl",
         include_str!("../kernels/arrays/trace.cl"),

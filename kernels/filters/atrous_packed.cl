@@ -29,11 +29,13 @@
 // atrous_finish does. Measured difference to the Rust reference: tests/atrous.rs.
 
 #include "filters/atrous.cl"
+#include "vectors.cl"
 
 #if ATROUS_PACK == 16
 #define floatP float16
-#define vloadP vload16
-#define vstoreP vstore16
+// Loads and stores of lines in global memory (vectors.cl: one vector instruction each).
+#define vloadP(n, p) load16((p) + 16 * (size_t)(n))
+#define vstoreP(v, n, p) store16((v), (p) + 16 * (size_t)(n))
 #else
 #error "noisefree: ATROUS_PACK must be 16 (src/filters/atrous/device.rs PACK)"
 #endif

@@ -214,6 +214,8 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
 // test, gathered over the offsets), and a work-item none of whose pixels' windows holds light
 // returns at once. The same float operations in the same order as the work-group kernel and
 // the Rust reference.
+#include "vectors.cl"
+
 #define BMFR_EMISSION_STEP (BMFR_NLM_PACK - 2 * BMFR_EMISSION_PATCH)
 #if BMFR_EMISSION_PATCH != 2
 #error "noisefree: bmfr_emission_nlm_packed sums patch rows of 5 taps (EMISSION_PATCH 2)"
@@ -226,10 +228,10 @@ __attribute__((always_inline)) inline float16 bmfr_emission_row(__global const f
                                                                 int by, int dx, float k2) {
     __global const float* a = lines + bmfr_line_at(xv, ay, BMFR_EMISSION_LINES, stride);
     __global const float* b = lines + bmfr_line_at(xv + dx, by, BMFR_EMISSION_LINES, stride);
-    float16 va = vload16(0, a + 4 * (size_t)stride), vb = vload16(0, b + 4 * (size_t)stride);
-    float16 diff = vload16(0, a + 3 * (size_t)stride) - vload16(0, b + 3 * (size_t)stride);
+    float16 va = load16(a + 4 * (size_t)stride), vb = load16(b + 4 * (size_t)stride);
+    float16 diff = load16(a + 3 * (size_t)stride) - load16(b + 3 * (size_t)stride);
     float16 t = (diff * diff - (va + fmin(va, vb))) / (BMFR_EMISSION_EPSILON + k2 * (va + vb));
-    float16 inside = vload16(0, a + 5 * (size_t)stride) * vload16(0, b + 5 * (size_t)stride);
+    float16 inside = load16(a + 5 * (size_t)stride) * load16(b + 5 * (size_t)stride);
     t = inside != 0.0f ? t : (float16)(0.0f);
     float16 l2 = shuffle(t, (uint16)(0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13));
     float16 l1 = shuffle(t, (uint16)(0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14));
@@ -289,13 +291,13 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
                 __global const float* p = lines + bmfr_line_at(xv, py, BMFR_EMISSION_LINES, stride);
                 __global const float* q =
                     lines + bmfr_line_at(xv + dx, qy, BMFR_EMISSION_LINES, stride);
-                int16 valid = vload16(0, p + 5 * (size_t)stride) != 0.0f
-                              && vload16(0, q + 5 * (size_t)stride) != 0.0f;
-                lit[row] |= valid && vload16(0, q + 3 * (size_t)stride) > 0.0f;
+                int16 valid = load16(p + 5 * (size_t)stride) != 0.0f
+                              && load16(q + 5 * (size_t)stride) != 0.0f;
+                lit[row] |= valid && load16(q + 3 * (size_t)stride) > 0.0f;
                 float16 d = (((h0 + h1) + h2) + h3) + h4;
                 float16 n = taps_x * (float)bmfr_emission_taps(py, dy, h);
                 float16 wt = valid ? exp(-fmax(d / n, 0.0f)) : (float16)(0.0f);
-                for (int c = 0; c < 3; ++c) acc[row][c] += wt * vload16(0, q + c * (size_t)stride);
+                for (int c = 0; c < 3; ++c) acc[row][c] += wt * load16(q + c * (size_t)stride);
                 wsum[row] += wt;
             }
         }

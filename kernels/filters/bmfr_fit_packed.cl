@@ -26,6 +26,8 @@
 // bmfr --repeat 5`, binaries alternating): the work-group fit 230-245 ms, the packed fit with the
 // first loop per grid 78-81 ms, with `bmfr_rows` 61-63 ms, with the one-sweep dots 55-60 ms.
 
+#include "vectors.cl"
+
 #if BMFR_WG % 16 != 0 || BMFR_BLOCK % 16 != 0
 #error "noisefree: the packed bmfr fit needs BMFR_WG and BMFR_BLOCK to be multiples of 16"
 #endif
@@ -124,18 +126,18 @@ void bmfr_fit_packed(__global const float* rows,
     for (int r0 = 0; r0 < BMFR_N; r0 += 16) {
         int y = y0 + r0 / BMFR_BLOCK, xs = x0 + r0 % BMFR_BLOCK;
         if (y < 0 || y >= (int)height || xs + 15 < 0 || xs >= (int)width) {
-            for (int c = 0; c < BMFR_C; ++c) vstore16((float16)(0.0f), 0, a + c * BMFR_N + r0);
+            for (int c = 0; c < BMFR_C; ++c) store16_local((float16)(0.0f), a + c * BMFR_N + r0);
             continue;
         }
         int16 x = (int16)(xs) + BMFR_LANE_IDS;
         __global const float* at = rows + BMFR_PAD + (size_t)((long)y * width + xs);
         int16 inside = x >= 0 && x < (int)width;
-        int16 surface = inside && vload16(0, at) != 0.0f;
+        int16 surface = inside && load16(at) != 0.0f;
         for (int c = 0; c < BMFR_C; ++c)
-            vstore16(select((float16)(0.0f), vload16(0, at + c * plane), surface), 0,
-                     a + c * BMFR_N + r0);
+            store16_local(select((float16)(0.0f), load16(at + c * plane), surface),
+                          a + c * BMFR_N + r0);
         for (int k = 0; k < 4; ++k) {
-            float16 raw = vload16(0, a + (4 + k) * BMFR_N + r0);
+            float16 raw = load16_local(a + (4 + k) * BMFR_N + r0);
             lo16[k] = select(lo16[k], fmin(lo16[k], raw), surface);
             hi16[k] = select(hi16[k], fmax(hi16[k], raw), surface);
         }
@@ -171,20 +173,20 @@ void bmfr_fit_packed(__global const float* rows,
     // of one image row at a time: the same operations lane by lane; rows that are no surface
     // row (constant column 0) stay 0.
     for (int r0 = 0; r0 < BMFR_N; r0 += 16) {
-        float16 one = vload16(0, a + r0);
+        float16 one = load16_local(a + r0);
         int16 surface = one != 0.0f;
         int16 x = (int16)(x0 + r0 % BMFR_BLOCK) + BMFR_LANE_IDS;
         uint16 i = convert_uint16((int16)((y0 + r0 / BMFR_BLOCK) * (int)width) + x);
         uint16 h = bmfr_hash16(i ^ 0x62d3f1a7u);
 #define BMFR_NOISE16(c)                                                                        \
     ((convert_float16(bmfr_hash16(h ^ (uint)(c)) >> 8) * 0x1.0p-24f - 0.5f) * BMFR_NOISE)
-#define BMFR_PUT(c, v) vstore16(select((float16)(0.0f), (v) + BMFR_NOISE16(c), surface), 0,   \
-                                a + (c) * BMFR_N + r0)
-        float16 sx = (vload16(0, a + 4 * BMFR_N + r0) - blo.x) * bscale.x;
-        float16 sy = (vload16(0, a + 5 * BMFR_N + r0) - blo.y) * bscale.y;
-        float16 sz = (vload16(0, a + 6 * BMFR_N + r0) - blo.z) * bscale.z;
-        float16 sw = (vload16(0, a + 7 * BMFR_N + r0) - blo.w) * bscale.w;
-        for (int c = 1; c <= 3; ++c) BMFR_PUT(c, vload16(0, a + c * BMFR_N + r0));
+#define BMFR_PUT(c, v) store16_local(select((float16)(0.0f), (v) + BMFR_NOISE16(c), surface), \
+                                     a + (c) * BMFR_N + r0)
+        float16 sx = (load16_local(a + 4 * BMFR_N + r0) - blo.x) * bscale.x;
+        float16 sy = (load16_local(a + 5 * BMFR_N + r0) - blo.y) * bscale.y;
+        float16 sz = (load16_local(a + 6 * BMFR_N + r0) - blo.z) * bscale.z;
+        float16 sw = (load16_local(a + 7 * BMFR_N + r0) - blo.w) * bscale.w;
+        for (int c = 1; c <= 3; ++c) BMFR_PUT(c, load16_local(a + c * BMFR_N + r0));
         BMFR_PUT(4, sx);
         BMFR_PUT(5, sy);
         BMFR_PUT(6, sz);
@@ -196,11 +198,11 @@ void bmfr_fit_packed(__global const float* rows,
 #endif
 #if BMFR_TEXTURE
         for (int c = BMFR_COL_TEXTURE; c < BMFR_COL_TEXTURE + 3; ++c)
-            BMFR_PUT(c, vload16(0, a + c * BMFR_N + r0));
+            BMFR_PUT(c, load16_local(a + c * BMFR_N + r0));
 #endif
 #if BMFR_TEXTURE2
         for (int c = BMFR_COL_TEXTURE2; c < BMFR_COL_TEXTURE2 + 3; ++c)
-            BMFR_PUT(c, vload16(0, a + c * BMFR_N + r0));
+            BMFR_PUT(c, load16_local(a + c * BMFR_N + r0));
 #endif
 #undef BMFR_PUT
 #undef BMFR_NOISE16
@@ -220,11 +222,11 @@ void bmfr_fit_packed(__global const float* rows,
             for (int c = j; c < BMFR_C; ++c) acc[c] = (float16)(0.0f);
             for (int q = 0; q < BMFR_ROWS; ++q) {
                 int r0 = q * BMFR_WG + 16 * m;
-                float16 x = vload16(0, aj + r0);
+                float16 x = load16_local(aj + r0);
                 // Rows above j take no part: x = 0 there adds 0 (a finite column; a non-finite
                 // entry makes the fit non-finite in bmfr_fit too, at j = 0).
                 if (q == 0) x = select((float16)(0.0f), x, BMFR_LANE_IDS + r0 >= j);
-                for (int c = j; c < BMFR_C; ++c) acc[c] += x * vload16(0, a + c * BMFR_N + r0);
+                for (int c = j; c < BMFR_C; ++c) acc[c] += x * load16_local(a + c * BMFR_N + r0);
             }
             for (int c = j; c < BMFR_C; ++c) vstore16(acc[c], 0, partial[c] + 16 * m);
         }
@@ -242,14 +244,14 @@ void bmfr_fit_packed(__global const float* rows,
             for (int m = 0; m < BMFR_CHUNKS; ++m) {
                 int r0 = q * BMFR_WG + 16 * m;
                 int16 row = BMFR_LANE_IDS + r0;
-                float16 v = vload16(0, aj + r0);
+                float16 v = load16_local(aj + r0);
                 if (q == 0) v = select(v, (float16)(vj), row == j);
                 for (int c = j + 1; c < BMFR_C; ++c) {
                     __local float* ac = a + c * BMFR_N + r0;
-                    float16 old = vload16(0, ac);
+                    float16 old = load16_local(ac);
                     float16 updated = old - factor[c] * v;
                     if (q == 0) updated = select(old, updated, row >= j);
-                    vstore16(updated, 0, ac);
+                    store16_local(updated, ac);
                 }
             }
         }

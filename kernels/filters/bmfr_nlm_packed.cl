@@ -31,6 +31,8 @@
 // order; per patch row the taps x - 1, x, x + 1, then the rows y - 1, y, y + 1; FP_CONTRACT
 // OFF from bmfr.cl). Measured against the reference: tests/bmfr.rs.
 
+#include "vectors.cl"
+
 #define BMFR_NLM_PACK 16
 #define BMFR_NLM_STEP (BMFR_NLM_PACK - 2)
 #define BMFR_NLM_PAD 16
@@ -66,8 +68,6 @@ __kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
     at[13 * (size_t)stride] = u[0].w;
 }
 
-#define BMFR_NLM_LOAD16(p) vload16(0, p)
-
 // One patch row's sum for the lanes xv .. xv + 15 of row ay, against row by shifted by dx:
 // per lane (D(x - 1) + D(x)) + D(x + 1), for the three images (h[0..2]) and the valid taps
 // (h[3]); right only in lanes 1 .. 14 (lanes 0 and 15 lack a neighbour). `images` (a constant
@@ -88,8 +88,8 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
     float16 q[3][3];
     #pragma unroll
     for (int c = 0; c < 3; ++c) {
-        float16 va = BMFR_NLM_LOAD16(a + (9 + c) * (size_t)stride);
-        float16 vb = BMFR_NLM_LOAD16(b + (9 + c) * (size_t)stride);
+        float16 va = load16(a + (9 + c) * (size_t)stride);
+        float16 vb = load16(b + (9 + c) * (size_t)stride);
         float16 s = va + fmin(va, vb);
         float16 inv = 1.0f / (BMFR_NLM_EPSILON + k2 * (va + vb));
         // Constant trip counts with `m < images` inside: a loop bound that is a parameter
@@ -97,14 +97,14 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
         #pragma unroll
         for (int m = 0; m < 3; ++m) {
             if (m < images) {
-                float16 diff = BMFR_NLM_LOAD16(a + (3 * m + c) * (size_t)stride)
-                             - BMFR_NLM_LOAD16(b + (3 * m + c) * (size_t)stride);
+                float16 diff = load16(a + (3 * m + c) * (size_t)stride)
+                             - load16(b + (3 * m + c) * (size_t)stride);
                 q[m][c] = m == 0 ? (diff * diff - s) * inv : (0.5f * (diff * diff) - s) * inv;
             }
         }
     }
     float16 d[4];
-    d[3] = BMFR_NLM_LOAD16(a + 12 * (size_t)stride) * BMFR_NLM_LOAD16(b + 12 * (size_t)stride);
+    d[3] = load16(a + 12 * (size_t)stride) * load16(b + 12 * (size_t)stride);
     #pragma unroll
     for (int m = 0; m < 3; ++m)
         if (m < images) d[m] = d[3] != 0.0f ? (q[m][0] + q[m][1]) + q[m][2] : (float16)(0.0f);
@@ -139,8 +139,8 @@ __attribute__((always_inline)) inline void bmfr_nlm_offset(
             __global const float* q = lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
             __global const float* p = lines + bmfr_line_at(xv, py, BMFR_NLM_LINES, stride);
             // q takes part when it is of p's class (and p of one: others pass through).
-            float16 class_q = BMFR_NLM_LOAD16(q + 13 * (size_t)stride);
-            int16 same = class_q == BMFR_NLM_LOAD16(p + 13 * (size_t)stride) && class_q != 0.0f;
+            float16 class_q = load16(q + 13 * (size_t)stride);
+            int16 same = class_q == load16(p + 13 * (size_t)stride) && class_q != 0.0f;
             float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
             #pragma unroll
             for (int m = 0; m < 3; ++m) {
@@ -150,7 +150,7 @@ __attribute__((always_inline)) inline void bmfr_nlm_offset(
                     #pragma unroll
                     for (int c = 0; c < 3; ++c)
                         acc[row][3 * m + c] +=
-                            wt * BMFR_NLM_LOAD16(q + (3 * m + c) * (size_t)stride);
+                            wt * load16(q + (3 * m + c) * (size_t)stride);
                     wsum[row][m] += wt;
                 }
             }

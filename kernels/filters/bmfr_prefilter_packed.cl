@@ -13,6 +13,8 @@
 // the image or on a kept pixel has weight 0 here where the scalar kernel skips it (0 x a
 // finite albedo adds nothing). Measured against the Rust reference: tests/bmfr.rs.
 
+#include "vectors.cl"
+
 // BMFR_PREFILTER_LINES comes from the build options (src/filters/bmfr/prefilter.rs
 // prefilter_packed_lines), which size the lines' buffer.
 #if (BMFR_PREFILTER_GEOMETRY && BMFR_PREFILTER_LINES != 18) \
@@ -63,8 +65,8 @@ __kernel void bmfr_albedo_prefilter_packed(__global const FilterVector* fv,
     __global const float* p = lines + bmfr_line_at(x0, y, BMFR_PREFILTER_LINES, stride);
     float16 ai[3], vi[3];
     for (int c = 0; c < 3; ++c) {
-        ai[c] = vload16(0, p + c * (size_t)stride);
-        vi[c] = vload16(0, p + (3 + c) * (size_t)stride);
+        ai[c] = load16(p + c * (size_t)stride);
+        vi[c] = load16(p + (3 + c) * (size_t)stride);
     }
     float16 sum[3] = {(float16)(0.0f), (float16)(0.0f), (float16)(0.0f)};
     float16 wsum = (float16)(0.0f);
@@ -74,15 +76,15 @@ __kernel void bmfr_albedo_prefilter_packed(__global const FilterVector* fv,
     float16 gi[4], gvi[4];
     #pragma unroll
     for (int c = 0; c < 4; ++c) {
-        gi[c] = vload16(0, p + (7 + c) * (size_t)stride);
-        gvi[c] = vload16(0, p + (11 + c) * (size_t)stride);
+        gi[c] = load16(p + (7 + c) * (size_t)stride);
+        gvi[c] = load16(p + (11 + c) * (size_t)stride);
     }
     // Differences from each lane's own values are averaged (bmfr_albedo_prefilter).
     float16 own[7];
     #pragma unroll
     for (int c = 0; c < 4; ++c) own[c] = gi[c];
     #pragma unroll
-    for (int c = 4; c < 7; ++c) own[c] = vload16(0, p + (11 + c) * (size_t)stride);
+    for (int c = 4; c < 7; ++c) own[c] = load16(p + (11 + c) * (size_t)stride);
     float16 gsum[7];
     #pragma unroll
     for (int c = 0; c < 7; ++c) gsum[c] = (float16)(0.0f);
@@ -99,13 +101,13 @@ __kernel void bmfr_albedo_prefilter_packed(__global const FilterVector* fv,
             // unless their loops are unrolled.
             #pragma unroll
             for (int c = 0; c < 3; ++c) {
-                aj[c] = vload16(0, q + c * (size_t)stride);
-                vj[c] = vload16(0, q + (3 + c) * (size_t)stride);
+                aj[c] = load16(q + c * (size_t)stride);
+                vj[c] = load16(q + (3 + c) * (size_t)stride);
                 float16 diff = ai[c] - aj[c];
                 d2 += (diff * diff - (vi[c] + fmin(vi[c], vj[c])))
                     / (BMFR_PREFILTER_EPSILON + k2 * (vi[c] + vj[c]));
             }
-            int16 part = vload16(0, q + 6 * (size_t)stride) != 0.0f;
+            int16 part = load16(q + 6 * (size_t)stride) != 0.0f;
             float16 wt = part ? exp(-fmax(d2 / 3.0f, 0.0f)) : (float16)(0.0f);
             #pragma unroll
             for (int c = 0; c < 3; ++c) sum[c] += wt * aj[c];
@@ -123,14 +125,14 @@ __kernel void bmfr_albedo_prefilter_packed(__global const FilterVector* fv,
             float16 gj[7];
             #pragma unroll
             for (int c = 0; c < 4; ++c) {
-                gj[c] = vload16(0, q + (7 + c) * (size_t)stride);
-                float16 gvj = vload16(0, q + (11 + c) * (size_t)stride);
+                gj[c] = load16(q + (7 + c) * (size_t)stride);
+                float16 gvj = load16(q + (11 + c) * (size_t)stride);
                 float16 diff = gi[c] - gj[c];
                 dg += (diff * diff - (gvi[c] + fmin(gvi[c], gvj)))
                     / (BMFR_PREFILTER_EPSILON + kg2 * (gvi[c] + gvj));
             }
             #pragma unroll
-            for (int c = 4; c < 7; ++c) gj[c] = vload16(0, q + (11 + c) * (size_t)stride);
+            for (int c = 4; c < 7; ++c) gj[c] = load16(q + (11 + c) * (size_t)stride);
             float16 wg = part ? exp(-fmax(dg / 7.0f, 0.0f)) : (float16)(0.0f);
             #pragma unroll
             for (int c = 0; c < 7; ++c) gsum[c] += wg * (gj[c] - own[c]);

@@ -21,11 +21,14 @@
 // reference (tests/ddf.rs every_variant_matches_the_rust_reference); PoCL's float16 exp or
 // division need not round like the scalar ones (not investigated further).
 
+#include "vectors.cl"
+
 #if DDF_PACK == 16
 #define floatP float16
 #define intP int16
-#define vloadP vload16
-#define vstoreP vstore16
+// Loads and stores of lines in global memory (vectors.cl: one vector instruction each).
+#define vloadP(n, p) load16((p) + 16 * (size_t)(n))
+#define vstoreP(v, n, p) store16((v), (p) + 16 * (size_t)(n))
 #define LANE_IDS (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
 #else
 #error "noisefree: DDF_PACK must be 16 (src/filters/ddf/device.rs PACK)"
@@ -55,7 +58,7 @@ __kernel void ddf_pack(__constant const DdfParams* p,
     uint pixel = (uint)y * p->width + (uint)x;
     __global float* at = lines + (size_t)y * DDF_LINES * stride + p->half_width + x;
     float fv[16];
-    vstore16(vload16(pixel, f), 0, fv);
+    vstore16(load16(f + 16 * (size_t)pixel), 0, fv);
     for (int k = 0; k < 16; ++k) at[(size_t)k * stride] = fv[k];
 #if DDF_DIRECTION_LINES > 0
     float3 d = neighbour_direction(p, gb, state, pixel);
@@ -146,10 +149,10 @@ __kernel void ddf_filter(__constant const DdfParams* p,
     float s2[5][DDF_PACK];
     for (int i = 0; i < DDF_PACK; ++i) {
         uint pixel = (uint)(y * w + min(x0 + i, w - 1));
-        DdfCentre one = ddf_centre(p, vload16(pixel, f), gb, state, pixel);
+        DdfCentre one = ddf_centre(p, load16(f + 16 * (size_t)pixel), gb, state, pixel);
         for (int j = 0; j < 5; ++j) s2[j][i] = one.sigma2_f[j];
     }
-    for (int j = 0; j < 5; ++j) c.sigma2_f[j] = vloadP(0, s2[j]);
+    for (int j = 0; j < 5; ++j) c.sigma2_f[j] = vload16(0, s2[j]);
     __global const float* centre = lines + (size_t)y * DDF_LINES * stride + r + x0;
     for (int k = 0; k < 16; ++k) c.f[k] = vloadP(0, centre + (size_t)k * stride);
     for (int k = 0; k < DDF_DIRECTION_LINES; ++k)
@@ -163,7 +166,7 @@ __kernel void ddf_filter(__constant const DdfParams* p,
     if (all(c.f[6] >= SKY_DEPTH || LANE_IDS >= lanes)) {
         for (int i = 0; i < lanes; ++i) {
             uint pixel = (uint)(y * w + x0 + i);
-            float16 fc = vload16(pixel, f);
+            float16 fc = load16(f + 16 * (size_t)pixel);
             out[pixel] = (float4)(fc.s012 + fc.s345, 0.0f);
         }
         return;
@@ -198,7 +201,7 @@ __kernel void ddf_filter(__constant const DdfParams* p,
 #if DDF_SKY
         v = select(v, c.f[k] + c.f[3 + k], c.f[6] >= SKY_DEPTH);
 #endif
-        vstoreP(v, 0, rgb[k]);
+        vstore16(v, 0, rgb[k]);
     }
     for (int i = 0; i < lanes; ++i)
         out[y * w + x0 + i] = (float4)(rgb[0][i], rgb[1][i], rgb[2][i], 0.0f);
