@@ -110,6 +110,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_nlm_packed.cl"),
     ),
     (
+        "filters/bmfr_select_packed.cl",
+        include_str!("../kernels/filters/bmfr_select_packed.cl"),
+    ),
+    (
         "filters/bmfr_prefilter_packed.cl",
         include_str!("../kernels/filters/bmfr_prefilter_packed.cl"),
     ),

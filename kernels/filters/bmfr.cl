@@ -552,5 +552,6 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
 #include "filters/bmfr_fit_packed.cl"
 #include "filters/bmfr_nlm.cl"
 #include "filters/bmfr_nlm_packed.cl"
+#include "filters/bmfr_select_packed.cl"
 #include "filters/bmfr_prefilter_packed.cl"
 #include "filters/bmfr_emission.cl"

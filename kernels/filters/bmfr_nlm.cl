@@ -264,6 +264,54 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
 // where R > 0 and the fit where R = 0 too (only kept pixels, or one sample: no estimate).
 // With BMFR_SELECT_FLOOR c > 0, R - V is summed again, each pixel's term no lower than -c times
 // the window's mean V (src/filters/bmfr/nlm.rs, "The floor").
+//
+// With the floor the first pass also sums R - V, in the same order as the floor's pass, and
+// keeps its least term. Where no term lies below the floor that pass would add the same terms
+// in the same order (fmax(e, f) is e when e >= f), so its sum is the first pass's, bit for
+// bit, and the pass is skipped. A NaN term makes the sum NaN and takes the pass (which floors
+// it). On CPU devices bmfr_select_nlm_packed (filters/bmfr_select_packed.cl) sums the windows
+// on float16 lanes and blends with the same functions: the same bytes.
+
+// The floor of the terms R - V in a window whose V sums to sum_v over `count` pixels.
+inline float bmfr_select_floor_of(float sum_v, float count) {
+    return -BMFR_SELECT_FLOOR * (sum_v / count);
+}
+
+// Whether the floor's pass must run for a pixel of `class` whose window sums are `sum` over
+// `count` pixels, R - V summing to excess_sum with excess_min the least term (see above).
+inline bool bmfr_select_needs_floor(float class, float3 sum, float count, float excess_sum,
+                                    float excess_min) {
+    if (!(BMFR_SELECT_FLOOR > 0.0f) || class != BMFR_NLM_SURFACE || !(sum.x > 0.0f)) return false;
+    return !(excess_min >= bmfr_select_floor_of(sum.x, count)) || isnan(excess_sum);
+}
+
+// The blend for the pixel of F `f` and class `class`, from its window's sums (V, R, N) and the
+// fit's evidence `excess` (sum R - V, each term floored with the floor): the new *fitted, left
+// as it is where there is no estimate. `nlm` is the pixel's non-local means of the frame.
+inline void bmfr_select_nlm_blend(__global const FilterVector* f, float class, float3 sum,
+                                  float excess, __global const float4* nlm,
+                                  __global float4* fitted) {
+    float3 beauty = bmfr_beauty(f);
+    if (!(sum.x > 0.0f)) {
+        // No variance: with a residual the light is noise-free and the fit is off (a light
+        // whose albedo is not exactly 1, seen in a reflection), so keep the light, as
+        // bmfr_select's lambda = 0 does; with none either, there is no estimate.
+        if (sum.y > 0.0f) *fitted = (float4)(beauty, 0.0f);
+        return;
+    }
+    float e_y = 1.0f;
+    float e_n = fmax(0.5f * sum.z / sum.x, 1.0e-6f);
+    float w_y = 1.0f / (e_y * e_y), w_n = 1.0f / (e_n * e_n);
+    if (class == BMFR_NLM_OPEN) {
+        *fitted = (float4)((w_y * beauty + w_n * nlm->xyz) / (w_y + w_n), 0.0f);
+        return;
+    }
+    float e_f = fmax(excess / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
+    float w_f = 1.0f / (e_f * e_f);
+    float3 out = (w_y * beauty + w_f * fitted->xyz + w_n * nlm->xyz) / (w_y + w_f + w_n);
+    *fitted = (float4)(out, 0.0f);
+}
+
 __kernel void bmfr_select_nlm(__global const FilterVector* fv,
                               uint width, uint height,
                               __global const float4* residuals,
@@ -275,10 +323,6 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     float class = residuals[i].w;
     float3 sum = (float3)(0.0f);
     float count = 0.0f;
-    // With the floor: R - V summed in the same order as the floor's pass below, and its least
-    // term. Where no term lies below the floor that pass would add the same terms in the same
-    // order (fmax(e, f) is e when e >= f), so its sum is this one, bit for bit, and the pass is
-    // skipped. A NaN term makes the sum NaN and takes the pass (which floors it).
     float excess_sum = 0.0f, excess_min = INFINITY;
     BMFR_SELECT_WINDOW(
         float4 e = residuals[j];
@@ -291,36 +335,14 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
             }
         }
     )
-    float3 beauty = bmfr_beauty(fv + i);
-    if (!(sum.x > 0.0f)) {
-        // No variance: with a residual the light is noise-free and the fit is off (a light
-        // whose albedo is not exactly 1, seen in a reflection), so keep the light, as
-        // bmfr_select's lambda = 0 does; with none either, there is no estimate.
-        if (sum.y > 0.0f) fitted[i] = (float4)(beauty, 0.0f);
-        return;
+    float excess = BMFR_SELECT_FLOOR > 0.0f ? excess_sum : sum.y - sum.x;
+    if (bmfr_select_needs_floor(class, sum, count, excess_sum, excess_min)) {
+        float floor_ = bmfr_select_floor_of(sum.x, count);
+        excess = 0.0f;
+        BMFR_SELECT_WINDOW(
+            float4 e = residuals[j];
+            if (e.w == class) excess += fmax(e.y - e.x, floor_);
+        )
     }
-    float e_y = 1.0f;
-    float e_n = fmax(0.5f * sum.z / sum.x, 1.0e-6f);
-    float w_y = 1.0f / (e_y * e_y), w_n = 1.0f / (e_n * e_n);
-    if (class == BMFR_NLM_OPEN) {
-        fitted[i] = (float4)((w_y * beauty + w_n * nlm_out[3 * i].xyz) / (w_y + w_n), 0.0f);
-        return;
-    }
-    float excess = sum.y - sum.x;
-    if (BMFR_SELECT_FLOOR > 0.0f) {
-        float floor_ = -BMFR_SELECT_FLOOR * (sum.x / count);
-        excess = excess_sum;
-        if (!(excess_min >= floor_) || isnan(excess_sum)) {
-            excess = 0.0f;
-            BMFR_SELECT_WINDOW(
-                float4 e = residuals[j];
-                if (e.w == class) excess += fmax(e.y - e.x, floor_);
-            )
-        }
-    }
-    float e_f = fmax(excess / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
-    float w_f = 1.0f / (e_f * e_f);
-    float3 out = (w_y * beauty + w_f * fitted[i].xyz + w_n * nlm_out[3 * i].xyz)
-        / (w_y + w_f + w_n);
-    fitted[i] = (float4)(out, 0.0f);
+    bmfr_select_nlm_blend(fv + i, class, sum, excess, nlm_out + 3 * i, fitted + i);
 }

@@ -74,6 +74,10 @@ fn line_stride(width: u32) -> u32 {
 /// Lanes of the packed kernels (bmfr_nlm_packed.cl BMFR_NLM_PACK).
 const PACK: u32 = 16;
 
+/// Pixels whose windows one work-item of the packed selection sums (bmfr_select_packed.cl
+/// BMFR_SELECT_PACK).
+const SELECT_PACK: u32 = PACK;
+
 /// Pixels filtered per work-item of the packed non-local means: its lanes less the left and
 /// right neighbours (bmfr_nlm_packed.cl BMFR_NLM_STEP).
 const NLM_STEP: u32 = PACK - 2;
@@ -298,7 +302,8 @@ impl BmfrKernel {
             select.push(built(kb, all)?);
             // Packed on CPU devices (nlm.rs `packed_nlm`): the inputs as lines of floats,
             // padded either side and zeroed once (kernels/filters/bmfr_nlm_packed.cl).
-            if s.packed_nlm.or(gpu.summary.kind == "CPU") {
+            let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
+            if packed {
                 let stride = line_stride(width);
                 let lines = gpu.zeroed::<f32>(
                     (NLM_PACKED_LINES * stride) as usize * height as usize,
@@ -336,7 +341,16 @@ impl BmfrKernel {
             let mut kb = per_pixel("bmfr_residuals_nlm", all);
             kb.arg(&out).arg(&nlm_out).arg(&residuals);
             select.push(built(kb, all)?);
-            let mut kb = per_pixel("bmfr_select_nlm", none);
+            // Packed on CPU devices too (kernels/filters/bmfr_select_packed.cl): 16 pixels'
+            // windows per work-item, the same bytes.
+            let mut kb = if packed {
+                let mut kb = per_pixel("bmfr_select_nlm_packed", none);
+                kb.global_work_size([width.div_ceil(SELECT_PACK) as usize, height as usize])
+                    .local_work_size([1, 1]);
+                kb
+            } else {
+                per_pixel("bmfr_select_nlm", none)
+            };
             kb.arg(&residuals).arg(&nlm_out).arg(&out);
             select.push(built(kb, none)?);
         } else if s.select {

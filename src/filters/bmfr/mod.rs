@@ -172,10 +172,11 @@ crate::filter_settings! {
         /// Algorithm 1), which PoCL runs on scalar floats. auto: on CPU devices.
         pub packed_fit: Auto<bool> = Auto::Auto,
         /// The non-local means (the selection's candidate, the albedo prefilter and the
-        /// emission's) on float16 lanes, one work-item per 14 × 32, 16 × 1 or 12 × 16 pixels
-        /// (kernels/filters/bmfr_nlm_packed.cl, bmfr_prefilter_packed.cl,
-        /// bmfr_emission.cl): the same float operations in the same order as the kernels with
-        /// one work-item per pixel, which PoCL runs on scalar floats. auto: on CPU devices.
+        /// emission's) and the selection's window sums on float16 lanes, one work-item per
+        /// 14 × 32, 16 × 1, 12 × 16 or 16 × 1 pixels (kernels/filters/bmfr_nlm_packed.cl,
+        /// bmfr_prefilter_packed.cl, bmfr_emission.cl, bmfr_select_packed.cl): the same float
+        /// operations in the same order as the kernels with one work-item per pixel, which
+        /// PoCL runs on scalar floats. auto: on CPU devices.
         pub packed_nlm: Auto<bool> = Auto::Auto,
         /// Take the light of lights seen directly (the render's emission output) out of the
         /// light the fit, the selection and the non-local means see, and filter it apart by

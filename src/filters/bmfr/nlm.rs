@@ -394,10 +394,12 @@ pub fn residual(
     [v, r, n[0] + n[1] + n[2], class]
 }
 
-/// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` for pixel (x, y): the window sums over the
-/// pixels of its class, then the blend of the light, the fit and the non-local means (an
-/// [`OPEN`] pixel: of the light and the non-local means). `(scale, floor)`: κ and c
-/// (`select_scale`, `select_floor`; module docs).
+/// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` (and on CPU devices bmfr_select_packed.cl,
+/// the same bytes) for pixel (x, y): the window sums over the pixels of its class, then the
+/// blend of the light, the fit and the non-local means (an [`OPEN`] pixel: of the light and
+/// the non-local means). `(scale, floor)`: κ and c (`select_scale`, `select_floor`; module
+/// docs). The kernels skip the floor's second pass where no term lies below the floor (its
+/// sum is then the first pass's R − V, bit for bit); this reference always takes it.
 #[allow(clippy::too_many_arguments)]
 pub fn select(
     f: &FilterVector,
