@@ -146,3 +146,49 @@ fn atrous_tap_counts_match_the_kernel_loops() {
     assert_eq!(got.taps, want);
     assert_eq!(got.exps, want as f64);
 }
+
+/// bmfr's models: the non-local means' (pixel, offset) pairs (the frame's window for every
+/// pixel of a class, the halves' smaller one twice) and the selection's window positions,
+/// against a walk of every window over an image that is no multiple of anything.
+#[test]
+fn bmfr_counts_match_a_walk_of_the_windows() {
+    let (w, h) = (37i64, 23i64);
+    let classes: Vec<f32> = (0..w * h)
+        .map(|i| [0.0, 1.0, 2.0][(i * 7 % 5 % 3) as usize])
+        .collect();
+    let shape = models::BmfrShape {
+        features: 10,
+        block: 16,
+        grids: 4,
+        nlm_radius: 5,
+        estimate_radius: 3,
+        select_radius: 4,
+    };
+    let window = |x: i64, y: i64, r: i64| -> u64 {
+        let mut k = 0;
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if (0..w).contains(&(x + dx)) && (0..h).contains(&(y + dy)) {
+                    k += 1;
+                }
+            }
+        }
+        k
+    };
+    let (mut nlm, mut select) = (0u64, 0u64);
+    for y in 0..h {
+        for x in 0..w {
+            select += window(x, y, 4);
+            if classes[(y * w + x) as usize] != 0.0 {
+                nlm += window(x, y, 5) + 2 * window(x, y, 3);
+            }
+        }
+    }
+    let got = models::bmfr_nlm_work(&classes, w as u32, h as u32, &shape);
+    assert_eq!(got.taps, nlm);
+    assert_eq!(got.exps, nlm as f64);
+    assert_eq!(
+        models::bmfr_select_work(w as u32, h as u32, &shape).taps,
+        select
+    );
+}

@@ -9,12 +9,15 @@
 //! Everything is measured anew on every run (nothing resumed), so the ceilings and the
 //! kernels come from the same run on the same, equally loaded, device.
 //!
-//! Counted: the data-driven filter's variants (thesis §6.3, kw 21) and à-trous's (scalar and
-//! packed); `--method NAME` keeps the kernels labelled NAME or NAME-... (e.g. `--method
-//! atrous`: both à-trous kernels), all by default. Not counted:
-//! RPF, bmfr, path-density and the AAF/sheared passes, whose arithmetic depends on the data
-//! (mutual-information buckets, QR of rank-deficient blocks, kNN ring scans); their times are
-//! in the quality study.
+//! Counted: the data-driven filter's variants (thesis §6.3, kw 21), à-trous's (scalar and
+//! packed) and bmfr's four largest kernels (its non-local means, the fit, the selection and
+//! the fit's application, each timed by profiling events within one run of the filter, at its
+//! defaults; and the whole filter, its other kernels' time with no flops); `--method NAME`
+//! keeps the kernels labelled NAME or NAME-... (e.g. `--method atrous`: both à-trous kernels),
+//! all by default. Not counted: RPF, path-density and the AAF/sheared passes, whose arithmetic
+//! depends on the data (mutual-information buckets, kNN ring scans); their times are in the
+//! quality study. bmfr's kernels for a thin lens (the prefilter, the emission) do not run on
+//! these two scenes.
 
 pub mod models;
 pub mod peaks;
@@ -46,6 +49,8 @@ const KERNELS: &[&str] = &[
     "ddf-packed-fast+holes",
     "atrous-scalar",
     "atrous-packed",
+    // One run of bmfr, a row per modelled kernel and one for the whole filter.
+    "bmfr",
 ];
 
 /// The scenes: a closed room (every pixel a surface) and Outside (a sky the filters skip).
@@ -108,6 +113,107 @@ fn configure(label: &str, frame: &Frame) -> Result<(Configured, Work)> {
         extra,
     );
     Ok((Configured::typed::<Ddf>(s, info)?, work))
+}
+
+/// bmfr at its defaults on an 8-spp n × n frame of `scene` (with the outputs bmfr reads): for
+/// each modelled kernel its work and best time over `runs` runs after a warm-up (profiling
+/// events), then the whole filter ("bmfr-all": the modelled work over every kernel's time).
+fn bmfr_kernels(
+    ctx: &Context,
+    scene: &crate::scene::Scene,
+    n: u32,
+    runs: usize,
+) -> Result<Vec<(String, Work, Duration)>> {
+    use crate::filters::bmfr::{Bmfr, BmfrSettings, kept, nlm};
+    use crate::gpu::profile;
+    use crate::layout::Float4;
+    use crate::layout::outputs::BufferId;
+    use crate::render::{RenderOptions, Renderer};
+
+    let s = BmfrSettings::default();
+    let mut o = RenderOptions::for_scene(scene);
+    (o.frame.width, o.frame.height) = (n, n);
+    o.outputs = Bmfr::needs(&s);
+    let mut r = Renderer::new(ctx.gpu.clone(), scene, &o)?;
+    r.render_samples(8)?;
+    let frame = r.frame();
+    let info = &frame.info().scene;
+    let mut effective = s.clone();
+    Bmfr::specialise(&mut effective, info);
+    let shape = models::BmfrShape {
+        features: effective.features(),
+        block: effective.block_size,
+        grids: effective.grids,
+        nlm_radius: effective.nlm_radius,
+        estimate_radius: effective.estimate_radius(),
+        select_radius: effective.select_radius,
+    };
+    let fv = frame.filter_vectors()?;
+    let pos: &[Float4] = frame.host_slice(BufferId::Positions)?;
+    let odd: &[Float4] = frame.host_slice(BufferId::OddHalves)?;
+    let spp = frame.info().spp as f32;
+    let classes: Vec<f32> = (0..fv.len())
+        .map(|i| nlm::class(&fv[i], &pos[i], &odd[i], spp))
+        .collect();
+    let fitted = (0..fv.len())
+        .filter(|&i| !kept(&fv[i], &pos[i], spp))
+        .count() as u64;
+    // The packed kernels on CPU devices, the work-group ones elsewhere: the same useful work
+    // (both non-local means kernels evaluate each tap's term once per offset).
+    let modelled = [
+        (
+            ["bmfr_nlm_packed", "bmfr_nlm"],
+            models::bmfr_nlm_work(&classes, n, n, &shape),
+        ),
+        (
+            ["bmfr_fit_packed", "bmfr_fit"],
+            models::bmfr_fit_work(n, n, &shape),
+        ),
+        (
+            ["bmfr_select_nlm_packed", "bmfr_select_nlm"],
+            models::bmfr_select_work(n, n, &shape),
+        ),
+        (
+            ["bmfr_apply", "bmfr_apply"],
+            models::bmfr_apply_work(fitted, n, n, &shape),
+        ),
+    ];
+    let f = Configured::typed::<Bmfr>(s, info)?;
+    let mut prepared = f.prepare(frame.info(), &ctx.gpu)?;
+    prepared.run(&frame)?;
+    let mut best = std::collections::BTreeMap::<String, Duration>::new();
+    let mut best_all = Duration::MAX;
+    for _ in 0..runs {
+        profile::start();
+        let run = prepared.run(&frame);
+        let kernels = profile::finish()?;
+        run?;
+        let mut all = Duration::ZERO;
+        for k in kernels {
+            all += k.time;
+            let b = best.entry(k.kernel).or_insert(Duration::MAX);
+            *b = (*b).min(k.time);
+        }
+        best_all = best_all.min(all);
+    }
+    let mut out = Vec::new();
+    let mut total = Work::default();
+    for (names, work) in modelled {
+        let Some((kernel, time)) = names.iter().find_map(|k| best.get(*k).map(|t| (k, t))) else {
+            anyhow::bail!("roofline: bmfr ran none of {names:?} (src/filters/bmfr/device.rs)");
+        };
+        total.taps += work.taps;
+        total.flops += work.flops;
+        total.exps += work.exps;
+        total.bytes += work.bytes;
+        out.push((format!("bmfr: {kernel}"), work, *time));
+    }
+    out.push((
+        "bmfr-all (every kernel's time)".to_string(),
+        total,
+        best_all,
+    ));
+    Ok(out)
 }
 
 /// The best kernel time of `runs` runs after a warm-up.
@@ -183,6 +289,13 @@ pub fn roofline(ctx: &Context) -> Result<()> {
         let frame = super::filter_speed::filter_input(ctx, &scene, n, n)?;
         for label in KERNELS.iter().filter(|l| ctx.wants(l)) {
             pb.set_message(format!("roofline: {name} {label}"));
+            if *label == "bmfr" {
+                for (kernel, work, time) in bmfr_kernels(ctx, &scene, n, runs)? {
+                    t.push(row(name, &size, &kernel, &work, time, &pk))?;
+                }
+                pb.inc(1);
+                continue;
+            }
             let (f, work) = configure(label, &frame)?;
             let time = best_time(ctx, &f, &frame, runs)?;
             t.push(row(name, &size, label, &work, time, &pk))?;
@@ -244,7 +357,9 @@ fn write_report(ctx: &Context, t: &ResultTable, pk: &Peaks) -> Result<()> {
          achieved GFLOP/s over the FMA peak, `pct_scalar_peak` over the float-chain peak (a \
          kernel above 100 % of it was vectorised); `pct_bandwidth`: compulsory GB/s over the triad; \
          `roof_gflops` = min(peak, intensity x bandwidth), `pct_roof` the achieved share of \
-         it. Kernel times: best of several runs, OpenCL profiling events.\n\n\
+         it. Kernel times: best of several runs, OpenCL profiling events; bmfr's kernels each \
+         their best within runs of the whole filter, and `bmfr-all` the four kernels' work \
+         over the best run's total kernel time (its other kernels add time, not flops).\n\n\
          ![roofline](roofline.png)\n\n{}",
         pk.gflops,
         pk.gflops_scalar,

@@ -160,3 +160,138 @@ pub fn atrous_work(fv: &[FilterVector], width: u32, height: u32, iterations: u32
         bytes: pixels * (112.0 + 64.0 * n + 96.0),
     }
 }
+
+/// bmfr's settings the models need (src/filters/bmfr, after specialisation to the scene).
+#[derive(Clone, Copy, Debug)]
+pub struct BmfrShape {
+    /// Features K and columns C = K + 6 targets of the fit.
+    pub features: usize,
+    pub block: u32,
+    pub grids: u32,
+    /// The non-local means' search radius, the half buffers' (`estimate_radius`), and the
+    /// selection's window radius.
+    pub nlm_radius: u32,
+    pub estimate_radius: u32,
+    pub select_radius: u32,
+}
+
+/// One offset of the frame's non-local means in bmfr_nlm_packed.cl, per pixel, in its box form
+/// (each tap's term evaluated once per pixel and offset and shared by the patches holding it):
+/// the term (per channel: the variance cancellation's add and min, the denominator's add,
+/// multiply, add and reciprocal, the difference, its square less the cancellation times the
+/// reciprocal: 10; the channels' 2 adds; the inside product: 33), the patch row's and column's
+/// sums (2 + 2) and the taps' count (2 + 2 + 1 shared), the weight (division, max, negation: 3)
+/// and the accumulation (three multiply-adds and the weight sum: 7); one `exp`.
+pub const BMFR_NLM_FRAME_FLOPS: f64 = 52.0;
+/// The same for one half buffer within the estimate's window: its term (per channel the
+/// difference, square, halving, cancellation and reciprocal product: 5; 2 adds), its sums
+/// (4) and its weight and accumulation (10); one `exp`.
+pub const BMFR_NLM_HALF_FLOPS: f64 = 31.0;
+/// Once per pixel: the three images' rgb means (9 divisions) times the modulation (9).
+pub const BMFR_NLM_PIXEL_FLOPS: f64 = 18.0;
+
+/// The non-local means of bmfr's selection (bmfr_nlm_packed) on a frame whose pixels have
+/// the non-local means' `classes` (nlm.rs `class`; 0 passes through): useful work only (the
+/// lanes the packed kernel computes and masks out are not counted, as for à-trous).
+pub fn bmfr_nlm_work(classes: &[f32], width: u32, height: u32, shape: &BmfrShape) -> Work {
+    let (w, h) = (width as i64, height as i64);
+    let (r, re) = (shape.nlm_radius as i64, shape.estimate_radius as i64);
+    let cols = |rad| -> Vec<u64> { (0..w).map(|x| inside(x, w, rad, 1)).collect() };
+    let rows = |rad| -> Vec<u64> { (0..h).map(|y| inside(y, h, rad, 1)).collect() };
+    let (cols_r, rows_r, cols_e, rows_e) = (cols(r), rows(r), cols(re), rows(re));
+    let (mut frame, mut halves, mut filtered) = (0u64, 0u64, 0u64);
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            if classes[y * w as usize + x] == 0.0 {
+                continue;
+            }
+            filtered += 1;
+            frame += cols_r[x] * rows_r[y];
+            halves += 2 * cols_e[x] * rows_e[y];
+        }
+    }
+    Work {
+        taps: frame + halves,
+        flops: frame as f64 * BMFR_NLM_FRAME_FLOPS
+            + halves as f64 * BMFR_NLM_HALF_FLOPS
+            + filtered as f64 * BMFR_NLM_PIXEL_FLOPS,
+        exps: (frame + halves) as f64,
+        // The 14 input lines read, F read for the modulation, three float4 means written.
+        bytes: (w * h) as f64 * (56.0 + 64.0 + 48.0),
+    }
+}
+
+/// One window position of bmfr_select_nlm (packed): the class test and the four sums (V, R,
+/// N, count).
+pub const BMFR_SELECT_TAP_FLOPS: f64 = 5.0;
+/// Once per pixel: the beauty (3), E_n, E_f and their weights (10), the blend of three rgb
+/// candidates (9 multiplies, 6 adds, the weights' sum 2, 3 divisions).
+pub const BMFR_SELECT_PIXEL_FLOPS: f64 = 33.0;
+
+/// The selection's window sums and blend (bmfr_select_nlm_packed) without the floor (a pinhole
+/// camera): every pixel's window inside the image.
+pub fn bmfr_select_work(width: u32, height: u32, shape: &BmfrShape) -> Work {
+    let (w, h) = (width as i64, height as i64);
+    let r = shape.select_radius as i64;
+    let cols: u64 = (0..w).map(|x| inside(x, w, r, 1)).sum();
+    let rows: u64 = (0..h).map(|y| inside(y, h, r, 1)).sum();
+    let taps = cols * rows;
+    let pixels = (w * h) as f64;
+    Work {
+        taps,
+        flops: taps as f64 * BMFR_SELECT_TAP_FLOPS + pixels * BMFR_SELECT_PIXEL_FLOPS,
+        exps: 0.0,
+        // Residuals, F, the non-local means read; the fit read and the blend written.
+        bytes: pixels * (16.0 + 64.0 + 16.0 + 32.0),
+    }
+}
+
+/// bmfr's fit (bmfr_fit_packed, paper Algorithm 1) over every block of every grid: per row of
+/// a block, the four raw columns' minimum and maximum (8) and the features (rescaling 8,
+/// squares 3, each feature's regularisation noise 4); Householder QR over all N = B² rows (for
+/// column j, the dot products with columns j .. C − 1 and the updates of j + 1 .. C − 1, a
+/// multiply and an add or subtract per row each); back-substitution per target (K² flops).
+pub fn bmfr_fit_work(width: u32, height: u32, shape: &BmfrShape) -> Work {
+    use crate::filters::bmfr::{grid_blocks, grid_offset};
+    let (k, c) = (shape.features as f64, (shape.features + 6) as f64);
+    let n = (shape.block * shape.block) as f64;
+    let per_row = 8.0 + 11.0 + 4.0 * (k - 1.0);
+    let qr: f64 = (0..shape.features)
+        .map(|j| 2.0 * n * (c - j as f64) + 2.0 * n * (c - j as f64 - 1.0))
+        .sum();
+    let per_block = n * per_row + qr + 6.0 * k * k;
+    let blocks: u32 = (0..shape.grids)
+        .map(|g| {
+            let (a, d) = grid_blocks(
+                width,
+                height,
+                shape.block,
+                grid_offset(g, shape.grids, shape.block),
+            );
+            a * d
+        })
+        .sum();
+    Work {
+        taps: blocks as u64,
+        flops: blocks as f64 * per_block,
+        exps: 0.0,
+        // Every pixel's C columns read once per grid; the weights and block ranges written.
+        bytes: shape.grids as f64 * (width * height) as f64 * c * 4.0
+            + blocks as f64 * (6.0 * k + 9.0) * 4.0,
+    }
+}
+
+/// bmfr_apply per pixel that is fitted (not kept): per grid the features (11), the six fits
+/// (a multiply and an add per feature, and the clamp: 12 K + 6), the light (6), the tent
+/// weight (16) and the accumulation (7); the division at the end (3).
+pub fn bmfr_apply_work(fitted: u64, width: u32, height: u32, shape: &BmfrShape) -> Work {
+    let k = shape.features as f64;
+    let per_grid = 11.0 + 12.0 * k + 6.0 + 6.0 + 16.0 + 7.0;
+    Work {
+        taps: fitted * shape.grids as u64,
+        flops: fitted as f64 * (shape.grids as f64 * per_grid + 3.0),
+        exps: 0.0,
+        // F and the position read, the output written (the weights, per block, are small).
+        bytes: (width * height) as f64 * (64.0 + 16.0 + 16.0),
+    }
+}

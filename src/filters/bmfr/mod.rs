@@ -85,7 +85,7 @@ use crate::render::{FrameInfo, SceneInfo};
 pub use device::BmfrKernel;
 pub use nlm::MAX_NLM_RADIUS;
 pub use prefilter::MAX_ALBEDO_RADIUS;
-pub use reference::reference;
+pub use reference::{kept, reference};
 
 /// Albedo channels are clamped below at this before the light is divided by them (and the same
 /// clamp is multiplied back), as in the à-trous filter.
