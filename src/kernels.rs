@@ -102,6 +102,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_fit_packed.cl"),
     ),
     (
+        "filters/bmfr_apply_packed.cl",
+        include_str!("../kernels/filters/bmfr_apply_packed.cl"),
+    ),
+    (
         "filters/bmfr_nlm.cl",
         include_str!("../kernels/filters/bmfr_nlm.cl"),
     ),

@@ -550,6 +550,7 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
 }
 
 #include "filters/bmfr_fit_packed.cl"
+#include "filters/bmfr_apply_packed.cl"
 #include "filters/bmfr_nlm.cl"
 #include "filters/bmfr_nlm_packed.cl"
 #include "filters/bmfr_select_packed.cl"

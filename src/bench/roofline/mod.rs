@@ -174,7 +174,7 @@ fn bmfr_kernels(
             models::bmfr_select_work(n, n, &shape),
         ),
         (
-            ["bmfr_apply", "bmfr_apply"],
+            ["bmfr_apply_packed", "bmfr_apply"],
             models::bmfr_apply_work(fitted, n, n, &shape),
         ),
     ];

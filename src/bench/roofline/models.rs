@@ -281,7 +281,9 @@ pub fn bmfr_fit_work(width: u32, height: u32, shape: &BmfrShape) -> Work {
     }
 }
 
-/// bmfr_apply per pixel that is fitted (not kept): per grid the features (11), the six fits
+/// bmfr_apply (and bmfr_apply_packed, the same operations per lane; a work-item whose lanes
+/// span two blocks also computes the other block's fits, not counted) per pixel that is
+/// fitted (not kept): per grid the features (11), the six fits
 /// (a multiply and an add per feature, and the clamp: 12 K + 6), the light (6), the tent
 /// weight (16) and the accumulation (7); the division at the end (3).
 pub fn bmfr_apply_work(fitted: u64, width: u32, height: u32, shape: &BmfrShape) -> Work {

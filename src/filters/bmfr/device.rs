@@ -237,11 +237,22 @@ impl BmfrKernel {
                     .context("creating the bmfr fit kernel")
             })
             .collect::<Result<Vec<_>>>()?;
-        let apply = Kernel::builder()
+        // With the packed fit, the packed application too (bmfr_apply_packed.cl: 16 pixels
+        // of a row per work-item, the same bytes).
+        let mut apply = Kernel::builder();
+        if packed {
+            apply
+                .name("bmfr_apply_packed")
+                .global_work_size([width.div_ceil(PACK) as usize, height as usize])
+                .local_work_size([1, 1]);
+        } else {
+            apply
+                .name("bmfr_apply")
+                .global_work_size([width as usize, height as usize]);
+        }
+        let apply = apply
             .program(&program)
-            .name("bmfr_apply")
             .queue(gpu.queue.clone())
-            .global_work_size([width as usize, height as usize])
             .arg_named("fv", None::<&Buffer<u8>>)
             .arg_named("positions", None::<&Buffer<u8>>)
             .arg(width)

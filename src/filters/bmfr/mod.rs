@@ -168,8 +168,10 @@ crate::filter_settings! {
         /// albedo, normal or depth count as noise (prefilter.rs).
         pub geometry_k: f64 = prefilter::GEOMETRY_K as f64,
         /// The fit with one work-item per block, its rows on float16 lanes
-        /// (kernels/filters/bmfr_fit_packed.cl): the same bytes as the work-group fit (paper
-        /// Algorithm 1), which PoCL runs on scalar floats. auto: on CPU devices.
+        /// (kernels/filters/bmfr_fit_packed.cl), and its application with one work-item per
+        /// 16 pixels of a row (bmfr_apply_packed.cl): the same bytes as the work-group fit
+        /// (paper Algorithm 1) and the per-pixel application, which PoCL runs on scalar
+        /// floats. auto: on CPU devices.
         pub packed_fit: Auto<bool> = Auto::Auto,
         /// The non-local means (the selection's candidate, the albedo prefilter and the
         /// emission's) and the selection's window sums on float16 lanes, one work-item per
