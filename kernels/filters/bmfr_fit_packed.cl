@@ -208,28 +208,28 @@ void bmfr_fit_packed(__global const float* rows,
 #undef BMFR_NOISE16
     }
 
-    // Householder QR, column by column (bmfr_fit's), the rows in float16 chunks.
+    // Householder QR, column by column (bmfr_fit's), the rows in float16 chunks. The dot
+    // products of column j with the columns c >= j: chunk m's lanes are the partial sums of
+    // work-items 16 m .. 16 m + 15, over q ascending, then the work-items' sums are added in
+    // bmfr_fit's order. Column 0's are summed in a sweep of their own; column j + 1's in the
+    // sweep that applies reflection j, from the columns just updated (one sweep over the
+    // block's columns per step instead of two: the same sums in the same order).
     float alpha = 0.0f;
+    float partial[BMFR_C][BMFR_WG];
+    for (int m = 0; m < BMFR_CHUNKS; ++m) {
+        float16 acc[BMFR_C];
+        for (int c = 0; c < BMFR_C; ++c) acc[c] = (float16)(0.0f);
+        for (int q = 0; q < BMFR_ROWS; ++q) {
+            int r0 = q * BMFR_WG + 16 * m;
+            // Column 0 from row 0: every row takes part.
+            float16 x = load16_local(a + r0);
+            for (int c = 0; c < BMFR_C; ++c) acc[c] += x * load16_local(a + c * BMFR_N + r0);
+        }
+        for (int c = 0; c < BMFR_C; ++c) vstore16(acc[c], 0, partial[c] + 16 * m);
+    }
     for (int j = 0; j < BMFR_K; ++j) {
         __local float* aj = a + j * BMFR_N;
-        // Every dot product of column j in one sweep over the rows (column j read once):
-        // chunk m's lanes are the partial sums of work-items 16 m .. 16 m + 15, over q
-        // ascending, then the work-items' sums are added in bmfr_fit's order.
         float dots[BMFR_C];
-        float partial[BMFR_C][BMFR_WG];
-        for (int m = 0; m < BMFR_CHUNKS; ++m) {
-            float16 acc[BMFR_C];
-            for (int c = j; c < BMFR_C; ++c) acc[c] = (float16)(0.0f);
-            for (int q = 0; q < BMFR_ROWS; ++q) {
-                int r0 = q * BMFR_WG + 16 * m;
-                float16 x = load16_local(aj + r0);
-                // Rows above j take no part: x = 0 there adds 0 (a finite column; a non-finite
-                // entry makes the fit non-finite in bmfr_fit too, at j = 0).
-                if (q == 0) x = select((float16)(0.0f), x, BMFR_LANE_IDS + r0 >= j);
-                for (int c = j; c < BMFR_C; ++c) acc[c] += x * load16_local(a + c * BMFR_N + r0);
-            }
-            for (int c = j; c < BMFR_C; ++c) vstore16(acc[c], 0, partial[c] + 16 * m);
-        }
         for (int c = j; c < BMFR_C; ++c) {
             float s = 0.0f;
             for (int u = 0; u < BMFR_WG; ++u) s += partial[c][u];
@@ -240,20 +240,36 @@ void bmfr_fit_packed(__global const float* rows,
         for (int t = j + 1; t < BMFR_C; ++t)
             factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_N + j], vnorm2);
         float vj = factor[j];
-        for (int q = 0; q < BMFR_ROWS; ++q) {
-            for (int m = 0; m < BMFR_CHUNKS; ++m) {
+        // Reflection j applied to the columns c > j, and column `next`'s dot products with
+        // the updated columns (none after the last feature column).
+        int next = j + 1;
+        for (int m = 0; m < BMFR_CHUNKS; ++m) {
+            float16 acc[BMFR_C];
+            for (int c = next; c < BMFR_C; ++c) acc[c] = (float16)(0.0f);
+            for (int q = 0; q < BMFR_ROWS; ++q) {
                 int r0 = q * BMFR_WG + 16 * m;
                 int16 row = BMFR_LANE_IDS + r0;
                 float16 v = load16_local(aj + r0);
                 if (q == 0) v = select(v, (float16)(vj), row == j);
+                float16 x = (float16)(0.0f);
                 for (int c = j + 1; c < BMFR_C; ++c) {
                     __local float* ac = a + c * BMFR_N + r0;
                     float16 old = load16_local(ac);
                     float16 updated = old - factor[c] * v;
                     if (q == 0) updated = select(old, updated, row >= j);
                     store16_local(updated, ac);
+                    if (next < BMFR_K) {
+                        // Rows above `next` take no part: x = 0 there adds 0 (a finite
+                        // column; a non-finite entry makes the fit non-finite in bmfr_fit
+                        // too, at j = 0).
+                        if (c == next)
+                            x = q == 0 ? select((float16)(0.0f), updated, row >= next) : updated;
+                        acc[c] += x * updated;
+                    }
                 }
             }
+            if (next < BMFR_K)
+                for (int c = next; c < BMFR_C; ++c) vstore16(acc[c], 0, partial[c] + 16 * m);
         }
         aj[j] = alpha;
     }
