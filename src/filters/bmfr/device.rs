@@ -313,8 +313,8 @@ impl BmfrKernel {
             select.push(built(kb, all)?);
             // Packed on CPU devices (nlm.rs `packed_nlm`): the inputs as lines of floats,
             // padded either side and zeroed once (kernels/filters/bmfr_nlm_packed.cl).
-            let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
-            if packed {
+            let packed_nlm = s.packed_nlm.or(gpu.summary.kind == "CPU");
+            if packed_nlm {
                 let stride = line_stride(width);
                 let lines = gpu.zeroed::<f32>(
                     (NLM_PACKED_LINES * stride) as usize * height as usize,
@@ -354,7 +354,7 @@ impl BmfrKernel {
             select.push(built(kb, all)?);
             // Packed on CPU devices too (kernels/filters/bmfr_select_packed.cl): 16 pixels'
             // windows per work-item, the same bytes.
-            let mut kb = if packed {
+            let mut kb = if packed_nlm {
                 let mut kb = per_pixel("bmfr_select_nlm_packed", none);
                 kb.global_work_size([width.div_ceil(SELECT_PACK) as usize, height as usize])
                     .local_work_size([1, 1]);
