@@ -9,8 +9,15 @@
 // the packed emission kernel) read their lines at every pixel offset, so those addresses are
 // never 64-byte aligned. They run on CPU devices; the kernels meant for GPUs keep vload16,
 // whose 16-byte alignment a GPU compiler may use for wider loads.
+//
+// The typedef is used where the program is compiled for a CPU (PoCL's clang defines the host
+// ISA's macros, __x86_64__ here; it defines no macro of its own that a kernel can test);
+// other targets get vload16 and vstore16, which every OpenCL C compiler takes (these
+// programs also hold the GPU kernels).
 #ifndef NOISEFREE_VECTORS_CL
 #define NOISEFREE_VECTORS_CL
+
+#if defined(__x86_64__) || defined(__i386__) || defined(__aarch64__) || defined(__arm__)
 
 typedef float16 float16_unaligned __attribute__((aligned(4)));
 
@@ -32,5 +39,14 @@ inline float16 load16_local(__local const float* p) {
 inline void store16_local(float16 v, __local float* p) {
     *(__local float16_unaligned*)p = v;
 }
+
+#else
+
+inline float16 load16(__global const float* p) { return vload16(0, p); }
+inline void store16(float16 v, __global float* p) { vstore16(v, 0, p); }
+inline float16 load16_local(__local const float* p) { return vload16(0, p); }
+inline void store16_local(float16 v, __local float* p) { vstore16(v, 0, p); }
+
+#endif
 
 #endif
