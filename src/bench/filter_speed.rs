@@ -65,9 +65,26 @@ fn load(ctx: &Context, name: &str) -> Result<Scene> {
 
 /// Rendered 8-spp outputs of `scene` at `w` x `h`, the filter's input (on the device).
 pub(super) fn filter_input(ctx: &Context, scene: &Scene, w: u32, h: u32) -> Result<Frame> {
+    filter_input_with(
+        ctx,
+        scene,
+        w,
+        h,
+        OutputSet::of(&[Output::Features, Output::Variance]),
+    )
+}
+
+/// [`filter_input`] with the outputs a filter reads (e.g. bmfr's positions and half buffers).
+pub(super) fn filter_input_with(
+    ctx: &Context,
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    outputs: OutputSet,
+) -> Result<Frame> {
     let mut o = RenderOptions::for_scene(scene);
     (o.frame.width, o.frame.height) = (w, h);
-    o.outputs = OutputSet::of(&[Output::Features, Output::Variance]);
+    o.outputs = outputs;
     let mut r = Renderer::new(ctx.gpu.clone(), scene, &o)?;
     r.render_samples(8)?;
     Ok(r.frame())

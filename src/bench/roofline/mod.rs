@@ -128,15 +128,9 @@ fn bmfr_kernels(
     use crate::gpu::profile;
     use crate::layout::Float4;
     use crate::layout::outputs::BufferId;
-    use crate::render::{RenderOptions, Renderer};
 
     let s = BmfrSettings::default();
-    let mut o = RenderOptions::for_scene(scene);
-    (o.frame.width, o.frame.height) = (n, n);
-    o.outputs = Bmfr::needs(&s);
-    let mut r = Renderer::new(ctx.gpu.clone(), scene, &o)?;
-    r.render_samples(8)?;
-    let frame = r.frame();
+    let frame = super::filter_speed::filter_input_with(ctx, scene, n, n, Bmfr::needs(&s))?;
     let info = &frame.info().scene;
     let mut effective = s.clone();
     Bmfr::specialise(&mut effective, info);
