@@ -110,6 +110,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_nlm.cl"),
     ),
     (
+        "filters/bmfr_outliers.cl",
+        include_str!("../kernels/filters/bmfr_outliers.cl"),
+    ),
+    (
         "filters/bmfr_nlm_packed.cl",
         include_str!("../kernels/filters/bmfr_nlm_packed.cl"),
     ),

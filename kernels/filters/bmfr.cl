@@ -382,7 +382,7 @@ inline bool bmfr_surface(__global const FilterVector* f, __global const float4* 
 
 // Summed over the channels, (R, V): the fit's squared residual (f - y)^2 and the variance of
 // the frame's mean y estimated from the half buffers, (y - odd)^2 n_odd / n_even
-// (bmfr_residuals, bmfr_residuals_nlm).
+// (bmfr_residuals; bmfr_residuals_nlm forms the same terms per channel).
 inline float2 bmfr_fit_error(float3 beauty, float3 fitted, float4 odd, float spp) {
     float3 r = fitted - beauty;
     float3 d = beauty - odd.xyz;
@@ -552,6 +552,7 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
 #include "filters/bmfr_fit_packed.cl"
 #include "filters/bmfr_apply_packed.cl"
 #include "filters/bmfr_nlm.cl"
+#include "filters/bmfr_outliers.cl"
 #include "filters/bmfr_nlm_packed.cl"
 #include "filters/bmfr_select_packed.cl"
 #include "filters/bmfr_prefilter_packed.cl"

@@ -223,7 +223,11 @@ void bmfr_nlm(__global const FilterVector* fv,
 // open pixel, which has no fit), and N the
 // cross-half estimate of the non-local means' squared error at half the samples,
 // ((nlm(o) - e)^2 - v_e + (nlm(e) - o)^2 - v_o) / 2, with v_o = (o - e)^2 n_e / n and
-// v_e = (o - e)^2 n_o / n the variances of the halves' means.
+// v_e = (o - e)^2 n_o / n the variances of the halves' means. With BMFR_SELECT_RELATIVE each
+// channel's three terms are first divided by l^2 + BMFR_RELATIVE_EPSILON, l the larger of the
+// fit and the frame's non-local means (the non-local means alone for an open pixel), so that
+// the window's sums weigh every pixel's relative error alike (src/filters/bmfr/nlm.rs,
+// "Relative sums").
 __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
                                  __global const float4* positions,
                                  __global const float4* odd_halves,
@@ -244,14 +248,27 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
     float n_odd = odd.w, n_even = spp - odd.w;
     float3 beauty = bmfr_beauty(f);
     float3 even = bmfr_even(beauty, odd, spp);
-    float2 fit = bmfr_fit_error(beauty, class == BMFR_NLM_OPEN ? beauty : fitted[i].xyz, odd, spp);
+    // bmfr_fit_error's terms, per channel.
+    float3 fit = class == BMFR_NLM_OPEN ? beauty : fitted[i].xyz;
+    float3 r = fit - beauty;
+    float3 d = beauty - odd.xyz;
+    float3 v = d * d * (odd.w / (spp - odd.w));
+    float3 rr = r * r;
     float3 oe = odd.xyz - even;
     float3 v_odd = oe * oe * (n_even / spp);
     float3 v_even = oe * oe * (n_odd / spp);
     float3 no = nlm_out[3 * i + 1].xyz - even;
     float3 ne = nlm_out[3 * i + 2].xyz - odd.xyz;
     float3 n = 0.5f * ((no * no - v_even) + (ne * ne - v_odd));
-    residuals[i] = (float4)(fit.y, fit.x, n.x + n.y + n.z, class);
+#if BMFR_SELECT_RELATIVE
+    float3 smooth = nlm_out[3 * i].xyz;
+    float3 level = class == BMFR_NLM_OPEN ? smooth : fmax(fit, smooth);
+    float3 weight = 1.0f / (level * level + BMFR_RELATIVE_EPSILON);
+    v *= weight;
+    rr *= weight;
+    n *= weight;
+#endif
+    residuals[i] = (float4)(v.x + v.y + v.z, rr.x + rr.y + rr.z, n.x + n.y + n.z, class);
 }
 
 // bmfr_select_nlm: the window sums V, R, N over the (2 r + 1)^2 pixels around, the three

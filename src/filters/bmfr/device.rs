@@ -9,11 +9,13 @@ use ocl::{Buffer, Kernel};
 
 use super::nlm::{
     MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
+    RELATIVE_EPSILON,
 };
 use super::emission::{
     EMISSION_EPSILON, EMISSION_LINES, EMISSION_PACKED_ROWS, EMISSION_PACKED_STEP, EMISSION_PATCH,
     EMISSION_TILE,
 };
+use super::outliers::{NEIGHBOURS, OUTLIER_RADIUS};
 use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, prefilter_packed_lines};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
@@ -65,6 +67,16 @@ struct Emission {
     _lines: Buffer<f32>,
 }
 
+/// With `outliers` (outliers.rs): `bmfr_outlier_levels`, then `bmfr_outliers`, which writes the
+/// copies of F and the odd half that the other kernels then read.
+struct Outliers {
+    levels: Kernel,
+    replace: Kernel,
+    fv: Buffer<u8>,
+    odd: Buffer<u8>,
+    _levels: Buffer<f32>,
+}
+
 /// Floats per line of the packed kernels' inputs (kernels/filters/bmfr_nlm_packed.cl): the
 /// padding left of the image, its width rounded up to the lanes, twice the padding right.
 fn line_stride(width: u32) -> u32 {
@@ -106,6 +118,7 @@ pub struct BmfrKernel {
     /// With `albedo_prefilter` (prefilter.rs).
     prefilter: Option<Prefilter>,
     emission: Option<Emission>,
+    outliers: Option<Outliers>,
     needs: OutputSet,
     _weights: Buffer<f32>,
     _info: Buffer<f32>,
@@ -165,6 +178,11 @@ impl BmfrKernel {
             ("BMFR_NLM_ESTIMATE_RADIUS", s.estimate_radius().to_string()),
             ("BMFR_NLM_K", format!("{:e}f", s.nlm_k() as f32)),
             ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
+            ("BMFR_SELECT_RELATIVE", flag(s.select_relative)),
+            ("BMFR_OUTLIER_RATIO", format!("{:e}f", s.outlier_ratio as f32)),
+            ("BMFR_OUTLIER_RADIUS", OUTLIER_RADIUS.to_string()),
+            ("BMFR_OUTLIER_NEIGHBOURS", format!("{NEIGHBOURS:e}f")),
+            ("BMFR_RELATIVE_EPSILON", format!("{RELATIVE_EPSILON:e}f")),
             ("BMFR_NLM_TILE", NLM_TILE.to_string()),
             ("BMFR_NLM_ROWS", NLM_PACKED_ROWS.to_string()),
             ("BMFR_EMISSION_RADIUS", s.emission_radius.to_string()),
@@ -525,6 +543,55 @@ impl BmfrKernel {
         } else {
             None
         };
+        let outliers = if s.outliers {
+            let fv = gpu.zeroed::<u8>(
+                pixels * std::mem::size_of::<FilterVector>(),
+                "bmfr F without outliers",
+            )?;
+            let odd = gpu.zeroed::<u8>(
+                pixels * std::mem::size_of::<Float4>(),
+                "bmfr odd half without outliers",
+            )?;
+            let levels_buffer = gpu.zeroed::<f32>(pixels, "bmfr outlier levels")?;
+            let levels = Kernel::builder()
+                .program(&program)
+                .name("bmfr_outlier_levels")
+                .queue(gpu.queue.clone())
+                .global_work_size([width as usize, height as usize])
+                .arg_named("fv", None::<&Buffer<u8>>)
+                .arg_named("positions", None::<&Buffer<u8>>)
+                .arg_named("odd_halves", None::<&Buffer<u8>>)
+                .arg(width)
+                .arg(height)
+                .arg_named("spp", 0f32)
+                .arg(&levels_buffer)
+                .build()
+                .context("creating the bmfr outlier kernel")?;
+            let replace = Kernel::builder()
+                .program(&program)
+                .name("bmfr_outliers")
+                .queue(gpu.queue.clone())
+                .global_work_size([width as usize, height as usize])
+                .arg_named("fv", None::<&Buffer<u8>>)
+                .arg_named("odd_halves", None::<&Buffer<u8>>)
+                .arg(&levels_buffer)
+                .arg(width)
+                .arg(height)
+                .arg_named("spp", 0f32)
+                .arg(&fv)
+                .arg(&odd)
+                .build()
+                .context("creating the bmfr outlier kernel")?;
+            Some(Outliers {
+                levels,
+                replace,
+                fv,
+                odd,
+                _levels: levels_buffer,
+            })
+        } else {
+            None
+        };
         Ok(BmfrKernel {
             gpu,
             rows,
@@ -533,6 +600,7 @@ impl BmfrKernel {
             select,
             prefilter,
             emission,
+            outliers,
             needs: s.needs(),
             _weights: weights,
             _info: info,
@@ -571,6 +639,26 @@ impl BmfrKernel {
             events.push(unsafe { enqueue(&em.prep, "the bmfr emission")? });
             fv = &em.fv;
             odd = Some(&em.odd);
+        }
+        if let Some(o) = &self.outliers {
+            let odd_in = match odd {
+                Some(odd) => odd,
+                None => frame.device(&self.gpu, BufferId::OddHalves)?,
+            };
+            o.levels.set_arg("fv", fv)?;
+            o.levels.set_arg("positions", pos)?;
+            o.levels.set_arg("odd_halves", odd_in)?;
+            o.levels.set_arg("spp", spp)?;
+            o.replace.set_arg("fv", fv)?;
+            o.replace.set_arg("odd_halves", odd_in)?;
+            o.replace.set_arg("spp", spp)?;
+            // SAFETY: the buffers are sized for the image; the in-order queue runs the
+            // replacement after the levels and every other kernel on the copies after both;
+            // we wait for every event below.
+            events.push(unsafe { enqueue(&o.levels, "the bmfr outlier levels")? });
+            events.push(unsafe { enqueue(&o.replace, "the bmfr outliers")? });
+            fv = &o.fv;
+            odd = Some(&o.odd);
         }
         if let Some(p) = &self.prefilter {
             p.inputs.set_arg("fv", fv)?;

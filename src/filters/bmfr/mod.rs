@@ -59,6 +59,13 @@
 //! its own kind only and blended with its unfiltered light alone: through a lens these are as
 //! noisy as the surfaces (Outside DOF 512², 8 spp: MSE-LUV 3.07 → 1.78, results/README.md).
 //!
+//! Outliers (`outliers`, outliers.rs): before everything else, a surface pixel whose light
+//! stands far above its neighbours' in one half buffer only (a single sample's firefly) takes
+//! its other half's light, so that it bends no fit and vouches for nothing in the selection.
+//! With `select_relative` (nlm.rs, "Relative sums") the selection's window sums weigh each
+//! pixel's errors relative to its light, so that dark pixels beside bright ones decide for
+//! themselves.
+//!
 //! Albedo prefilter (`albedo_prefilter`, prefilter.rs; on with a thin lens): before the fit,
 //! each pixel's mean albedo is averaged with the neighbours' whose albedo differs by no more
 //! than the two means' noise explains, so that a defocused texture's noisy mean is not
@@ -70,6 +77,7 @@
 mod device;
 pub mod emission;
 pub mod nlm;
+pub mod outliers;
 pub mod prefilter;
 mod reference;
 pub mod select;
@@ -137,11 +145,24 @@ crate::filter_settings! {
         /// c, the floor of the fit's evidence (with `nlm`): each pixel's R − V enters the
         /// window's sum no lower than −c × the window's mean V, so that a few pixels whose
         /// noise the fit reproduces cannot vouch for the fit over their whole window (nlm.rs);
-        /// 0: no floor; auto: 6 with a thin lens, none with a pinhole camera.
+        /// 0: no floor; auto: 6 with a thin lens and `select_relative` off, else none
+        /// (nlm.rs, "Relative sums").
         pub select_floor: Auto<f32> = Auto::Auto,
         /// A third candidate of the selection: non-local means of the light, its error
         /// estimated by filtering each half buffer alone (nlm.rs).
         pub nlm: bool = true,
+        /// Replace the light of each surface pixel that stands far above its neighbours' in
+        /// one half buffer only (a single sample's firefly) by its other half's, before the
+        /// fit (outliers.rs).
+        pub outliers: bool = true,
+        /// τ of the outlier test: a pixel is an outlier when its luminance exceeds τ times
+        /// its neighbours' (the 3 × 3 largest or the 7 × 7 mean) and one half's does not
+        /// (outliers.rs).
+        pub outlier_ratio: f64 = 30.0,
+        /// With `nlm`: each pixel's terms of the selection's window sums divided by the square
+        /// of its light's level (the larger of the fit and the non-local means, plus a small
+        /// ε), so that dark pixels count as much as bright ones (nlm.rs, "Relative sums").
+        pub select_relative: bool = true,
         /// Half width of the non-local means' search window, pixels.
         pub nlm_radius: u32 = 5,
         /// Half width of the window of the two half buffers' non-local means, which only
@@ -198,8 +219,8 @@ impl BmfrSettings {
     pub fn needs(&self) -> OutputSet {
         let mut outputs = vec![Output::Colour, Output::Features, Output::Position];
         // With `emission`, bmfr_reflected reads the odd half (and writes it less the
-        // emission's, for the selection).
-        if self.select || self.splits_emission() {
+        // emission's, for the selection); with `outliers`, bmfr_outliers compares the halves.
+        if self.select || self.splits_emission() || self.outliers {
             outputs.push(Output::Halves);
         }
         if self.prefilters_albedo() {
@@ -314,6 +335,12 @@ impl BmfrSettings {
                 self.geometry_k
             );
         }
+        if !(self.outlier_ratio >= 1.0 && self.outlier_ratio <= 1.0e6) {
+            bail!(
+                "the bmfr outlier_ratio must be a number in [1, 1e6], got {}",
+                self.outlier_ratio
+            );
+        }
         if !(self.noise >= 0.0 && self.noise <= 1.0) {
             bail!(
                 "the bmfr noise must be a number in [0, 1], got {}",
@@ -406,13 +433,18 @@ impl FilterKind for Bmfr {
             });
         }
         if s.select_floor.is_auto() {
-            s.select_floor = Auto::Set(if lens { nlm::LENS_SELECT_FLOOR } else { 0.0 });
-            notes.push(if lens {
+            let floor = lens && !s.select_relative;
+            s.select_floor = Auto::Set(if floor { nlm::LENS_SELECT_FLOOR } else { 0.0 });
+            notes.push(if floor {
                 format!(
                     "select_floor = {}: a thin lens, so a defocused light's edge has pixels whose \
-                     noise the fit reproduces (nlm.rs)",
+                     noise the fit reproduces, and absolute window sums (nlm.rs)",
                     nlm::LENS_SELECT_FLOOR
                 )
+            } else if lens {
+                "select_floor = 0: the relative sums let the pixels beside a defocused light's \
+                 edge decide for themselves (nlm.rs, \"Relative sums\")"
+                    .to_string()
             } else {
                 "select_floor = 0: a pinhole camera (the floor cost error there, nlm.rs)".to_string()
             });

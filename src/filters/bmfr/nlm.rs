@@ -105,6 +105,40 @@
 //! own variance (c 0: 2.46, c 0.5: 2.33; Cornell diffuse 1.93 / 1.74), and the same floor
 //! on the non-local means' N as well (no better).
 //!
+//! Relative sums (`select_relative`, stop 44). V, R and N are sums of squared errors over the
+//! window, so a window that holds bright and dark pixels takes the bright ones' verdict: where
+//! a block's fit leaks light into a dark corner or an umbra beside lit pixels, the lit pixels'
+//! evidence (the fit is good there) outweighs the dark ones' (it is not), whose errors are
+//! small in absolute terms but are what MSE in CIELUV (L* grows as Y^(1/3)) and relMSE weigh
+//! most. So each channel's three terms are first divided by l² + ε ([`RELATIVE_EPSILON`],
+//! 1e-3), l the larger of the fit and the frame's non-local means (the non-local means alone
+//! on an open pixel): the blend's ratios E / V then average relative errors, and stay what
+//! they were in a window whose pixels share one level. Measured with a host prototype of this
+//! change before the kernels (not in the repository, so these figures cannot be re-run; the
+//! filter's own are in results/README.md, bmfr, "Stop 44") on one 8-spp 512² AOV file per
+//! scene at `render`'s seed, MSE-LUV / relMSE, without the outliers' replacement
+//! (outliers.rs), l from the fit / the non-local means' minimum with the fit / the larger of
+//! the two: grids 3.55 / 3.52 / 3.41 and 0.00651 / 0.00658 / 0.00624 (4.69 / 0.00739 without
+//! the weights), cornell_glossy 4.94 / 5.11 / 4.61 and 0.00863 / 0.00903 / 0.00687 (5.01 /
+//! 0.00819), conference 3.70 / 4.42 / 3.84 and 0.0163 / 0.0618 / 0.0334 (3.77 / 0.0165): a
+//! firefly on conference, weighed by the small level of its neighbours, made its windows
+//! worse, which the outliers' replacement removes (3.20 / 0.00716 with both); l from the
+//! non-local means alone: grids 3.55 / 0.00654, cornell_glossy 5.01 / 0.00842, conference
+//! 5.18 / 0.143. With both,
+//! ε 1e-3 against 3e-3: grids 3.41 / 3.61, curved 1.14 / 1.16, room_gi 1.255 / 1.261, the
+//! other eight scenes within 0.5 %.
+//!
+//! The relative sums do much of what the floor was for: the unlit pixels beside a defocused
+//! light no longer let their lit neighbours vouch for the fit. With them, the floor's c 6 / 0 /
+//! 3 on the six depth-of-field scenes' 8-spp frames (`noisefree filter S.aov.exr --filter bmfr
+//! --bmfr-select-floor C`, MSE-LUV / relMSE): cornell_diffuse_dof 1.507 / 0.00241, 1.502 /
+//! 0.00241, 1.545 / 0.00245; outside_dof 1.575 / 0.00362, 1.573 / 0.00362, 1.579 / 0.00364;
+//! cornell_glossy_dof 4.429 / 0.00630, 4.403 / 0.00593, 4.537 / 0.00647; cornell_plane_dof
+//! 3.310 / 0.00522, 3.308 / 0.00523, 3.359 / 0.00528; conference_dof 2.853 / 0.00480, 2.829 /
+//! 0.00472, 2.976 / 0.00525; toasters_dof 1.735 / 0.00278, 1.745 / 0.00280, 1.740 / 0.00278.
+//! So `select_floor` auto is 6 only with a thin lens and `select_relative` off; without the
+//! floor the selection makes no second pass over its window.
+//!
 //! Cost: 121 offsets for the frame and 49 for each half per pixel, most of bmfr's time on a
 //! CPU. Two kernels do the same float operations in the same order (each patch row's three
 //! taps summed first, then the rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16
@@ -188,8 +222,13 @@ pub const PINHOLE_NLM_K: f64 = 0.7;
 /// k of the non-local means with a thin lens (`nlm_k` auto; module docs, "k with a lens").
 pub const LENS_NLM_K: f64 = 1.0;
 
-/// c of the selection's floor with a thin lens (`select_floor` auto; module docs, "The floor").
+/// c of the selection's floor with a thin lens and absolute sums (`select_floor` auto; module
+/// docs, "The floor" and "Relative sums").
 pub const LENS_SELECT_FLOOR: f32 = 6.0;
+
+/// ε of the relative sums (`select_relative`; module docs, "Relative sums"), in the units of
+/// the light squared: levels below about √ε ≈ 0.03 are weighed as that level.
+pub const RELATIVE_EPSILON: f32 = 1.0e-3;
 
 /// The largest search window half width (a 21 × 21 window).
 pub const MAX_NLM_RADIUS: u32 = 10;
@@ -362,7 +401,9 @@ pub fn nlm(
 }
 
 /// kernels/filters/bmfr_nlm.cl `bmfr_residuals_nlm` for one pixel: (V, R, N, class). An
-/// [`OPEN`] pixel has no fit: R = 0.
+/// [`OPEN`] pixel has no fit: R = 0. With `relative` each channel's terms are divided by
+/// l² + [`RELATIVE_EPSILON`] first (module docs, "Relative sums").
+#[allow(clippy::too_many_arguments)]
 pub fn residual(
     f: &FilterVector,
     pos: &Float4,
@@ -370,6 +411,7 @@ pub fn residual(
     spp: f32,
     fit: [f32; 3],
     nlm: &[[f32; 3]; 3],
+    relative: bool,
 ) -> [f32; 4] {
     let class = class(f, pos, odd, spp);
     if class == 0.0 {
@@ -378,20 +420,33 @@ pub fn residual(
     let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
     let b = beauty(f);
     let e = even(b, odd, spp);
-    let [r, v] = if class == SURFACE {
-        super::select::residual(f, pos, odd, spp, fit)
-    } else {
-        let d: [f32; 3] = std::array::from_fn(|c| b[c] - odd.0[c]);
-        let v: [f32; 3] = std::array::from_fn(|c| d[c] * d[c] * (n_odd / n_even));
-        [0.0, v[0] + v[1] + v[2]]
-    };
-    let n: [f32; 3] = std::array::from_fn(|c| {
+    // select.rs `residual`'s terms, per channel (an open pixel's "fit" is its light: R = 0).
+    let fit = if class == OPEN { b } else { fit };
+    let mut rr: [f32; 3] = std::array::from_fn(|c| (fit[c] - b[c]) * (fit[c] - b[c]));
+    let mut v: [f32; 3] = std::array::from_fn(|c| {
+        let d = b[c] - odd.0[c];
+        d * d * (n_odd / n_even)
+    });
+    let mut n: [f32; 3] = std::array::from_fn(|c| {
         let oe = odd.0[c] - e[c];
         let (v_odd, v_even) = (oe * oe * (n_even / spp), oe * oe * (n_odd / spp));
         let (no, ne) = (nlm[1][c] - e[c], nlm[2][c] - odd.0[c]);
         0.5 * ((no * no - v_even) + (ne * ne - v_odd))
     });
-    [v, r, n[0] + n[1] + n[2], class]
+    if relative {
+        for c in 0..3 {
+            let level = if class == OPEN {
+                nlm[0][c]
+            } else {
+                fit[c].max(nlm[0][c])
+            };
+            let weight = 1.0 / (level * level + RELATIVE_EPSILON);
+            v[c] *= weight;
+            rr[c] *= weight;
+            n[c] *= weight;
+        }
+    }
+    [v[0] + v[1] + v[2], rr[0] + rr[1] + rr[2], n[0] + n[1] + n[2], class]
 }
 
 /// kernels/filters/bmfr_nlm.cl `bmfr_select_nlm` (and on CPU devices bmfr_select_packed.cl,

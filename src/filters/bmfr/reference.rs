@@ -6,7 +6,7 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::prefilter::prefilter;
-use super::{emission, nlm, select};
+use super::{emission, nlm, outliers, select};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
     grid_blocks, grid_offset,
@@ -214,10 +214,28 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         Some(sp) => &sp.fv[..],
         None => frame.filter_vectors()?,
     };
-    let odd_frame = || -> Result<&[Float4]> {
+    let odd_split = || -> Result<&[Float4]> {
         match &split {
             Some(sp) => Ok(&sp.odd[..]),
             None => frame.host_slice(BufferId::OddHalves),
+        }
+    };
+    // With `outliers`: each outlier's light replaced by its darker half's (outliers.rs).
+    let replaced = match s.outliers {
+        true => {
+            let ratio = s.outlier_ratio as f32;
+            Some(outliers::replace(fv_frame, pos, odd_split()?, (w, h), spp, ratio))
+        }
+        false => None,
+    };
+    let (fv_frame, odd_frame) = match &replaced {
+        Some((fv, odd)) => (&fv[..], Some(&odd[..])),
+        None => (fv_frame, None),
+    };
+    let odd_frame = || -> Result<&[Float4]> {
+        match odd_frame {
+            Some(odd) => Ok(odd),
+            None => odd_split(),
         }
     };
     let prefiltered;
@@ -307,7 +325,10 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         let smooth = nlm::nlm(fv, pos, odd, (w, h), spp, r, k);
         let residuals: Vec<[f32; 4]> = (0..pixels.len())
             .into_par_iter()
-            .map(|i| nlm::residual(&fv[i], &pos[i], &odd[i], spp, pixels[i], &smooth[i]))
+            .map(|i| {
+                let (fit, smooth) = (pixels[i], &smooth[i]);
+                nlm::residual(&fv[i], &pos[i], &odd[i], spp, fit, smooth, s.select_relative)
+            })
             .collect();
         (0..pixels.len())
             .into_par_iter()
