@@ -806,8 +806,8 @@ fn a_defocused_lights_emission_is_filtered_apart_from_the_reflected_light() {
 /// The halves output: the mean light of the pixel's odd-numbered samples and their count, the
 /// same as renders of each odd sample alone (whose F is that sample's light).
 /// A flat lit wall at 8 spp (4 odd and 4 even samples per pixel, each half's mean noisy by
-/// ±20 %) with one firefly, a single odd sample 400 times the light, and one glint that is in
-/// both halves. The outlier test (`outliers`, src/filters/bmfr/outliers.rs) must replace the
+/// ±20 %) with one firefly, a single odd sample of light 400 (the wall's is 0.1-0.15: its
+/// half's mean rises by 100), and one glint that is in both halves (each half's mean + 20). The outlier test (`outliers`, src/filters/bmfr/outliers.rs) must replace the
 /// firefly's light by its even half's and leave the glint; filtered, the firefly's neighbours
 /// must come out near the truth, where without the replacement the fit and the non-local means
 /// spread it over them. The kernels must give the reference's result on this frame too.
