@@ -32,8 +32,8 @@ __kernel void bmfr_outlier_levels(__global const FilterVector* fv,
 // becomes its mean (no variance left to estimate).
 __kernel void bmfr_outliers(__global const FilterVector* fv,
                             __global const float4* odd_halves,
-                            __global const float* levels,
                             uint width, uint height, float spp,
+                            __global const float* levels,
                             __global FilterVector* fv_out,
                             __global float4* odd_out) {
     int x = get_global_id(0), y = get_global_id(1);

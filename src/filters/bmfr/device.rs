@@ -553,35 +553,12 @@ impl BmfrKernel {
                 "bmfr odd half without outliers",
             )?;
             let levels_buffer = gpu.zeroed::<f32>(pixels, "bmfr outlier levels")?;
-            let levels = Kernel::builder()
-                .program(&program)
-                .name("bmfr_outlier_levels")
-                .queue(gpu.queue.clone())
-                .global_work_size([width as usize, height as usize])
-                .arg_named("fv", None::<&Buffer<u8>>)
-                .arg_named("positions", None::<&Buffer<u8>>)
-                .arg_named("odd_halves", None::<&Buffer<u8>>)
-                .arg(width)
-                .arg(height)
-                .arg_named("spp", 0f32)
-                .arg(&levels_buffer)
-                .build()
-                .context("creating the bmfr outlier kernel")?;
-            let replace = Kernel::builder()
-                .program(&program)
-                .name("bmfr_outliers")
-                .queue(gpu.queue.clone())
-                .global_work_size([width as usize, height as usize])
-                .arg_named("fv", None::<&Buffer<u8>>)
-                .arg_named("odd_halves", None::<&Buffer<u8>>)
-                .arg(&levels_buffer)
-                .arg(width)
-                .arg(height)
-                .arg_named("spp", 0f32)
-                .arg(&fv)
-                .arg(&odd)
-                .build()
-                .context("creating the bmfr outlier kernel")?;
+            let mut kb = per_pixel("bmfr_outlier_levels", all);
+            kb.arg(&levels_buffer);
+            let levels = kb.build().context("creating the bmfr outlier kernel")?;
+            let mut kb = per_pixel("bmfr_outliers", no_positions);
+            kb.arg(&levels_buffer).arg(&fv).arg(&odd);
+            let replace = kb.build().context("creating the bmfr outlier kernel")?;
             Some(Outliers {
                 levels,
                 replace,

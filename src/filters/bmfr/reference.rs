@@ -2,7 +2,7 @@
 //! order, the work-group's reductions included (per work-item partial sums over its rows
 //! r = t + q·WG, then summed over the work-items in order).
 
-use anyhow::{Result, bail};
+use anyhow::{Context as _, Result, bail};
 use rayon::prelude::*;
 
 use super::prefilter::prefilter;
@@ -214,30 +214,22 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         Some(sp) => &sp.fv[..],
         None => frame.filter_vectors()?,
     };
-    let odd_split = || -> Result<&[Float4]> {
-        match &split {
-            Some(sp) => Ok(&sp.odd[..]),
-            None => frame.host_slice(BufferId::OddHalves),
-        }
+    // The odd half where the filter reads it (`needs`); with `emission` its reflected copy.
+    let mut odd: Option<&[Float4]> = match &split {
+        Some(sp) => Some(&sp.odd),
+        None if s.select || s.outliers => Some(frame.host_slice(BufferId::OddHalves)?),
+        None => None,
     };
     // With `outliers`: each outlier's light replaced by its darker half's (outliers.rs).
-    let replaced = match s.outliers {
-        true => {
-            let ratio = s.outlier_ratio as f32;
-            Some(outliers::replace(fv_frame, pos, odd_split()?, (w, h), spp, ratio))
-        }
-        false => None,
-    };
-    let (fv_frame, odd_frame) = match &replaced {
-        Some((fv, odd)) => (&fv[..], Some(&odd[..])),
-        None => (fv_frame, None),
-    };
-    let odd_frame = || -> Result<&[Float4]> {
-        match odd_frame {
-            Some(odd) => Ok(odd),
-            None => odd_split(),
-        }
-    };
+    let replaced;
+    let mut fv_frame = fv_frame;
+    if let (true, Some(odd_in)) = (s.outliers, odd) {
+        let ratio = s.outlier_ratio as f32;
+        replaced = outliers::replace(fv_frame, pos, odd_in, (w, h), spp, ratio);
+        fv_frame = &replaced.0;
+        odd = Some(&replaced.1);
+    }
+    let odd_frame = || odd.context("the bmfr selection reads the odd half buffer");
     let prefiltered;
     let (fv, pos): (&[FilterVector], &[Float4]) = if s.prefilters_albedo() {
         let sums = frame.host_slice(BufferId::WelfordSums)?;
