@@ -11,7 +11,9 @@
 //! pixel's evidence, so the window trusts a fit the firefly bent. On conference's 8-spp 512²
 //! frame at `render`'s seed one such pixel (V ≈ 1.0e6 against its neighbours' 0-13) left
 //! pixels around (265, 127) at 4.8-5.7 where the reference has 0.29-0.33 and the samples
-//! 0.2-0.5: the frame's eight largest relMSE terms, a third of its relMSE.
+//! 0.2-0.5: the frame's eight largest relMSE terms, a third of its relMSE (found with a
+//! scratch print of the selection's window sums, not in the repository; the filter's figures
+//! with and without the replacement are in results/README.md).
 //!
 //! The test. A surface pixel (select.rs `surface`) of luminance l is an outlier when
 //! l > L = τ · max(largest luminance of its 3 × 3 neighbours, mean luminance of its 7 × 7
