@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use noisefree::filters::Auto;
 use noisefree::filters::bmfr::emission::MAX_EMISSION_RADIUS;
-use noisefree::filters::bmfr::nlm::LENS_SELECT_FLOOR;
+use noisefree::filters::bmfr::nlm::{self, LENS_SELECT_FLOOR};
 use noisefree::filters::bmfr::outliers;
 use noisefree::filters::bmfr::{BmfrKernel, BmfrSettings, MAX_NLM_RADIUS, reference};
 use noisefree::imaging::RgbImage;
@@ -149,6 +149,16 @@ fn variants() -> Vec<BmfrSettings> {
             outlier_ratio: 2.0,
             ..groups.clone()
         },
+        // Surfaces beside open pixels counted open (nlm.rs, "Open margin"): the outside
+        // frame's silhouettes against the sky, packed and in work-groups.
+        BmfrSettings {
+            open_margin: Auto::Set(true),
+            ..d.clone()
+        },
+        BmfrSettings {
+            open_margin: Auto::Set(true),
+            ..groups.clone()
+        },
         // The two-way selection (select.rs) and the non-local means at other settings.
         BmfrSettings {
             nlm: false,
@@ -261,6 +271,17 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
         let count = outliers::count(fv, &replaced);
         eprintln!("{name}: {count} outliers at ratio 2");
         assert!(count > 0, "{name}: no outlier at ratio 2");
+        // The open margin's variants must count surfaces open on the outside frame.
+        let classes = |margin| nlm::classes(fv, pos, odd, dims, spp, margin);
+        let margin = classes(false)
+            .iter()
+            .zip(&classes(true))
+            .filter(|(a, b)| a != b)
+            .count();
+        eprintln!("{name}: {margin} surface pixels counted open by the open margin");
+        if *name == "outside" {
+            assert!(margin > 0, "outside: no surface pixel beside an open one");
+        }
         for s in variants() {
             let d = check_against_reference(frame, &s, name);
             worst = worst.max(d);

@@ -20,6 +20,32 @@ inline float bmfr_nlm_class(__global const FilterVector* f, __global const float
     return !bmfr_light(f) && odd.w >= 1.0f && spp - odd.w >= 1.0f ? BMFR_NLM_OPEN : 0.0f;
 }
 
+// The class of pixel (x, y) as the non-local means and the selection use it (bmfr_nlm_prep
+// writes it for the others): bmfr_nlm_class, and with BMFR_OPEN_MARGIN a surface pixel with an
+// open pixel among its eight neighbours counted open. Out of focus a silhouette's partly
+// covered pixels form a wide band, and a pixel in it whose few samples all hit the surface
+// holds the band's mix in expectation, not the surface's light; alone among open neighbours
+// it found no patch of its class and kept its own light (src/filters/bmfr/nlm.rs, "Open
+// margin").
+inline float bmfr_nlm_class_at(__global const FilterVector* fv, __global const float4* positions,
+                               __global const float4* odd_halves, int x, int y, uint width,
+                               uint height, float spp) {
+    uint i = (uint)y * width + (uint)x;
+    float class = bmfr_nlm_class(fv + i, positions + i, odd_halves[i], spp);
+#if BMFR_OPEN_MARGIN
+    if (class == BMFR_NLM_SURFACE) {
+        for (int yy = max(y - 1, 0); yy <= min(y + 1, (int)height - 1); ++yy) {
+            for (int xx = max(x - 1, 0); xx <= min(x + 1, (int)width - 1); ++xx) {
+                uint j = (uint)yy * width + (uint)xx;
+                if (bmfr_nlm_class(fv + j, positions + j, odd_halves[j], spp) == BMFR_NLM_OPEN)
+                    return BMFR_NLM_OPEN;
+            }
+        }
+    }
+#endif
+    return class;
+}
+
 // What a pixel's light is divided by before the averaging and multiplied by after.
 inline float3 bmfr_nlm_modulation(__global const FilterVector* f, float class) {
     return class == BMFR_NLM_OPEN ? (float3)(1.0f) : bmfr_albedo(f);
@@ -33,8 +59,8 @@ inline float3 bmfr_even(float3 beauty, float4 odd, float spp) {
 }
 
 // bmfr_nlm_prep: per pixel of a class, (o - e)^2 n_o n_e / n^2, one sample of the variance of
-// the frame's mean per channel (E[(o - e)^2] = s^2 (1/n_o + 1/n_e)), and w = the class; 0
-// elsewhere.
+// the frame's mean per channel (E[(o - e)^2] = s^2 (1/n_o + 1/n_e)), and w = the class
+// (bmfr_nlm_class_at); 0 elsewhere.
 __kernel void bmfr_nlm_prep(__global const FilterVector* fv,
                             __global const float4* positions,
                             __global const float4* odd_halves,
@@ -45,7 +71,7 @@ __kernel void bmfr_nlm_prep(__global const FilterVector* fv,
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
     float4 odd = odd_halves[i];
-    float class = bmfr_nlm_class(f, positions + i, odd, spp);
+    float class = bmfr_nlm_class_at(fv, positions, odd_halves, x, y, width, height, spp);
     if (class == 0.0f) {
         raw[i] = (float4)(0.0f);
         return;
@@ -229,9 +255,9 @@ void bmfr_nlm(__global const FilterVector* fv,
 // the window's sums weigh every pixel's relative error alike (src/filters/bmfr/nlm.rs,
 // "Relative sums").
 __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
-                                 __global const float4* positions,
                                  __global const float4* odd_halves,
                                  uint width, uint height, float spp,
+                                 __global const float4* raw,
                                  __global const float4* fitted,
                                  __global const float4* nlm_out,
                                  __global float4* residuals) {
@@ -240,7 +266,7 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
     uint i = (uint)y * width + (uint)x;
     __global const FilterVector* f = fv + i;
     float4 odd = odd_halves[i];
-    float class = bmfr_nlm_class(f, positions + i, odd, spp);
+    float class = raw[i].w;                  // bmfr_nlm_class_at, from bmfr_nlm_prep
     if (class == 0.0f) {
         residuals[i] = (float4)(0.0f);
         return;

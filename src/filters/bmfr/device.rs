@@ -179,6 +179,7 @@ impl BmfrKernel {
             ("BMFR_NLM_K", format!("{:e}f", s.nlm_k() as f32)),
             ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
             ("BMFR_SELECT_RELATIVE", flag(s.select_relative)),
+            ("BMFR_OPEN_MARGIN", flag(s.open_margin())),
             ("BMFR_OUTLIER_RATIO", format!("{:e}f", s.outlier_ratio as f32)),
             ("BMFR_OUTLIER_RADIUS", OUTLIER_RADIUS.to_string()),
             ("BMFR_OUTLIER_NEIGHBOURS", format!("{NEIGHBOURS:e}f")),
@@ -367,9 +368,10 @@ impl BmfrKernel {
                 .arg(&nlm_out);
                 select.push(built(kb, no_positions)?);
             }
-            let mut kb = per_pixel("bmfr_residuals_nlm", all);
-            kb.arg(&out).arg(&nlm_out).arg(&residuals);
-            select.push(built(kb, all)?);
+            // The classes from bmfr_nlm_prep's `raw` (w), as the non-local means used them.
+            let mut kb = per_pixel("bmfr_residuals_nlm", no_positions);
+            kb.arg(&raw).arg(&out).arg(&nlm_out).arg(&residuals);
+            select.push(built(kb, no_positions)?);
             // Packed on CPU devices too (kernels/filters/bmfr_select_packed.cl): 16 pixels'
             // windows per work-item, the same bytes.
             let mut kb = if packed_nlm {

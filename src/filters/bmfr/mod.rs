@@ -58,6 +58,9 @@
 //! sky and the partly covered pixels that the fit keeps (nlm.rs `OPEN`), each averaged with
 //! its own kind only and blended with its unfiltered light alone: through a lens these are as
 //! noisy as the surfaces (Outside DOF 512², 8 spp: MSE-LUV 3.07 → 1.78, results/README.md).
+//! With `open_margin` (on with a thin lens; nlm.rs, "Open margin") a surface pixel beside an
+//! open one counts as open too: out of focus the partly covered band is wide, and a pixel in
+//! it whose few samples all hit the surface holds the band's mix.
 //!
 //! Outliers (`outliers`, outliers.rs): before everything else, a surface pixel whose light
 //! stands far above its neighbours' in one half buffer only (a single sample's firefly) takes
@@ -163,6 +166,12 @@ crate::filter_settings! {
         /// of its light's level (the larger of the fit and the non-local means, plus a small
         /// ε), so that dark pixels count as much as bright ones (nlm.rs, "Relative sums").
         pub select_relative: bool = true,
+        /// Count a surface pixel with an open pixel (sky, or samples that did not all hit a
+        /// surface) among its eight neighbours as open in the non-local means and the
+        /// selection: out of focus, a silhouette's band of partly covered pixels is wide, and a
+        /// pixel in it whose few samples all hit the surface holds the band's mix, not the
+        /// surface's light (nlm.rs, "Open margin"). auto: on when the camera has a thin lens.
+        pub open_margin: Auto<bool> = Auto::Auto,
         /// Half width of the non-local means' search window, pixels.
         pub nlm_radius: u32 = 5,
         /// Half width of the window of the two half buffers' non-local means, which only
@@ -251,6 +260,12 @@ impl BmfrSettings {
     /// specialised).
     pub fn splits_emission(&self) -> bool {
         self.emission.or(false)
+    }
+
+    /// Whether surface pixels beside open pixels count as open (`open_margin`; `auto` reads
+    /// as off until specialised).
+    pub fn open_margin(&self) -> bool {
+        self.open_margin.or(false)
     }
 
     /// c of the selection's floor (`select_floor`; auto: none, as [`Bmfr`] resolves it
@@ -418,6 +433,18 @@ impl FilterKind for Bmfr {
                      partly hit it (emission.rs)"
                 } else {
                     "a pinhole camera, so a light's edge is one pixel wide"
+                }
+            ));
+        }
+        if s.open_margin.is_auto() {
+            s.open_margin = Auto::Set(lens);
+            notes.push(format!(
+                "open_margin = {lens}: {}",
+                if lens {
+                    "a thin lens, so defocused silhouettes leave wide bands of partly covered \
+                     pixels (nlm.rs, \"Open margin\")"
+                } else {
+                    "a pinhole camera, so a silhouette's partly covered pixels are one pixel wide"
                 }
             ));
         }

@@ -139,6 +139,30 @@
 //! So `select_floor` auto is 6 only with a thin lens and `select_relative` off; without the
 //! floor the selection makes no second pass over its window.
 //!
+//! Open margin (`open_margin`, stop 45; [`classes`]). Out of focus, a silhouette against the
+//! sky leaves a band of partly covered pixels many pixels wide (Outside DOF: the horizon and
+//! the glass sphere's rim). Whether a pixel in it is [`SURFACE`] or [`OPEN`] is decided by its
+//! own 8 samples: now and then all of them hit the wall, and the pixel, a surface among open
+//! neighbours, found no patch of its class in its window and kept its own light, the wall's,
+//! where the reference holds the band's mix of wall and sky. On one 8-spp 512² frame of
+//! outside_dof (scratch analysis of the AOV file, the reference's candidates and the
+//! 2048-spp reference, not in the repository): 320 pixels came out below 0.6 × the reference's
+//! luminance, 300 of them such surfaces, 0.18 of bmfr's MSE-LUV of 1.57 (visible as dark
+//! specks along the horizon). With `open_margin` a surface pixel with an open pixel among its
+//! eight neighbours counts as open: its light is averaged as it is with the open pixels', and
+//! the selection blends it with its unfiltered light only. `noisefree filter S.aov.exr --filter
+//! bmfr --bmfr-open-margin=B` on the 8-spp frames at `render`'s seed, MSE-LUV / relMSE off → on:
+//! outside_dof 1.573 / 0.00362 → 1.287 / 0.00284; the other depth-of-field scenes have no open
+//! pixels once the emission is split off and are the same bytes. With a pinhole camera the
+//! band is a pixel wide and the pixel beside it a surface: outside 2.282 → 2.277 (relMSE
+//! 0.00505 both), curved 1.141 → 1.130, grids 3.405 → 3.431, two_lights_shadows 1.536 → 1.538,
+//! so auto turns it on with a thin lens only. Also tried on the reference (scratch changes, not
+//! kept): at least 2 open neighbours of 8, outside_dof 1.296 / 0.00287; at least 4 in the 5 × 5
+//! window, 1.281 / 0.00282 (within 0.5 %, and a second window size); the variance of a pixel
+//! counted open averaged over its neighbours' own classes rather than the counted ones, 1.338 /
+//! 0.00335. Cost: `bmfr_nlm_prep` evaluates its neighbours' classes, 0.8 → 2.5 ms on
+//! outside_dof 512² (`--profile`).
+//!
 //! Cost: 121 offsets for the frame and 49 for each half per pixel, most of bmfr's time on a
 //! CPU. Two kernels do the same float operations in the same order (each patch row's three
 //! taps summed first, then the rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16
@@ -188,6 +212,40 @@ pub fn class(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32) -> f32 {
     } else {
         0.0
     }
+}
+
+/// Every pixel's class as the non-local means and the selection use it: [`class`], and with
+/// `open_margin` a [`SURFACE`] pixel with an [`OPEN`] pixel among its eight neighbours counted
+/// open (kernels/filters/bmfr_nlm.cl `bmfr_nlm_class_at`; module docs, "Open margin").
+pub fn classes(
+    fv: &[FilterVector],
+    pos: &[Float4],
+    odd: &[Float4],
+    (w, h): (u32, u32),
+    spp: f32,
+    open_margin: bool,
+) -> Vec<f32> {
+    let own: Vec<f32> = (0..fv.len())
+        .into_par_iter()
+        .map(|i| class(&fv[i], &pos[i], &odd[i], spp))
+        .collect();
+    if !open_margin {
+        return own;
+    }
+    let (wi, hi) = (w as i32, h as i32);
+    (0..own.len())
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
+            let beside_open = || {
+                ((y - 1).max(0)..=(y + 1).min(hi - 1)).any(|yy| {
+                    ((x - 1).max(0)..=(x + 1).min(wi - 1))
+                        .any(|xx| own[(yy as u32 * w + xx as u32) as usize] == OPEN)
+                })
+            };
+            if own[i] == SURFACE && beside_open() { OPEN } else { own[i] }
+        })
+        .collect()
 }
 
 /// What the light of a pixel of class `class` is divided by before averaging (and multiplied
@@ -249,21 +307,23 @@ fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
 }
 
 /// The non-local means of the frame (search window half width `radius`), the odd half and the
-/// even half (`estimate_radius`), per pixel (`bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`).
+/// even half (`estimate_radius`), per pixel (`bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`),
+/// each pixel of its class in `classes` ([`classes`]).
+#[allow(clippy::too_many_arguments)]
 pub fn nlm(
     fv: &[FilterVector],
-    pos: &[Float4],
     odd: &[Float4],
     (w, h): (u32, u32),
     spp: f32,
     (radius, estimate_radius): (u32, u32),
     k: f32,
+    classes: &[f32],
 ) -> Vec<[[f32; 3]; 3]> {
     let n = fv.len();
     let raw: Vec<[f32; 4]> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let class = class(&fv[i], &pos[i], &odd[i], spp);
+            let class = classes[i];
             if class == 0.0 {
                 return [0.0; 4];
             }
@@ -400,20 +460,19 @@ pub fn nlm(
         .collect()
 }
 
-/// kernels/filters/bmfr_nlm.cl `bmfr_residuals_nlm` for one pixel: (V, R, N, class). An
-/// [`OPEN`] pixel has no fit: R = 0. With `relative` each channel's terms are divided by
+/// kernels/filters/bmfr_nlm.cl `bmfr_residuals_nlm` for one pixel of class `class` (from
+/// [`classes`]): (V, R, N, class). An [`OPEN`] pixel has no fit: R = 0. With `relative` each channel's terms are divided by
 /// l² + [`RELATIVE_EPSILON`] first (module docs, "Relative sums").
 #[allow(clippy::too_many_arguments)]
 pub fn residual(
     f: &FilterVector,
-    pos: &Float4,
     odd: &Float4,
     spp: f32,
     fit: [f32; 3],
     nlm: &[[f32; 3]; 3],
     relative: bool,
+    class: f32,
 ) -> [f32; 4] {
-    let class = class(f, pos, odd, spp);
     if class == 0.0 {
         return [0.0; 4];
     }
@@ -499,4 +558,49 @@ pub fn select(
     let e_f = (excess / scale / sum[0]).max(1.0e-6);
     let w_f = 1.0 / (e_f * e_f);
     std::array::from_fn(|c| (w_y * b[c] + w_f * fit[c] + w_n * nlm[c]) / (w_y + w_f + w_n))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout::SKY_DEPTH;
+
+    /// A 5 × 3 frame at 8 spp, 4 of them odd: surfaces, one sky pixel at (0, 1) (open) and a
+    /// light seen directly at (1, 0) (class 0).
+    fn frame() -> (Vec<FilterVector>, Vec<Float4>, Vec<Float4>) {
+        let (w, h, spp) = (5, 3, 8.0);
+        let mut fv = vec![
+            FilterVector {
+                depth: 2.0,
+                albedo: [0.5; 3],
+                direct: [0.3; 3],
+                indirect: [0.1; 3],
+                ..Default::default()
+            };
+            w * h
+        ];
+        fv[w].depth = SKY_DEPTH;
+        fv[1].albedo = [1.0, 0.8, 0.6];
+        fv[1].indirect = [0.0; 3];
+        let pos = vec![Float4([0.0, 0.0, 2.0, spp]); w * h];
+        let odd = vec![Float4([0.3, 0.3, 0.3, 4.0]); w * h];
+        (fv, pos, odd)
+    }
+
+    #[test]
+    fn open_margin_counts_surfaces_beside_open_pixels_as_open() {
+        let (fv, pos, odd) = frame();
+        let (s, o) = (SURFACE, OPEN);
+        let own = classes(&fv, &pos, &odd, (5, 3), 8.0, false);
+        #[rustfmt::skip]
+        assert_eq!(own, [s, 0.0, s, s, s,
+                         o, s,   s, s, s,
+                         s, s,   s, s, s]);
+        // The surfaces of columns 0 and 1 touch the sky pixel; the light stays class 0.
+        let margin = classes(&fv, &pos, &odd, (5, 3), 8.0, true);
+        #[rustfmt::skip]
+        assert_eq!(margin, [o, 0.0, s, s, s,
+                            o, o,   s, s, s,
+                            o, o,   s, s, s]);
+    }
 }

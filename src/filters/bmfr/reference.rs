@@ -314,12 +314,14 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     let pixels = if s.uses_nlm() {
         let odd = odd_frame()?;
         let (r, k) = ((s.nlm_radius, s.estimate_radius()), s.nlm_k() as f32);
-        let smooth = nlm::nlm(fv, pos, odd, (w, h), spp, r, k);
+        let classes = nlm::classes(fv, pos, odd, (w, h), spp, s.open_margin());
+        let smooth = nlm::nlm(fv, odd, (w, h), spp, r, k, &classes);
         let residuals: Vec<[f32; 4]> = (0..pixels.len())
             .into_par_iter()
             .map(|i| {
                 let (fit, smooth) = (pixels[i], &smooth[i]);
-                nlm::residual(&fv[i], &pos[i], &odd[i], spp, fit, smooth, s.select_relative)
+                let relative = s.select_relative;
+                nlm::residual(&fv[i], &odd[i], spp, fit, smooth, relative, classes[i])
             })
             .collect();
         (0..pixels.len())
