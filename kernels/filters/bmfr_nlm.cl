@@ -24,8 +24,8 @@ inline float bmfr_nlm_class(__global const FilterVector* f, __global const float
 // writes it for the others): bmfr_nlm_class, and with BMFR_OPEN_MARGIN a surface pixel with an
 // open pixel among its eight neighbours counted open. Out of focus a silhouette's partly
 // covered pixels form a wide band, and a pixel in it whose few samples all hit the surface
-// holds the band's mix in expectation, not the surface's light; alone among open neighbours
-// it found no patch of its class and kept its own light (src/filters/bmfr/nlm.rs, "Open
+// holds the band's mix in expectation, not the surface's light; among open neighbours it
+// found few patches of its class and kept about its own light (src/filters/bmfr/nlm.rs, "Open
 // margin").
 inline float bmfr_nlm_class_at(__global const FilterVector* fv, __global const float4* positions,
                                __global const float4* odd_halves, int x, int y, uint width,

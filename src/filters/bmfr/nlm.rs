@@ -143,8 +143,8 @@
 //! sky leaves a band of partly covered pixels many pixels wide (Outside DOF: the horizon and
 //! the glass sphere's rim). Whether a pixel in it is [`SURFACE`] or [`OPEN`] is decided by its
 //! own 8 samples: now and then all of them hit the wall, and the pixel, a surface among open
-//! neighbours, found no patch of its class in its window and kept its own light, the wall's,
-//! where the reference holds the band's mix of wall and sky. On one 8-spp 512² frame of
+//! neighbours, found few patches of its class in its window and kept about its own light, the
+//! wall's, where the reference holds the band's mix of wall and sky. On one 8-spp 512² frame of
 //! outside_dof (scratch analysis of the AOV file, the reference's candidates and the
 //! 2048-spp reference, not in the repository): 320 pixels came out below 0.6 × the reference's
 //! luminance, 300 of them such surfaces, 0.18 of bmfr's MSE-LUV of 1.57 (visible as dark
@@ -461,8 +461,9 @@ pub fn nlm(
 }
 
 /// kernels/filters/bmfr_nlm.cl `bmfr_residuals_nlm` for one pixel of class `class` (from
-/// [`classes`]): (V, R, N, class). An [`OPEN`] pixel has no fit: R = 0. With `relative` each channel's terms are divided by
-/// l² + [`RELATIVE_EPSILON`] first (module docs, "Relative sums").
+/// [`classes`]): (V, R, N, class). An [`OPEN`] pixel has no fit: R = 0. With `relative` each
+/// channel's terms are divided by l² + [`RELATIVE_EPSILON`] first (module docs, "Relative
+/// sums").
 #[allow(clippy::too_many_arguments)]
 pub fn residual(
     f: &FilterVector,
