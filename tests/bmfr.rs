@@ -11,7 +11,9 @@ use noisefree::filters::Auto;
 use noisefree::filters::bmfr::emission::MAX_EMISSION_RADIUS;
 use noisefree::filters::bmfr::nlm::{self, LENS_SELECT_FLOOR};
 use noisefree::filters::bmfr::outliers;
-use noisefree::filters::bmfr::{BmfrKernel, BmfrSettings, MAX_NLM_RADIUS, reference};
+use noisefree::filters::bmfr::{
+    BmfrKernel, BmfrSettings, MAX_NLM_PATCH, MAX_NLM_RADIUS, reference,
+};
 use noisefree::imaging::RgbImage;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
 use noisefree::layout::{DepthShift, FilterVector, Float4, SKY_DEPTH};
@@ -170,10 +172,25 @@ fn variants() -> Vec<BmfrSettings> {
             nlm_k: Auto::Set(1.5),
             ..d.clone()
         },
-        // The widest search window: the packed kernel's reads reach furthest into the padding.
+        // The widest search window and patches: the packed kernel's reads reach furthest into
+        // the padding.
         BmfrSettings {
             nlm_radius: MAX_NLM_RADIUS,
+            nlm_patch: MAX_NLM_PATCH,
             ..d.clone()
+        },
+        // 3 x 3 and 7 x 7 patches (nlm.rs, "Patches"), packed and in work-groups.
+        BmfrSettings {
+            nlm_patch: 1,
+            ..d.clone()
+        },
+        BmfrSettings {
+            nlm_patch: 1,
+            ..groups.clone()
+        },
+        BmfrSettings {
+            nlm_patch: MAX_NLM_PATCH,
+            ..groups.clone()
         },
         // The halves' estimate over the whole window, and over the pixel itself alone.
         BmfrSettings {
@@ -298,7 +315,8 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
             // (`nlm_estimate_radius`), their error estimate, through the blend's 1 / E²,
             // carries the exps' last-bit differences further on the depth-of-field frame with
             // 16-pixel blocks and every feature: 2.9e-6 (packed) and 3.5e-6 (work-groups), the
-            // other variants below 5e-7; bound 5e-6. The prefilter's geometry (normal, depth,
+            // other variants below 5e-7; with 5 × 5 patches (`nlm_patch`, stop 46) up to 1.6e-6
+            // (3 × 3 and 7 × 7: 1.4e-6, 1.2e-6); bound 5e-6. The prefilter's geometry (normal, depth,
             // position, averaged by exps too) takes the fit alone at radius 5 to 3.7e-5 on the
             // depth-of-field frame (1.3e-5 on the spheres frame; the albedo alone 1.44e-5),
             // bound 5e-5; with the selection 7.0e-6 (spheres) and 2.6e-6 (depth of field).
@@ -510,6 +528,20 @@ fn settings_outside_the_supported_ones_are_refused_with_the_reason() {
                 ..Default::default()
             },
             "select_radius",
+        ),
+        (
+            BmfrSettings {
+                nlm_patch: 0,
+                ..Default::default()
+            },
+            "nlm_patch",
+        ),
+        (
+            BmfrSettings {
+                nlm_patch: MAX_NLM_PATCH + 1,
+                ..Default::default()
+            },
+            "nlm_patch",
         ),
     ] {
         let e = format!("{:#}", s.validate().unwrap_err());
@@ -724,16 +756,17 @@ fn a_few_noisy_pixels_cannot_vouch_for_the_fit_over_their_window() {
     eprintln!(
         "cornell_diffuse_dof {w}x{h} 8 spp, {count} unlit edge pixels: relMSE with the floor {with:.3e}, without {without:.3e}; relative sums without the floor {relative:.3e}"
     );
-    // The relative sums without the floor: 2.609e-3, 0.24 of the floor's 1.101e-2 (the
-    // floor on top of them: 2.393e-3 on these pixels, but no better over whole images, nlm.rs);
-    // the bound 0.3.
+    // The relative sums without the floor: 3.153e-3, 0.33 of the floor's 9.523e-3 (with 3 x 3
+    // patches 2.609e-3, 0.24 of 1.101e-2; the floor on top of them: 2.393e-3 on these pixels,
+    // but no better over whole images, nlm.rs); the bound 0.4.
     assert!(
-        relative < with * 0.3,
+        relative < with * 0.4,
         "relative sums: {relative} against {with} with the floor"
     );
     assert!(count > 300, "{count} unlit edge pixels");
-    // Measured on PoCL at 256²: 1.505e-2 without, 1.101e-2 with (ratio 0.73; at 128² the
-    // light's edge is a few pixels and the ratio 0.97); the bound 0.8.
+    // Measured on PoCL at 256²: 1.310e-2 without, 9.523e-3 with (ratio 0.73; with 3 x 3
+    // patches 1.505e-2 and 1.101e-2; at 128² the light's edge is a few pixels and the ratio
+    // 0.97); the bound 0.8.
     const BOUND: f64 = 0.8;
     assert!(
         with < without * BOUND,

@@ -163,6 +163,7 @@ fn bmfr_counts_match_a_walk_of_the_windows() {
         nlm_radius: 5,
         estimate_radius: 3,
         select_radius: 4,
+        nlm_patch: 2,
     };
     let window = |x: i64, y: i64, r: i64| -> u64 {
         let mut k = 0;

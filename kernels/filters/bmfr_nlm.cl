@@ -1,11 +1,11 @@
 // The third candidate of bmfr's selection (`nlm`, src/filters/bmfr/nlm.rs has the reasons and
 // the measurements): non-local means of the albedo-demodulated light (Rousselle, Knaus,
 // Zwicker, "Adaptive rendering with non-local means filtering", SIGGRAPH Asia 2012, eq. 4 with
-// 3 x 3 patches), run on the full image and, for the selection's error estimate, on each of
-// the two half buffers (NFOR's cross-filtering, Bitterli et al. 2016 §4: a half filtered alone
-// is independent of the other half, so its squared distance to the other half estimates its
-// error). Included at the end of filters/bmfr.cl; the Rust reference does the same float
-// operations in the same order.
+// patches of (2 BMFR_NLM_PATCH + 1)^2 pixels, `nlm_patch`), run on the full image and, for
+// the selection's error estimate, on each of the two half buffers (NFOR's cross-filtering,
+// Bitterli et al. 2016 §4: a half filtered alone is independent of the other half, so its
+// squared distance to the other half estimates its error). Included at the end of
+// filters/bmfr.cl; the Rust reference does the same float operations in the same order.
 //
 // A pixel takes part by its class (bmfr_nlm_class; src/filters/bmfr/nlm.rs `class` has the
 // reasons) and averages pixels of its class only: a surface (bmfr_surface, filters/bmfr.cl),
@@ -136,23 +136,26 @@ inline void bmfr_nlm_pass_through(__global const FilterVector* f, float4 odd, fl
 
 // bmfr_nlm: for each pixel p of a class, the weighted mean over the pixels q of its class of the
 // (2 BMFR_NLM_RADIUS + 1)^2 window (the halves': (2 BMFR_NLM_ESTIMATE_RADIUS + 1)^2, as they
-// only estimate the frame's error), w = exp(-max(0, d^2)), d^2 the mean over the 3 x 3 patch
-// taps t with p + t and q + t inside the image, and over the channels, of
+// only estimate the frame's error), w = exp(-max(0, d^2)), d^2 the mean over the
+// (2 BMFR_NLM_PATCH + 1)^2 patch taps t with p + t and q + t inside the image, and over the
+// channels, of
 //   ((u(p + t) - u(q + t))^2 - (v_a + min(v_a, v_b))) / (eps + k^2 (v_a + v_b))
 // for the frame (variance v), and of the same with the variances doubled for each half (a half
 // holds half the samples), ε doubled too so that one reciprocal serves the three:
 //   (((u(p + t) - u(q + t))^2 / 2 - (v_a + min(v_a, v_b))) / (eps + k^2 (v_a + v_b)),
-// then remodulated. The nine tap distances are summed per patch row, then the rows in order.
+// then remodulated. The tap distances are summed per patch row left to right, then the rows top
+// to bottom.
 // Three float4 out per pixel: frame, odd half, even half; a pixel
 // of no class gives its inputs back.
 //
 // Work-groups of BMFR_NLM_TILE^2 pixels. A tap's distance depends only on the pixel a = p + t
 // and the offset q - p, so for each offset the group writes the distances of its tile and a
-// one-pixel border to local memory once and each pixel sums its nine from there: about 1.3
-// distance evaluations per pixel and offset instead of 9 (the same floats in the same order;
-// an invalid tap adds 0 to the sum and 0 to the count). The tile's own inputs are read into
-// local memory once.
-#define BMFR_NLM_SIDE (BMFR_NLM_TILE + 2)
+// BMFR_NLM_PATCH border to local memory once and each pixel sums its patch's from there: about
+// 1.6 distance evaluations per pixel and offset instead of 25 with 5 x 5 patches (the same
+// floats in the same order; an invalid tap adds 0 to the sum and 0 to the count). The tile's
+// own inputs are read into local memory once.
+#define BMFR_NLM_SIDE (BMFR_NLM_TILE + 2 * BMFR_NLM_PATCH)
+#define BMFR_NLM_TAPS (2 * BMFR_NLM_PATCH + 1)
 #define BMFR_NLM_LOCAL (BMFR_NLM_SIDE * BMFR_NLM_SIDE)
 // Whether offset (dx, dy) lies in the halves' window (they are filtered there only; both
 // kernels, bmfr_nlm and bmfr_nlm_packed).
@@ -170,8 +173,8 @@ void bmfr_nlm(__global const FilterVector* fv,
     __local float4 dist[BMFR_NLM_LOCAL];
     int lx = get_local_id(0), ly = get_local_id(1);
     int x = get_global_id(0), y = get_global_id(1);
-    int x0 = (int)get_group_id(0) * BMFR_NLM_TILE - 1;
-    int y0 = (int)get_group_id(1) * BMFR_NLM_TILE - 1;
+    int x0 = (int)get_group_id(0) * BMFR_NLM_TILE - BMFR_NLM_PATCH;
+    int y0 = (int)get_group_id(1) * BMFR_NLM_TILE - BMFR_NLM_PATCH;
     int w = (int)width, h = (int)height;
     int first = ly * BMFR_NLM_TILE + lx;
     for (int e = first; e < BMFR_NLM_LOCAL; e += BMFR_NLM_TILE * BMFR_NLM_TILE) {
@@ -217,11 +220,13 @@ void bmfr_nlm(__global const FilterVector* fv,
             if (!active || qx < 0 || qx >= w || qy < 0 || qy >= h) continue;
             uint j = (uint)qy * width + (uint)qx;
             if (nlm_in[4 * j].w != class) continue;
-            // Each patch row's three taps first, then the rows (bmfr_nlm_packed's order).
+            // Each patch row's taps first, then the rows (bmfr_nlm_packed's order).
             float4 t = (float4)(0.0f);
-            for (int ty = 0; ty < 3; ++ty) {
+            for (int ty = 0; ty < BMFR_NLM_TAPS; ++ty) {
                 __local const float4* row = dist + (ly + ty) * BMFR_NLM_SIDE + lx;
-                t += (row[0] + row[1]) + row[2];
+                float4 sum = row[0];
+                for (int tx = 1; tx < BMFR_NLM_TAPS; ++tx) sum += row[tx];
+                t += sum;
             }
             float d2[3] = {t.x, t.y, t.z};
             float taps = 3.0f * t.w;

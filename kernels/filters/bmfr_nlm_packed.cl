@@ -1,7 +1,8 @@
 // bmfr's non-local means on CPU devices (`packed_nlm`, src/filters/bmfr/nlm.rs): the equations
 // of bmfr_nlm (filters/bmfr_nlm.cl, included before this file) with one work-item filtering
-// BMFR_NLM_STEP (14) adjacent pixels x0 .. x0 + 13 of BMFR_NLM_ROWS rows, every operation
-// written on float16 vectors whose lane i is pixel x0 - 1 + i: lanes 0 and 15 are the left and
+// BMFR_NLM_STEP (16 - 2 BMFR_NLM_PATCH: 12 with 5 x 5 patches) adjacent pixels x0 ..
+// x0 + STEP - 1 of BMFR_NLM_ROWS rows, every operation written on float16 vectors whose lane i
+// is pixel x0 - BMFR_NLM_PATCH + i: the first and last BMFR_NLM_PATCH lanes are the left and
 // right neighbours that a patch's horizontal taps need, computed and never written.
 //
 // Why: PoCL runs bmfr_nlm's work-groups as loops over the work-items between barriers, on
@@ -9,13 +10,14 @@
 // atrous_packed.cl). Here the packing is explicit, and the tap distances are shared without
 // local memory: a tap's distance depends only on the pixel a = p + t and the offset q - p, so
 // for one offset the work-item evaluates each of its rows' distances once (16 lanes), sums each
-// row's three taps by shifting the lanes, and slides a window of three such row sums down its
-// rows: (ROWS + 2) / ROWS row evaluations per output row and offset, against 3 × 3 without
-// sharing. Overlapping the work-items by two pixels costs 16 / 14 of the lanes; it replaced
-// evaluating the two edge pixels of 16 output lanes on float2s, and measured 2 % faster with
-// the same bytes (Cornell diffuse 512², `noisefree filter --profile`, binaries alternating
-// four times: 109.5-110.8 ms -> 106.8-109.4 ms) and is the simpler code. Offsets outside the
-// halves' window (BMFR_NLM_ESTIMATE_RADIUS) evaluate and weigh the frame's image only.
+// row's taps by shifting the lanes, and slides a window of BMFR_NLM_TAPS such row sums down its
+// rows: (ROWS + 2 PATCH) / ROWS row evaluations per output row and offset, against TAPS^2
+// without sharing. Overlapping the work-items by 2 PATCH pixels costs 16 / STEP of the lanes;
+// with 3 x 3 patches it replaced evaluating the two edge pixels of 16 output lanes on float2s,
+// and measured 2 % faster with the same bytes (Cornell diffuse 512², `noisefree filter
+// --profile`, binaries alternating four times: 109.5-110.8 ms -> 106.8-109.4 ms) and is the
+// simpler code. Offsets outside the halves' window (BMFR_NLM_ESTIMATE_RADIUS) evaluate and
+// weigh the frame's image only.
 //
 // Layout ("lines", as the a-trous filter's): bmfr_nlm_inputs_lines writes every image row as
 // BMFR_NLM_LINES lines of `stride` floats: lines 0-2 the frame's light (rgb), 3-5 the odd
@@ -28,18 +30,25 @@
 // every lane).
 //
 // The same float operations in the same order as bmfr_nlm and the Rust reference (offsets in
-// order; per patch row the taps x - 1, x, x + 1, then the rows y - 1, y, y + 1; FP_CONTRACT
-// OFF from bmfr.cl). Measured against the reference: tests/bmfr.rs.
+// order; per patch row the taps left to right, then the rows top to bottom; FP_CONTRACT OFF
+// from bmfr.cl). Measured against the reference: tests/bmfr.rs.
 
 #include "vectors.cl"
 
 #define BMFR_NLM_PACK 16
-#define BMFR_NLM_STEP (BMFR_NLM_PACK - 2)
+#define BMFR_NLM_STEP (BMFR_NLM_PACK - 2 * BMFR_NLM_PATCH)
 #define BMFR_NLM_PAD 16
 #define BMFR_NLM_LINES 14
-#if BMFR_NLM_RADIUS + 1 > BMFR_NLM_PAD
-#error "noisefree: BMFR_NLM_RADIUS must be below BMFR_NLM_PAD (src/filters/bmfr/nlm.rs)"
+#if BMFR_NLM_RADIUS + BMFR_NLM_PATCH > BMFR_NLM_PAD
+#error "noisefree: BMFR_NLM_RADIUS + BMFR_NLM_PATCH must be at most BMFR_NLM_PAD (nlm.rs)"
 #endif
+
+// v shifted by t lanes: lane i of the result is lane i + t of v (the tap t pixels right; t < 0:
+// left), the edge lanes repeated where i + t lies past them (neighbour lanes, never written).
+__attribute__((always_inline)) inline float16 bmfr_nlm_shift(float16 v, const int t) {
+    int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15) + t;
+    return shuffle(v, as_uint16(clamp(lane, 0, 15)));
+}
 
 // Where line 0 of pixel (x, y) lies in a buffer of `lines` lines per row (this layout, also
 // the packed albedo prefilter's, filters/bmfr_prefilter_packed.cl).
@@ -69,8 +78,9 @@ __kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
 }
 
 // One patch row's sum for the lanes xv .. xv + 15 of row ay, against row by shifted by dx:
-// per lane (D(x - 1) + D(x)) + D(x + 1), for the three images (h[0..2]) and the valid taps
-// (h[3]); right only in lanes 1 .. 14 (lanes 0 and 15 lack a neighbour). `images` (a constant
+// per lane ((D(x - P) + D(x - P + 1)) + ...) + D(x + P), P = BMFR_NLM_PATCH, for the three
+// images (h[0..2]) and the valid taps (h[3]); right only in lanes P .. 15 - P (the others lack
+// a neighbour). `images` (a constant
 // after inlining: 3, or 1 outside the halves' estimate window) says how many of the three
 // images are computed; the others' h[m] are left unset. Always inlined, and
 // every small loop over private float16 arrays here and in the kernel unrolled: PoCL called it
@@ -111,10 +121,12 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
     #pragma unroll
     for (int m = 0; m < 4; ++m) {
         if (m < images || m == 3) {
-        // The lanes shifted by one pixel either way.
-        float16 left = shuffle(d[m], (uint16)(0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14));
-        float16 right = shuffle(d[m], (uint16)(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 15));
-        h[m] = (left + d[m]) + right;
+        // The lanes shifted by each tap's offset, summed left to right.
+        float16 sum = bmfr_nlm_shift(d[m], -BMFR_NLM_PATCH);
+        #pragma unroll
+        for (int t = 1 - BMFR_NLM_PATCH; t <= BMFR_NLM_PATCH; ++t)
+            sum += t == 0 ? d[m] : bmfr_nlm_shift(d[m], t);
+        h[m] = sum;
         }
     }
 }
@@ -124,28 +136,34 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
 __attribute__((always_inline)) inline void bmfr_nlm_offset(
     __global const float* lines, uint stride, int xv, int y0, int h, int dx, int dy, float k2,
     const int images, float16 acc[BMFR_NLM_ROWS][9], float16 wsum[BMFR_NLM_ROWS][3]) {
-    // The row sums of rows r - 2, r - 1 and r: the patch rows of output row r - 1.
-    float16 h0[4], h1[4], h2[4];
-    for (int r = -1; r <= BMFR_NLM_ROWS; ++r) {
+    // The row sums of rows r - 2 P .. r (hs[0] .. hs[2 P]): the patch rows of output row r - P.
+    float16 hs[BMFR_NLM_TAPS][4];
+    const int last = BMFR_NLM_TAPS - 1;
+    for (int r = -BMFR_NLM_PATCH; r < BMFR_NLM_ROWS + BMFR_NLM_PATCH; ++r) {
         int ay = y0 + r, by = ay + dy;
         if (ay >= 0 && ay < h && by >= 0 && by < h) {
-            bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, images, h2);
+            bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, images, hs[last]);
         } else {
             #pragma unroll
-            for (int m = 0; m < 4; ++m) h2[m] = (float16)(0.0f);
+            for (int m = 0; m < 4; ++m) hs[last][m] = (float16)(0.0f);
         }
-        int row = r - 1, py = y0 + row, qy = py + dy;
+        int row = r - BMFR_NLM_PATCH, py = y0 + row, qy = py + dy;
         if (row >= 0 && py < h && qy >= 0 && qy < h) {
             __global const float* q = lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
             __global const float* p = lines + bmfr_line_at(xv, py, BMFR_NLM_LINES, stride);
             // q takes part when it is of p's class (and p of one: others pass through).
             float16 class_q = load16(q + 13 * (size_t)stride);
             int16 same = class_q == load16(p + 13 * (size_t)stride) && class_q != 0.0f;
-            float16 taps = 3.0f * ((h0[3] + h1[3]) + h2[3]);
+            float16 valid = hs[0][3];
+            #pragma unroll
+            for (int t = 1; t < BMFR_NLM_TAPS; ++t) valid += hs[t][3];
+            float16 taps = 3.0f * valid;
             #pragma unroll
             for (int m = 0; m < 3; ++m) {
                 if (m < images) {
-                    float16 d2 = (h0[m] + h1[m]) + h2[m];
+                    float16 d2 = hs[0][m];
+                    #pragma unroll
+                    for (int t = 1; t < BMFR_NLM_TAPS; ++t) d2 += hs[t][m];
                     float16 wt = same ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
                     #pragma unroll
                     for (int c = 0; c < 3; ++c)
@@ -156,11 +174,10 @@ __attribute__((always_inline)) inline void bmfr_nlm_offset(
             }
         }
         #pragma unroll
-        for (int m = 0; m < 4; ++m) {
-            if (m < images || m == 3) {
-                h0[m] = h1[m];
-                h1[m] = h2[m];
-            }
+        for (int t = 0; t < last; ++t) {
+            #pragma unroll
+            for (int m = 0; m < 4; ++m)
+                if (m < images || m == 3) hs[t][m] = hs[t + 1][m];
         }
     }
 }
@@ -176,7 +193,7 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
     int x0 = get_global_id(0) * BMFR_NLM_STEP, y0 = get_global_id(1) * BMFR_NLM_ROWS;
     int w = (int)width, h = (int)height;
     if (x0 >= w || y0 >= h) return;
-    int xv = x0 - 1;                         // the pixel of lane 0
+    int xv = x0 - BMFR_NLM_PATCH;            // the pixel of lane 0
     float k2 = BMFR_NLM_K * BMFR_NLM_K;
     // Per row: the weighted sums of the three images' rgb (3 m + c) and their weights.
     float16 acc[BMFR_NLM_ROWS][9], wsum[BMFR_NLM_ROWS][3];
@@ -198,7 +215,8 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
         float mean[9][BMFR_NLM_PACK];
         for (int k = 0; k < 9; ++k) vstore16(acc[row][k] / wsum[row][k / 3], 0, mean[k]);
         __global const float* p = lines + bmfr_line_at(xv, y, BMFR_NLM_LINES, stride);
-        for (int lane = 1; lane <= BMFR_NLM_STEP && xv + lane < w; ++lane) {
+        for (int lane = BMFR_NLM_PATCH; lane < BMFR_NLM_PATCH + BMFR_NLM_STEP && xv + lane < w;
+             ++lane) {
             uint i = (uint)y * width + (uint)(xv + lane);
             __global const FilterVector* f = fv + i;
             float class = p[13 * (size_t)stride + lane];

@@ -141,6 +141,7 @@ fn bmfr_kernels(
         nlm_radius: effective.nlm_radius,
         estimate_radius: effective.estimate_radius(),
         select_radius: effective.select_radius,
+        nlm_patch: effective.nlm_patch,
     };
     let fv = frame.filter_vectors()?;
     let pos: &[Float4] = frame.host_slice(BufferId::Positions)?;

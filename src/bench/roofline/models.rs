@@ -173,20 +173,27 @@ pub struct BmfrShape {
     pub nlm_radius: u32,
     pub estimate_radius: u32,
     pub select_radius: u32,
+    /// The non-local means' patch half width P (patches of (2 P + 1)² pixels).
+    pub nlm_patch: u32,
 }
 
 /// One offset of the frame's non-local means in bmfr_nlm_packed.cl, per pixel, in its box form
-/// (each tap's term evaluated once per pixel and offset and shared by the patches holding it):
-/// the term (per channel: the variance cancellation's add and min, the denominator's add,
-/// multiply, add and reciprocal, the difference, its square less the cancellation times the
-/// reciprocal: 10; the channels' 2 adds; the inside product: 33), the patch row's and column's
-/// sums (2 + 2) and the taps' count (2 + 2 + 1 shared), the weight (division, max, negation: 3)
-/// and the accumulation (three multiply-adds and the weight sum: 7); one `exp`.
-pub const BMFR_NLM_FRAME_FLOPS: f64 = 52.0;
+/// (each tap's term evaluated once per pixel and offset and shared by the patches holding it),
+/// with patches of half width `patch` (P): the term (per channel: the variance cancellation's
+/// add and min, the denominator's add, multiply, add and reciprocal, the difference, its
+/// square less the cancellation times the reciprocal: 10; the channels' 2 adds; the inside
+/// product: 33), the patch row's and column's sums (2 P + 2 P) and the taps' count (2 P + 2 P
+/// + 1 shared), the weight (division, max, negation: 3) and the accumulation (three
+/// multiply-adds and the weight sum: 7); one `exp`. 52 with 3 × 3 patches, 60 with 5 × 5.
+pub fn bmfr_nlm_frame_flops(patch: u32) -> f64 {
+    44.0 + 8.0 * patch as f64
+}
 /// The same for one half buffer within the estimate's window: its term (per channel the
 /// difference, square, halving, cancellation and reciprocal product: 5; 2 adds), its sums
-/// (4) and its weight and accumulation (10); one `exp`.
-pub const BMFR_NLM_HALF_FLOPS: f64 = 31.0;
+/// (2 P + 2 P) and its weight and accumulation (10); one `exp`. 31 with 3 × 3 patches.
+pub fn bmfr_nlm_half_flops(patch: u32) -> f64 {
+    27.0 + 4.0 * patch as f64
+}
 /// Once per pixel: the three images' rgb means (9 divisions) times the modulation (9).
 pub const BMFR_NLM_PIXEL_FLOPS: f64 = 18.0;
 
@@ -212,8 +219,8 @@ pub fn bmfr_nlm_work(classes: &[f32], width: u32, height: u32, shape: &BmfrShape
     }
     Work {
         taps: frame + halves,
-        flops: frame as f64 * BMFR_NLM_FRAME_FLOPS
-            + halves as f64 * BMFR_NLM_HALF_FLOPS
+        flops: frame as f64 * bmfr_nlm_frame_flops(shape.nlm_patch)
+            + halves as f64 * bmfr_nlm_half_flops(shape.nlm_patch)
             + filtered as f64 * BMFR_NLM_PIXEL_FLOPS,
         exps: (frame + halves) as f64,
         // The 14 input lines read, F read for the modulation, three float4 means written.

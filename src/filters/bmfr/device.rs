@@ -8,7 +8,7 @@ use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel};
 
 use super::nlm::{
-    MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
+    MAX_NLM_PATCH, MAX_NLM_RADIUS, NLM_EPSILON, NLM_PACKED_LINES, NLM_PACKED_PAD, NLM_PACKED_ROWS, NLM_TILE,
     RELATIVE_EPSILON,
 };
 use super::emission::{
@@ -90,17 +90,19 @@ const PACK: u32 = 16;
 /// BMFR_SELECT_PACK).
 const SELECT_PACK: u32 = PACK;
 
-/// Pixels filtered per work-item of the packed non-local means: its lanes less the left and
-/// right neighbours (bmfr_nlm_packed.cl BMFR_NLM_STEP).
-const NLM_STEP: u32 = PACK - 2;
+/// Pixels filtered per work-item of the packed non-local means with patches of half width
+/// `patch`: its lanes less the left and right neighbours (bmfr_nlm_packed.cl BMFR_NLM_STEP).
+const fn nlm_step(patch: u32) -> u32 {
+    PACK - 2 * patch
+}
 
 // The packed kernels' reads reach the search window's radius past the lanes, into the padding:
-// left, the radius and (non-local means) the neighbour lane; right, from the last work-item's
+// left, the radius and (non-local means) the neighbour lanes; right, from the last work-item's
 // first pixel (at most width - 1) its lanes and the radius.
 const _: () = assert!(
-    MAX_NLM_RADIUS < NLM_PACKED_PAD
+    MAX_NLM_RADIUS + MAX_NLM_PATCH <= NLM_PACKED_PAD
         && MAX_ALBEDO_RADIUS < NLM_PACKED_PAD
-        && NLM_STEP + MAX_NLM_RADIUS <= 2 * NLM_PACKED_PAD
+        && nlm_step(1) + MAX_NLM_RADIUS <= 2 * NLM_PACKED_PAD
         && PACK - 1 + MAX_ALBEDO_RADIUS <= 2 * NLM_PACKED_PAD
 );
 
@@ -176,6 +178,7 @@ impl BmfrKernel {
             ),
             ("BMFR_NLM_RADIUS", s.nlm_radius.to_string()),
             ("BMFR_NLM_ESTIMATE_RADIUS", s.estimate_radius().to_string()),
+            ("BMFR_NLM_PATCH", s.nlm_patch.to_string()),
             ("BMFR_NLM_K", format!("{:e}f", s.nlm_k() as f32)),
             ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
             ("BMFR_SELECT_RELATIVE", flag(s.select_relative)),
@@ -344,7 +347,7 @@ impl BmfrKernel {
                 select.push(built(kb, no_positions)?);
                 let mut kb = per_pixel("bmfr_nlm_packed", no_positions);
                 kb.global_work_size([
-                    width.div_ceil(NLM_STEP) as usize,
+                    width.div_ceil(nlm_step(s.nlm_patch)) as usize,
                     height.div_ceil(NLM_PACKED_ROWS) as usize,
                 ])
                 .local_work_size([1, 1])

@@ -94,7 +94,7 @@ use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{FrameInfo, SceneInfo};
 pub use device::BmfrKernel;
-pub use nlm::MAX_NLM_RADIUS;
+pub use nlm::{MAX_NLM_PATCH, MAX_NLM_RADIUS};
 pub use prefilter::MAX_ALBEDO_RADIUS;
 pub use reference::{kept, reference};
 
@@ -177,8 +177,11 @@ crate::filter_settings! {
         /// Half width of the window of the two half buffers' non-local means, which only
         /// estimate the candidate's error (nlm.rs), pixels; `nlm_radius` where that is smaller.
         pub nlm_estimate_radius: u32 = 3,
+        /// Half width of the non-local means' patches, pixels: 1 (3 × 3 patches) to 3 (7 × 7;
+        /// nlm.rs, "Patches").
+        pub nlm_patch: u32 = 2,
         /// k of the non-local means' patch distance: how many standard deviations of a
-        /// difference count as noise; auto: 1.0 with a thin lens, 0.7 with a pinhole camera
+        /// difference count as noise; auto: 0.8 with a thin lens, 0.7 with a pinhole camera
         /// (nlm.rs).
         pub nlm_k: Auto<f64> = Auto::Auto,
         /// Filter each pixel's mean albedo by the neighbours whose albedo differs by no more
@@ -317,6 +320,12 @@ impl BmfrSettings {
             bail!(
                 "the bmfr nlm_radius must be at most {MAX_NLM_RADIUS} pixels, got {}",
                 self.nlm_radius
+            );
+        }
+        if !(1..=MAX_NLM_PATCH).contains(&self.nlm_patch) {
+            bail!(
+                "the bmfr nlm_patch must be 1 to {MAX_NLM_PATCH} pixels, got {}",
+                self.nlm_patch
             );
         }
         if !(self.nlm_k() > 0.0 && self.nlm_k() <= 100.0) {

@@ -6,9 +6,9 @@
 //! glass, a defocused edge), and there the two-way selection (select.rs) can only fall back to
 //! the unfiltered, noisy light: on Cornell glossy (512², 8 spp) the pixels with no direct light
 //! held 5.6 of bmfr's MSE-LUV of 7.46, against OIDN-high's 1.8. Non-local means (Rousselle,
-//! Knaus, Zwicker, SIGGRAPH Asia 2012) average pixels whose 3 × 3 patches of light agree up to
-//! their noise, whatever the features say, so they smooth a reflection without blurring it
-//! into its surroundings.
+//! Knaus, Zwicker, SIGGRAPH Asia 2012) average pixels whose patches of light (5 × 5,
+//! `nlm_patch`) agree up to their noise, whatever the features say, so they smooth a
+//! reflection without blurring it into its surroundings.
 //!
 //! The error estimate is what makes a third candidate pay. A smoother's output depends on the
 //! pixel's own samples, so its residual against the frame's mean misses the noise it keeps (a
@@ -41,8 +41,9 @@
 //!   8.83 / 1.86; radius 5, k 1.0: 6.10 / 2.68 / 8.38 / 1.88; radius 7, k 0.45 (the 2012
 //!   paper's): 9.20 / 2.50 / 10.54 / 2.45. Radius 5 is 121 offsets against radius 7's 225.
 //!   (The prototype's non-local means equal this reference's to 2.4e-6, relative.)
-//! - k with a lens (`nlm_k` auto: [`LENS_NLM_K`] 1.0 with a thin lens, [`PINHOLE_NLM_K`] 0.7
-//!   without; stop 42). With the emission filtered apart (emission.rs), k 1.0 lowered bmfr's
+//! - k with a lens (`nlm_k` auto: [`LENS_NLM_K`] with a thin lens, [`PINHOLE_NLM_K`] 0.7
+//!   without; stop 42, with 3 × 3 patches; 0.8 with 5 × 5 since stop 46, "Patches" below).
+//!   With the emission filtered apart (emission.rs), k 1.0 lowered bmfr's
 //!   error on every depth-of-field scene (the 8-spp 512² frames at `render`'s seed, `noisefree
 //!   filter S.exr --filter bmfr --bmfr-nlm-k K`, MSE-LUV / relMSE at k 0.7 → 1.0):
 //!   cornell_diffuse_dof 1.613 / 0.00255 → 1.516 / 0.00242, cornell_glossy_dof 4.912 / 0.00840
@@ -163,12 +164,54 @@
 //! 0.00335. Cost: `bmfr_nlm_prep` evaluates its neighbours' classes, 0.8 → 2.5 ms on
 //! outside_dof 512² (`--profile`).
 //!
+//! Patches (`nlm_patch`, stop 46). At 8 spp a 3 × 3 patch's distance is a mean of 27 noisy
+//! terms, so two patches of the same light often differ by more than k allows and two of
+//! different light by less: the weights vary by chance from pixel to pixel, and the output
+//! keeps blotches of the noise (the soft shadows of curved's grid on its floor). A 5 × 5
+//! patch averages 75 terms. `noisefree filter S.aov.exr --filter bmfr --bmfr-nlm-patch P
+//! [--bmfr-nlm-k K]` on the 8-spp 512² frames at `render`'s seed, scored with `noisefree
+//! compare` against the 2048-spp references, MSE-LUV / relMSE at patch half width 1 / 2 / 3
+//! (k as it was, 0.7 without a lens and 1.0 with one; then 5 × 5 at k 0.8):
+//!
+//! | scene | 3 × 3 | 5 × 5 | 7 × 7 | 5 × 5, k 0.8 |
+//! |---|---|---|---|---|
+//! | cornell_diffuse | 1.445 / 0.00140 | 1.332 / 0.00127 | 1.324 / 0.00126 | |
+//! | outside | 2.282 / 0.00505 | 2.382 / 0.00533 | 2.497 / 0.00578 | |
+//! | cornell_glossy | 4.631 / 0.00687 | 4.216 / 0.00577 | 4.239 / 0.00605 | |
+//! | cornell_plane | 5.072 / 0.00654 | 4.800 / 0.00648 | 4.927 / 0.00738 | |
+//! | conference | 3.198 / 0.00716 | 2.935 / 0.00655 | 2.934 / 0.00674 | |
+//! | grids | 3.405 / 0.00624 | 3.389 / 0.00595 | 3.470 / 0.00604 | |
+//! | curved | 1.141 / 0.00237 | 1.033 / 0.00203 | 1.018 / 0.00196 | |
+//! | two_lights_shadows | 1.536 / 0.00279 | 1.261 / 0.00259 | 1.241 / 0.00272 | |
+//! | room_gi | 1.255 / 0.00235 | 1.088 / 0.00194 | 1.069 / 0.00191 | |
+//! | cornell_diffuse_dof | 1.502 / 0.00241 | 1.471 / 0.00238 | 1.477 / 0.00240 | 1.452 / 0.00235 |
+//! | outside_dof | 1.287 / 0.00284 | 1.262 / 0.00278 | 1.286 / 0.00283 | 1.223 / 0.00266 |
+//! | cornell_glossy_dof | 4.403 / 0.00593 | 4.146 / 0.00559 | 4.271 / 0.00585 | 4.008 / 0.00539 |
+//! | cornell_plane_dof | 3.308 / 0.00523 | 3.165 / 0.00505 | 3.146 / 0.00521 | 3.161 / 0.00476 |
+//! | conference_dof | 2.829 / 0.00472 | 2.747 / 0.00445 | 2.739 / 0.00444 | 2.765 / 0.00447 |
+//! | toasters_dof | 1.745 / 0.00280 | 1.686 / 0.00271 | 1.685 / 0.00272 | 1.640 / 0.00262 |
+//!
+//! 5 × 5 is better than 3 × 3 on fourteen scenes in both metrics; 7 × 7 gains a little more
+//! on cornell_diffuse, curved, room_gi and conference_dof and loses on most others (outside,
+//! the glossy and plane scenes' relMSE, grids). Outside loses with wider patches (the brick
+//! wall seen through the glass sphere, whose refracted texture few wider patches match) and is
+//! left so. k again, 5 × 5 (same command with `--bmfr-nlm-k K`): through a lens 0.7 / 0.8 /
+//! 0.9 / 1.0 sum to 14.32 / 14.25 / 14.32 / 14.48 over the six scenes' MSE-LUV, 0.8 best or
+//! within 1 % of the best on each, so [`LENS_NLM_K`] is 0.8; without, against 0.7, 0.6 wins
+//! only outside (2.353 / 0.00533) and two_lights_shadows' relMSE (0.00246), 0.85 only room_gi
+//! (1.071 / 0.00191) and curved's and grids' relMSE, so [`PINHOLE_NLM_K`] stays 0.7. Found
+//! with a scratch change to this reference (not kept); the kernels give the same figures to
+//! the digits shown. Cost: `bmfr_nlm_packed` 26.8 → 35.5 ms, bmfr 50 →
+//! 58-60 ms on cornell_diffuse 512² (`--repeat 7 --profile`, medians, two runs each): its
+//! work-items filter 12 pixels of their 16 lanes, not 14, and each row sum takes five taps.
+//!
 //! Cost: 121 offsets for the frame and 49 for each half per pixel, most of bmfr's time on a
-//! CPU. Two kernels do the same float operations in the same order (each patch row's three
-//! taps summed first, then the rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16
+//! CPU. Two kernels do the same float operations in the same order (each patch row's taps
+//! summed first, then the rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16
 //! work-groups share each tap's distance through local memory) and, on CPU devices
-//! (`packed_nlm`), `bmfr_nlm_packed` (bmfr_nlm_packed.cl; one work-item per 14 × 32 pixels on
-//! float16 lanes, the taps shifted between lanes, three row sums slid down the rows). On PoCL
+//! (`packed_nlm`), `bmfr_nlm_packed` (bmfr_nlm_packed.cl; one work-item per 12 × 32 pixels on
+//! float16 lanes with 5 × 5 patches, the taps shifted between lanes, five row sums slid down
+//! the rows). With 3 × 3 patches (the figures that follow): on PoCL
 //! (2 cores, Cornell glossy 512², 8 spp, `noisefree filter a.exr --filter bmfr --repeat 5`, medians): bmfr takes
 //! 190 ms with the packed kernel, 839 ms with the work-group one (`--bmfr-packed-nlm=false`)
 //! and 72 ms with `--bmfr-nlm-radius 0` (one offset), so the other 120 offsets cost about
@@ -278,7 +321,7 @@ pub const NLM_PACKED_LINES: u32 = 14;
 pub const PINHOLE_NLM_K: f64 = 0.7;
 
 /// k of the non-local means with a thin lens (`nlm_k` auto; module docs, "k with a lens").
-pub const LENS_NLM_K: f64 = 1.0;
+pub const LENS_NLM_K: f64 = 0.8;
 
 /// c of the selection's floor with a thin lens and absolute sums (`select_floor` auto; module
 /// docs, "The floor" and "Relative sums").
@@ -290,6 +333,9 @@ pub const RELATIVE_EPSILON: f32 = 1.0e-3;
 
 /// The largest search window half width (a 21 × 21 window).
 pub const MAX_NLM_RADIUS: u32 = 10;
+
+/// The largest patch half width (7 × 7 patches; `nlm_patch`).
+pub const MAX_NLM_PATCH: u32 = 3;
 
 fn beauty(f: &FilterVector) -> [f32; 3] {
     std::array::from_fn(|c| f.direct[c] + f.indirect[c])
@@ -308,14 +354,15 @@ fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
 
 /// The non-local means of the frame (search window half width `radius`), the odd half and the
 /// even half (`estimate_radius`), per pixel (`bmfr_nlm_prep`, `bmfr_nlm_inputs`, `bmfr_nlm`),
-/// each pixel of its class in `classes` ([`classes`]).
+/// over patches of (2 `patch` + 1)² pixels, each pixel of its class in `classes`
+/// ([`classes`]).
 #[allow(clippy::too_many_arguments)]
 pub fn nlm(
     fv: &[FilterVector],
     odd: &[Float4],
     (w, h): (u32, u32),
     spp: f32,
-    (radius, estimate_radius): (u32, u32),
+    (radius, estimate_radius, patch): (u32, u32, u32),
     k: f32,
     classes: &[f32],
 ) -> Vec<[[f32; 3]; 3]> {
@@ -376,7 +423,7 @@ pub fn nlm(
         })
         .collect();
     let k2 = k * k;
-    let (r, re) = (radius as i32, estimate_radius as i32);
+    let (r, re, pr) = (radius as i32, estimate_radius as i32, patch as i32);
     (0..n)
         .into_par_iter()
         .map(|i| {
@@ -410,14 +457,14 @@ pub fn nlm(
                     };
                     let mut d2 = [0f32; 3];
                     let mut taps = 0f32;
-                    for ty in -1..=1 {
+                    for ty in -pr..=pr {
                         let (ay, by) = (y + ty, qy + ty);
                         if ay < 0 || ay >= hi || by < 0 || by >= hi {
                             continue;
                         }
                         // Each patch row's taps first, then the rows (bmfr_nlm's order).
                         let mut row = [0f32; 3];
-                        for tx in -1..=1 {
+                        for tx in -pr..=pr {
                             let (ax, bx) = (x + tx, qx + tx);
                             if ax < 0 || ax >= wi || bx < 0 || bx >= wi {
                                 continue;

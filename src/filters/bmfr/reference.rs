@@ -313,7 +313,8 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         .collect::<Vec<[f32; 3]>>();
     let pixels = if s.uses_nlm() {
         let odd = odd_frame()?;
-        let (r, k) = ((s.nlm_radius, s.estimate_radius()), s.nlm_k() as f32);
+        let r = (s.nlm_radius, s.estimate_radius(), s.nlm_patch);
+        let k = s.nlm_k() as f32;
         let classes = nlm::classes(fv, pos, odd, (w, h), spp, s.open_margin());
         let smooth = nlm::nlm(fv, odd, (w, h), spp, r, k, &classes);
         let residuals: Vec<[f32; 4]> = (0..pixels.len())
