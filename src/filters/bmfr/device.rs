@@ -356,6 +356,19 @@ impl BmfrKernel {
                 .arg(&nlm_out);
                 select.push(built(kb, no_positions)?);
             } else {
+                // bmfr_nlm's local memory: the tile's four inputs and each tap's distance, over
+                // the tile and its patch border (float4s).
+                let side = (NLM_TILE + 2 * s.nlm_patch) as u64;
+                let nlm_bytes = side * side * 5 * 16;
+                let have = gpu.summary.local_mem_bytes;
+                if have > 0 && nlm_bytes > have {
+                    bail!(
+                        "the bmfr non-local means with nlm_patch {} needs {nlm_bytes} bytes of \
+                         local memory, {} has {have}; use a smaller nlm_patch",
+                        s.nlm_patch,
+                        gpu.summary.name
+                    );
+                }
                 let nlm_in = gpu.zeroed::<Float4>(4 * pixels, "bmfr nlm inputs")?;
                 let mut kb = per_pixel("bmfr_nlm_inputs", no_positions);
                 kb.arg(&raw).arg(&nlm_in);
