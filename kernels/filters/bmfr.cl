@@ -380,14 +380,22 @@ inline bool bmfr_surface(__global const FilterVector* f, __global const float4* 
     return !bmfr_kept(f, pos, spp) && odd.w >= 1.0f && spp - odd.w >= 1.0f;
 }
 
-// Summed over the channels, (R, V): the fit's squared residual (f - y)^2 and the variance of
-// the frame's mean y estimated from the half buffers, (y - odd)^2 n_odd / n_even
-// (bmfr_residuals; bmfr_residuals_nlm forms the same terms per channel).
-inline float2 bmfr_fit_error(float3 beauty, float3 fitted, float4 odd, float spp) {
+// Per channel, the fit's squared residual (f - y)^2 and the variance of the frame's mean y
+// estimated from the half buffers, (y - odd)^2 n_odd / n_even (bmfr_fit_error,
+// bmfr_residuals_nlm).
+inline void bmfr_fit_terms(float3 beauty, float3 fitted, float4 odd, float spp, float3* rr,
+                           float3* v) {
     float3 r = fitted - beauty;
     float3 d = beauty - odd.xyz;
-    float3 v = d * d * (odd.w / (spp - odd.w));
-    return (float2)(r.x * r.x + r.y * r.y + r.z * r.z, v.x + v.y + v.z);
+    *rr = r * r;
+    *v = d * d * (odd.w / (spp - odd.w));
+}
+
+// bmfr_fit_terms summed over the channels, (R, V) (bmfr_residuals).
+inline float2 bmfr_fit_error(float3 beauty, float3 fitted, float4 odd, float spp) {
+    float3 rr, v;
+    bmfr_fit_terms(beauty, fitted, odd, spp, &rr, &v);
+    return (float2)(rr.x + rr.y + rr.z, v.x + v.y + v.z);
 }
 
 // Per-pixel selection between the fit and the unfiltered light (src/filters/bmfr/select.rs).

@@ -279,12 +279,10 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
     float n_odd = odd.w, n_even = spp - odd.w;
     float3 beauty = bmfr_beauty(f);
     float3 even = bmfr_even(beauty, odd, spp);
-    // bmfr_fit_error's terms, per channel.
+    // An open pixel's "fit" is its light: R = 0.
     float3 fit = class == BMFR_NLM_OPEN ? beauty : fitted[i].xyz;
-    float3 r = fit - beauty;
-    float3 d = beauty - odd.xyz;
-    float3 v = d * d * (odd.w / (spp - odd.w));
-    float3 rr = r * r;
+    float3 rr, v;
+    bmfr_fit_terms(beauty, fit, odd, spp, &rr, &v);
     float3 oe = odd.xyz - even;
     float3 v_odd = oe * oe * (n_even / spp);
     float3 v_even = oe * oe * (n_odd / spp);

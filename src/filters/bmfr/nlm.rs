@@ -228,7 +228,7 @@
 use rayon::prelude::*;
 
 use super::reference::{albedo, light};
-use super::select::{surface, window_for_each, window_sum};
+use super::select::{fit_terms, surface, window_for_each, window_sum};
 use crate::layout::{FilterVector, Float4};
 
 /// Classes of pixels for the non-local means (kernels/filters/bmfr_nlm.cl `bmfr_nlm_class`):
@@ -527,13 +527,9 @@ pub fn residual(
     let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
     let b = beauty(f);
     let e = even(b, odd, spp);
-    // select.rs `residual`'s terms, per channel (an open pixel's "fit" is its light: R = 0).
+    // select.rs `fit_terms` (an open pixel's "fit" is its light: R = 0).
     let fit = if class == OPEN { b } else { fit };
-    let mut rr: [f32; 3] = std::array::from_fn(|c| (fit[c] - b[c]) * (fit[c] - b[c]));
-    let mut v: [f32; 3] = std::array::from_fn(|c| {
-        let d = b[c] - odd.0[c];
-        d * d * (n_odd / n_even)
-    });
+    let (mut rr, mut v) = fit_terms(b, fit, odd, spp);
     let mut n: [f32; 3] = std::array::from_fn(|c| {
         let oe = odd.0[c] - e[c];
         let (v_odd, v_even) = (oe * oe * (n_even / spp), oe * oe * (n_odd / spp));

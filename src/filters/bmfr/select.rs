@@ -59,14 +59,27 @@ pub fn residual(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32, fit: [f3
     if !surface(f, pos, odd, spp) {
         return [0.0, 0.0];
     }
-    let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
     let beauty: [f32; 3] = std::array::from_fn(|c| f.direct[c] + f.indirect[c]);
-    let r: [f32; 3] = std::array::from_fn(|c| fit[c] - beauty[c]);
-    let v: [f32; 3] = std::array::from_fn(|c| {
+    let (rr, v) = fit_terms(beauty, fit, odd, spp);
+    [rr[0] + rr[1] + rr[2], v[0] + v[1] + v[2]]
+}
+
+/// kernels/filters/bmfr.cl `bmfr_fit_terms`: per channel, the fit's squared residual
+/// (f − y)² and the variance of the frame's mean y from the half buffers,
+/// (y − odd)² n_odd / n_even.
+pub(super) fn fit_terms(
+    beauty: [f32; 3],
+    fit: [f32; 3],
+    odd: &Float4,
+    spp: f32,
+) -> ([f32; 3], [f32; 3]) {
+    let (n_odd, n_even) = (odd.0[3], spp - odd.0[3]);
+    let rr = std::array::from_fn(|c| (fit[c] - beauty[c]) * (fit[c] - beauty[c]));
+    let v = std::array::from_fn(|c| {
         let d = beauty[c] - odd.0[c];
         d * d * (n_odd / n_even)
     });
-    [r[0] * r[0] + r[1] * r[1] + r[2] * r[2], v[0] + v[1] + v[2]]
+    (rr, v)
 }
 
 /// kernels/filters/bmfr.cl `bmfr_surface`: not kept, and both halves hold samples.
