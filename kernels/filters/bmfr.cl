@@ -87,9 +87,21 @@ inline int bmfr_blocks_across(uint width, int2 off) {
 // hit a surface (position.w, the hits, below the frame's spp): silhouettes against the sky and
 // out-of-focus edges mix sky light with a surface's mean albedo, and demodulated by that small mean
 // they are outliers that would ruin their block's least-squares fit.
+//
+// A light also has light: the emission is in its direct light, unless the emission was taken out
+// of F (BMFR_SPLIT_EMISSION; filters/bmfr_emission.cl bmfr_reflected), which leaves a light's
+// direct light 0. Without that, a pixel whose samples all ended black (clear glass none of whose
+// paths reached a light) has the same albedo 1 and no indirect light, and was kept black among
+// its lit neighbours (Outside 512², 8 spp: 29 such
+// pixels, src/filters/bmfr/reference.rs `light`). With the split they still are.
 inline bool bmfr_light(__global const FilterVector* f) {
-    return fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f
+    bool signature = fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f
         && f->indirect[0] == 0.0f && f->indirect[1] == 0.0f && f->indirect[2] == 0.0f;
+#if BMFR_SPLIT_EMISSION
+    return signature;
+#else
+    return signature && (f->direct[0] != 0.0f || f->direct[1] != 0.0f || f->direct[2] != 0.0f);
+#endif
 }
 
 inline bool bmfr_kept(__global const FilterVector* f, __global const float4* pos, float spp) {

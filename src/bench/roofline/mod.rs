@@ -147,11 +147,12 @@ fn bmfr_kernels(
     let pos: &[Float4] = frame.host_slice(BufferId::Positions)?;
     let odd: &[Float4] = frame.host_slice(BufferId::OddHalves)?;
     let spp = frame.info().spp as f32;
+    let split = effective.splits_emission();
     let classes: Vec<f32> = (0..fv.len())
-        .map(|i| nlm::class(&fv[i], &pos[i], &odd[i], spp))
+        .map(|i| nlm::class(&fv[i], &pos[i], &odd[i], spp, split))
         .collect();
     let fitted = (0..fv.len())
-        .filter(|&i| !kept(&fv[i], &pos[i], spp))
+        .filter(|&i| !kept(&fv[i], &pos[i], spp, split))
         .count() as u64;
     // The packed kernels on CPU devices, the work-group ones elsewhere: the same useful work
     // (both non-local means kernels evaluate each tap's term once per offset).

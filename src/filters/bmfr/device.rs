@@ -196,6 +196,7 @@ impl BmfrKernel {
             ("BMFR_EMISSION_ROWS", EMISSION_PACKED_ROWS.to_string()),
             ("BMFR_EMISSION_K", format!("{:e}f", s.emission_k as f32)),
             ("BMFR_EMISSION_EPSILON", format!("{EMISSION_EPSILON:e}f")),
+            ("BMFR_SPLIT_EMISSION", flag(s.splits_emission())),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))

@@ -38,8 +38,10 @@
 //! Fitted values are clamped below at 0 (as the paper does), multiplied by the albedo (clamped
 //! below at [`ALBEDO_EPSILON`], the same clamp as the division). Kept by the fit as they are,
 //! bit for bit, and no row of any fit (kernels/filters/bmfr.cl `bmfr_kept`): sky; lights seen directly
-//! (their albedo is the emission's chromaticity, largest channel exactly 1, and their indirect
-//! light exactly 0, as paths end at emitters; fitted, a light spread a halo over its blocks: 4
+//! (their albedo is the emission's chromaticity, largest channel exactly 1, their indirect
+//! light exactly 0, as paths end at emitters, and their direct light their emission, unless
+//! `emission` took it out: clear glass whose samples all ended black is not one (reference.rs
+//! `light`); fitted, a light spread a halo over its blocks: 4
 //! grids on Cornell diffuse at 512², 8 spp, MSE-LUV 1.711 with, 1.534 without; surfaces of
 //! albedo 1 in a channel, white texels and clear glass, are fitted); and pixels whose samples
 //! did not all hit a surface (hits below the frame's spp: silhouettes against the sky,

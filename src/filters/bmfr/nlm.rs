@@ -246,11 +246,12 @@ use crate::layout::{FilterVector, Float4};
 pub const SURFACE: f32 = 1.0;
 pub const OPEN: f32 = 2.0;
 
-/// The pixel's class ([`SURFACE`], [`OPEN`] or 0).
-pub fn class(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32) -> f32 {
-    if surface(f, pos, odd, spp) {
+/// The pixel's class ([`SURFACE`], [`OPEN`] or 0); `split`: the emission was taken out of F
+/// (reference.rs `light`).
+pub fn class(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32, split: bool) -> f32 {
+    if surface(f, pos, odd, spp, split) {
         SURFACE
-    } else if !light(f) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0 {
+    } else if !light(f, split) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0 {
         OPEN
     } else {
         0.0
@@ -259,18 +260,19 @@ pub fn class(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32) -> f32 {
 
 /// Every pixel's class as the non-local means and the selection use it: [`class`], and with
 /// `open_margin` a [`SURFACE`] pixel with an [`OPEN`] pixel among its eight neighbours counted
-/// open (kernels/filters/bmfr_nlm.cl `bmfr_nlm_class_at`; module docs, "Open margin").
+/// open (kernels/filters/bmfr_nlm.cl `bmfr_nlm_class_at`; module docs, "Open margin"); `split`
+/// as in [`class`].
 pub fn classes(
     fv: &[FilterVector],
     pos: &[Float4],
     odd: &[Float4],
     (w, h): (u32, u32),
     spp: f32,
-    open_margin: bool,
+    (open_margin, split): (bool, bool),
 ) -> Vec<f32> {
     let own: Vec<f32> = (0..fv.len())
         .into_par_iter()
-        .map(|i| class(&fv[i], &pos[i], &odd[i], spp))
+        .map(|i| class(&fv[i], &pos[i], &odd[i], spp, split))
         .collect();
     if !open_margin {
         return own;
@@ -635,13 +637,13 @@ mod tests {
     fn open_margin_counts_surfaces_beside_open_pixels_as_open() {
         let (fv, pos, odd) = frame();
         let (s, o) = (SURFACE, OPEN);
-        let own = classes(&fv, &pos, &odd, (5, 3), 8.0, false);
+        let own = classes(&fv, &pos, &odd, (5, 3), 8.0, (false, false));
         #[rustfmt::skip]
         assert_eq!(own, [s, 0.0, s, s, s,
                          o, s,   s, s, s,
                          s, s,   s, s, s]);
         // The surfaces of columns 0 and 1 touch the sky pixel; the light stays class 0.
-        let margin = classes(&fv, &pos, &odd, (5, 3), 8.0, true);
+        let margin = classes(&fv, &pos, &odd, (5, 3), 8.0, (true, false));
         #[rustfmt::skip]
         assert_eq!(margin, [o, 0.0, s, s, s,
                             o, o,   s, s, s,

@@ -71,12 +71,12 @@ pub fn replace(
     pos: &[Float4],
     odd: &[Float4],
     (w, h): (u32, u32),
-    spp: f32,
+    (spp, split): (f32, bool),
     ratio: f32,
 ) -> (Vec<FilterVector>, Vec<Float4>) {
     let levels: Vec<f32> = (0..fv.len())
         .into_par_iter()
-        .map(|i| match surface(&fv[i], &pos[i], &odd[i], spp) {
+        .map(|i| match surface(&fv[i], &pos[i], &odd[i], spp, split) {
             true => luminance(beauty(&fv[i])),
             false => -1.0,
         })

@@ -113,7 +113,7 @@ pub fn prefilter(
     sums: &[WelfordSums],
     pos: &[Float4],
     (w, h): (u32, u32),
-    spp: f32,
+    (spp, split): (f32, bool),
     factor: f32,
     radius: u32,
     geometry_k: Option<f32>,
@@ -125,7 +125,7 @@ pub fn prefilter(
         .into_par_iter()
         .map(|i| {
             let (mut out, mut p) = (fv[i], pos[i]);
-            if kept(&fv[i], &pos[i], spp) {
+            if kept(&fv[i], &pos[i], spp, split) {
                 return (out, p);
             }
             let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
@@ -143,7 +143,7 @@ pub fn prefilter(
             for yy in (y - r).max(0)..=(y + r).min(h as i32 - 1) {
                 for xx in (x - r).max(0)..=(x + r).min(w as i32 - 1) {
                     let j = (yy as u32 * w + xx as u32) as usize;
-                    if kept(&fv[j], &pos[j], spp) {
+                    if kept(&fv[j], &pos[j], spp, split) {
                         continue;
                     }
                     let vj = variance(&sums[j], factor, spp);

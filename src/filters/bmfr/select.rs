@@ -55,8 +55,14 @@ use super::reference::kept;
 use crate::layout::{FilterVector, Float4};
 
 /// kernels/filters/bmfr.cl `bmfr_residuals` for one pixel: (Σ_c (f − y)², Σ_c v).
-pub fn residual(f: &FilterVector, pos: &Float4, odd: &Float4, spp: f32, fit: [f32; 3]) -> [f32; 2] {
-    if !surface(f, pos, odd, spp) {
+pub fn residual(
+    f: &FilterVector,
+    pos: &Float4,
+    odd: &Float4,
+    (spp, split): (f32, bool),
+    fit: [f32; 3],
+) -> [f32; 2] {
+    if !surface(f, pos, odd, spp, split) {
         return [0.0, 0.0];
     }
     let beauty: [f32; 3] = std::array::from_fn(|c| f.direct[c] + f.indirect[c]);
@@ -83,8 +89,8 @@ pub(super) fn fit_terms(
 }
 
 /// kernels/filters/bmfr.cl `bmfr_surface`: not kept, and both halves hold samples.
-pub fn surface(f: &FilterVector, p: &Float4, odd: &Float4, spp: f32) -> bool {
-    !kept(f, p, spp) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0
+pub fn surface(f: &FilterVector, p: &Float4, odd: &Float4, spp: f32, split: bool) -> bool {
+    !kept(f, p, spp, split) && odd.0[3] >= 1.0 && spp - odd.0[3] >= 1.0
 }
 
 /// The per-pixel estimates that `take` accepts summed over the (2 radius + 1)² window around
