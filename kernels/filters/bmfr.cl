@@ -88,12 +88,12 @@ inline int bmfr_blocks_across(uint width, int2 off) {
 // out-of-focus edges mix sky light with a surface's mean albedo, and demodulated by that small mean
 // they are outliers that would ruin their block's least-squares fit.
 //
-// A light also has light: the emission is in its direct light, unless the emission was taken out
-// of F (BMFR_SPLIT_EMISSION; filters/bmfr_emission.cl bmfr_reflected), which leaves a light's
-// direct light 0. Without that, a pixel whose samples all ended black (clear glass none of whose
-// paths reached a light) has the same albedo 1 and no indirect light, and was kept black among
-// its lit neighbours (Outside 512², 8 spp: 29 such
-// pixels, src/filters/bmfr/reference.rs `light`). With the split they still are.
+// A light also has light: its emission is in its direct light, unless the emission was taken
+// out of F (BMFR_SPLIT_EMISSION; filters/bmfr_emission.cl bmfr_reflected), which leaves a
+// light's direct light 0. Without that test, a pixel whose samples all ended black (clear glass
+// none of whose paths reached a light) has the same albedo 1 and no indirect light, and was kept
+// black among its lit neighbours (Outside 512², 8 spp: 29 such pixels;
+// src/filters/bmfr/reference.rs `light`). With the split such pixels are still kept.
 inline bool bmfr_light(__global const FilterVector* f) {
     bool signature = fmax(f->albedo[0], fmax(f->albedo[1], f->albedo[2])) >= 1.0f
         && f->indirect[0] == 0.0f && f->indirect[1] == 0.0f && f->indirect[2] == 0.0f;
