@@ -182,9 +182,10 @@ pub struct BmfrShape {
 /// with patches of half width `patch` (P): the term (per channel: the variance cancellation's
 /// add and min, the denominator's add, multiply, add and reciprocal, the difference, its
 /// square less the cancellation times the reciprocal: 10; the channels' 2 adds; the inside
-/// product: 33), the patch row's and column's sums (2 P + 2 P) and the taps' count (2 P + 2 P
-/// + 1 shared), the weight (division, max, negation: 3) and the accumulation (three
-/// multiply-adds and the weight sum: 7); one `exp`. 52 with 3 × 3 patches, 60 with 5 × 5.
+/// product: 33), the patch row's and column's sums (2 P + 2 P) and the taps' count
+/// (2 P + 2 P + 1 shared), the weight (division, max, negation: 3) and the accumulation
+/// (three multiply-adds and the weight sum: 7); one `exp`. 52 with 3 × 3 patches, 60 with
+/// 5 × 5.
 pub fn bmfr_nlm_frame_flops(patch: u32) -> f64 {
     44.0 + 8.0 * patch as f64
 }

@@ -268,7 +268,8 @@ pub fn classes(
     odd: &[Float4],
     (w, h): (u32, u32),
     spp: f32,
-    (open_margin, split): (bool, bool),
+    open_margin: bool,
+    split: bool,
 ) -> Vec<f32> {
     let own: Vec<f32> = (0..fv.len())
         .into_par_iter()
@@ -637,13 +638,13 @@ mod tests {
     fn open_margin_counts_surfaces_beside_open_pixels_as_open() {
         let (fv, pos, odd) = frame();
         let (s, o) = (SURFACE, OPEN);
-        let own = classes(&fv, &pos, &odd, (5, 3), 8.0, (false, false));
+        let own = classes(&fv, &pos, &odd, (5, 3), 8.0, false, false);
         #[rustfmt::skip]
         assert_eq!(own, [s, 0.0, s, s, s,
                          o, s,   s, s, s,
                          s, s,   s, s, s]);
         // The surfaces of columns 0 and 1 touch the sky pixel; the light stays class 0.
-        let margin = classes(&fv, &pos, &odd, (5, 3), 8.0, (true, false));
+        let margin = classes(&fv, &pos, &odd, (5, 3), 8.0, true, false);
         #[rustfmt::skip]
         assert_eq!(margin, [o, 0.0, s, s, s,
                             o, o,   s, s, s,

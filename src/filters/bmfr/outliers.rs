@@ -71,7 +71,8 @@ pub fn replace(
     pos: &[Float4],
     odd: &[Float4],
     (w, h): (u32, u32),
-    (spp, split): (f32, bool),
+    spp: f32,
+    split: bool,
     ratio: f32,
 ) -> (Vec<FilterVector>, Vec<Float4>) {
     let levels: Vec<f32> = (0..fv.len())

@@ -218,6 +218,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         true => Some(emission::split(frame, s)?),
         false => None,
     };
+    let emission_split = split.is_some();
     let fv_frame = match &split {
         Some(sp) => &sp.fv[..],
         None => frame.filter_vectors()?,
@@ -233,7 +234,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
     let mut fv_frame = fv_frame;
     if let (true, Some(odd_in)) = (s.outliers, odd) {
         let ratio = s.outlier_ratio as f32;
-        replaced = outliers::replace(fv_frame, pos, odd_in, (w, h), (spp, split.is_some()), ratio);
+        replaced = outliers::replace(fv_frame, pos, odd_in, (w, h), spp, emission_split, ratio);
         fv_frame = &replaced.0;
         odd = Some(&replaced.1);
     }
@@ -247,7 +248,8 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
             sums,
             pos,
             (w, h),
-            (spp, split.is_some()),
+            spp,
+            emission_split,
             factor,
             s.albedo_radius,
             s.prefilter_geometry.then_some(s.geometry_k as f32),
@@ -280,7 +282,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         .map(|i| {
             let f = &fv[i];
             let beauty: [f32; 3] = std::array::from_fn(|c| f.direct[c] + f.indirect[c]);
-            if kept(f, &pos[i], spp, split.is_some()) {
+            if kept(f, &pos[i], spp, emission_split) {
                 return beauty;
             }
             let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
@@ -323,7 +325,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         let odd = odd_frame()?;
         let r = (s.nlm_radius, s.estimate_radius(), s.nlm_patch);
         let k = s.nlm_k() as f32;
-        let classes = nlm::classes(fv, pos, odd, (w, h), spp, (s.open_margin(), split.is_some()));
+        let classes = nlm::classes(fv, pos, odd, (w, h), spp, s.open_margin(), emission_split);
         let smooth = nlm::nlm(fv, odd, (w, h), spp, r, k, &classes);
         let residuals: Vec<[f32; 4]> = (0..pixels.len())
             .into_par_iter()
@@ -346,7 +348,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
         let odd = odd_frame()?;
         let residuals: Vec<[f32; 2]> = (0..pixels.len())
             .into_par_iter()
-            .map(|i| select::residual(&fv[i], &pos[i], &odd[i], (spp, split.is_some()), pixels[i]))
+            .map(|i| select::residual(&fv[i], &pos[i], &odd[i], spp, emission_split, pixels[i]))
             .collect();
         (0..pixels.len())
             .into_par_iter()

@@ -59,7 +59,8 @@ pub fn residual(
     f: &FilterVector,
     pos: &Float4,
     odd: &Float4,
-    (spp, split): (f32, bool),
+    spp: f32,
+    split: bool,
     fit: [f32; 3],
 ) -> [f32; 2] {
     if !surface(f, pos, odd, spp, split) {
