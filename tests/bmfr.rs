@@ -339,6 +339,60 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
     eprintln!("worst relative difference kernel vs reference: {worst:e}");
 }
 
+/// bmfr_fit with its block's matrix in global memory (BMFR_GLOBAL_MATRIX: what a device with
+/// 48 KiB of local memory, NVIDIA's, gets at block_size 32) does the same float operations in
+/// the same order as with it in local memory: the same bytes, at 32 and at 16 with every
+/// feature. The packed fit, whose matrix is always local, refuses the combination.
+#[test]
+fn the_fit_matrix_in_global_memory_gives_the_same_bytes() {
+    let frame = render(&cornell_with_spheres(), 70, 45, 8, 1);
+    let groups = BmfrSettings {
+        packed_fit: Auto::Set(false),
+        ..Default::default()
+    };
+    let every_feature = BmfrSettings {
+        block_size: 16,
+        depth: true,
+        texture: true,
+        texture2: true,
+        ..groups.clone()
+    };
+    for s in [groups, every_feature] {
+        let local = device(
+            &frame,
+            &BmfrSettings {
+                local_matrix: Auto::Set(true),
+                ..s.clone()
+            },
+        );
+        let global = device(
+            &frame,
+            &BmfrSettings {
+                local_matrix: Auto::Set(false),
+                ..s.clone()
+            },
+        );
+        let differ = (local.pixels.iter().zip(&global.pixels))
+            .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
+            .count();
+        eprintln!("block {}: {differ} pixels differ", s.block_size);
+        assert_eq!(
+            differ, 0,
+            "block {}: the global matrix changed {differ} pixels",
+            s.block_size
+        );
+    }
+    let packed = BmfrSettings {
+        packed_fit: Auto::Set(true),
+        local_matrix: Auto::Set(false),
+        ..Default::default()
+    };
+    let e = BmfrKernel::new(gpu(), &packed, 70, 45)
+        .err()
+        .expect("refused");
+    assert!(format!("{e:#}").contains("local_matrix"), "{e:#}");
+}
+
 /// Random surface points in a box (so that x, y, z and their squares are independent features)
 /// with random normals and albedos, and light that is exactly albedo × a polynomial of the
 /// features: the fit must give it back (no noise, no regularisation); sky pixels and pixels

@@ -37,6 +37,8 @@
 //   BMFR_PREFILTER_K, BMFR_PREFILTER_EPSILON   the albedo prefilter's k and epsilon (literals)
 //   BMFR_PREFILTER_GEOMETRY, BMFR_GEOMETRY_K   0/1: the prefilter averages the geometry too; its k
 //   BMFR_PREFILTER_LINES               lines per row of the packed prefilter's input
+//   BMFR_GLOBAL_MATRIX                 0/1: bmfr_fit's matrix in `matrices` (global memory), one
+//                                      slice per block, where local memory is too small for it
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "layout.cl"
@@ -46,7 +48,8 @@
     || !defined(BMFR_TEXTURE) || !defined(BMFR_TEXTURE2) || !defined(BMFR_NOISE)            \
     || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
     || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_SELECT_FLOOR) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON) \
-    || !defined(BMFR_PREFILTER_GEOMETRY) || !defined(BMFR_GEOMETRY_K) || !defined(BMFR_PREFILTER_LINES)
+    || !defined(BMFR_PREFILTER_GEOMETRY) || !defined(BMFR_GEOMETRY_K) || !defined(BMFR_PREFILTER_LINES) \
+    || !defined(BMFR_GLOBAL_MATRIX)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif
 
@@ -55,6 +58,19 @@
 #define BMFR_K (10 + BMFR_DEPTH + 3 * BMFR_TEXTURE + 3 * BMFR_TEXTURE2)
 #define BMFR_C (BMFR_K + 6)
 #define BMFR_INFO 9
+// Where bmfr_fit keeps its block's matrix. B = 32 with 10 features and 6 targets is 64 KiB,
+// more than the 48 KiB of local memory NVIDIA's OpenCL gives a work-group; there the matrix
+// lives in global memory, a slice of BMFR_C * BMFR_N floats per block of the launch (as in
+// the paper's own code, whose work-groups read the block from a global buffer), and the
+// barriers that order its accesses fence global memory too. The same operations in the same
+// order: the same bytes.
+#if BMFR_GLOBAL_MATRIX
+#define BMFR_MATRIX __global
+#define BMFR_FENCE (CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
+#else
+#define BMFR_MATRIX __local
+#define BMFR_FENCE CLK_LOCAL_MEM_FENCE
+#endif
 // Column of the depth feature (after 1, normal, position, position^2).
 #define BMFR_COL_DEPTH 10
 
@@ -176,7 +192,7 @@ inline float bmfr_factor(float dot, float alpha, float a_cj, float vnorm2) {
 }
 
 // Back-substitution of R w = Q^T b for target t, into o[0..K) (both fits).
-inline void bmfr_back_substitute(__local const float* a, int t, __global float* o) {
+inline void bmfr_back_substitute(BMFR_MATRIX const float* a, int t, __global float* o) {
     float w[BMFR_K];
     for (int j = BMFR_K - 1; j >= 0; --j) {
         float s = a[(BMFR_K + t) * BMFR_N + j];
@@ -192,8 +208,13 @@ void bmfr_fit(__global const FilterVector* fv,
               __global const float4* positions,
               uint width, uint height, uint grid, uint stride, float spp,
               __global float* weights,
-              __global float* info) {
+              __global float* info,
+              __global float* matrices) {
+#if BMFR_GLOBAL_MATRIX
+    __global float* a = matrices + (size_t)get_group_id(0) * (BMFR_C * BMFR_N);
+#else
     __local float a[BMFR_C * BMFR_N];
+#endif
     __local float partial[BMFR_WG * BMFR_C];
     __local float dots[BMFR_C];
     __local float factor[BMFR_C];
@@ -247,7 +268,7 @@ void bmfr_fit(__global const FilterVector* fv,
     partial[t * BMFR_C + 6] = hi.z;
     partial[t * BMFR_C + 7] = hi.w;
     partial[t * BMFR_C + 8] = count;
-    barrier(CLK_LOCAL_MEM_FENCE);
+    barrier(BMFR_FENCE);
     if (t < 9) {
         float v = partial[t];
         for (int u = 1; u < BMFR_WG; ++u) {
@@ -256,7 +277,7 @@ void bmfr_fit(__global const FilterVector* fv,
         }
         range[t] = v;
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    barrier(BMFR_FENCE);
     // The block's rescaling: minimum and 1 / (max - min); a constant feature (or no surface
     // pixel) rescales to 0.
     float4 bmin = (float4)(range[0], range[1], range[2], range[3]);
@@ -284,7 +305,7 @@ void bmfr_fit(__global const FilterVector* fv,
         a[r] = feat[0];
         for (int c = 1; c < BMFR_K; ++c) a[c * BMFR_N + r] = feat[c] + bmfr_noise(i, (uint)c);
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    barrier(BMFR_FENCE);
 
     // Householder QR, column by column.
     for (int j = 0; j < BMFR_K; ++j) {
@@ -296,13 +317,13 @@ void bmfr_fit(__global const FilterVector* fv,
             }
             partial[t * BMFR_C + c] = s;
         }
-        barrier(CLK_LOCAL_MEM_FENCE);
+        barrier(BMFR_FENCE);
         if (t >= j && t < BMFR_C) {
             float s = 0.0f;
             for (int u = 0; u < BMFR_WG; ++u) s += partial[u * BMFR_C + t];
             dots[t] = s;
         }
-        barrier(CLK_LOCAL_MEM_FENCE);
+        barrier(BMFR_FENCE);
         if (t >= j && t < BMFR_C) {
             float alpha, vj, vnorm2;
             bmfr_reflection(dots[j], a[j * BMFR_N + j], &alpha, &vj, &vnorm2);
@@ -313,7 +334,7 @@ void bmfr_fit(__global const FilterVector* fv,
                 factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_N + j], vnorm2);
             }
         }
-        barrier(CLK_LOCAL_MEM_FENCE);
+        barrier(BMFR_FENCE);
         float vj = factor[j];
         for (int q = 0; q < BMFR_ROWS; ++q) {
             int r = t + q * BMFR_WG;
@@ -322,7 +343,7 @@ void bmfr_fit(__global const FilterVector* fv,
             for (int c = j + 1; c < BMFR_C; ++c) a[c * BMFR_N + r] -= factor[c] * v;
             if (r == j) a[j * BMFR_N + j] = range[0];
         }
-        barrier(CLK_LOCAL_MEM_FENCE);
+        barrier(BMFR_FENCE);
     }
 
     // Back-substitution, one target per work-item.

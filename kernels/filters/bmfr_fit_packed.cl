@@ -100,6 +100,9 @@ __kernel void bmfr_rows(__global const FilterVector* fv,
     for (int c = 0; c < BMFR_C; ++c) o[c * plane] = col[c];
 }
 
+// Its matrix is in local memory: left out of a build that puts bmfr_fit's in global memory
+// (BMFR_GLOBAL_MATRIX, a device with too little local memory), where it is not used.
+#if !BMFR_GLOBAL_MATRIX
 __kernel __attribute__((reqd_work_group_size(1, 1, 1)))
 void bmfr_fit_packed(__global const float* rows,
                      uint width, uint height, uint grid, uint stride,
@@ -278,3 +281,4 @@ void bmfr_fit_packed(__global const float* rows,
     for (int t = 0; t < 6; ++t)
         bmfr_back_substitute(a, t, weights + (slot * 6u + (uint)t) * BMFR_K);
 }
+#endif  // !BMFR_GLOBAL_MATRIX

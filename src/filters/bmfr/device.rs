@@ -124,6 +124,7 @@ pub struct BmfrKernel {
     needs: OutputSet,
     _weights: Buffer<f32>,
     _info: Buffer<f32>,
+    _matrices: Buffer<f32>,
     out: Buffer<Float4>,
     width: u32,
     height: u32,
@@ -145,12 +146,23 @@ impl BmfrKernel {
             );
         }
         let k = s.features();
-        let local_bytes = ((b * b) as usize * (k + TARGETS) + wg as usize * (k + TARGETS)) * 4;
+        // bmfr_fit's local memory: the block's matrix (unless in global memory) and each
+        // work-item's partial dot products.
+        let matrix_bytes = (b * b) as usize * (k + TARGETS) * 4;
+        let partial_bytes = wg as usize * (k + TARGETS) * 4;
         let have = gpu.summary.local_mem_bytes;
-        if have > 0 && local_bytes as u64 > have {
+        let fits = |bytes: usize| have == 0 || bytes as u64 <= have;
+        let packed = s.packed_fit.or(gpu.summary.kind == "CPU");
+        let local_matrix = s.local_matrix.or(fits(matrix_bytes + partial_bytes));
+        if packed && !local_matrix {
+            bail!("the bmfr packed_fit keeps the matrix in local memory: set local_matrix auto or on");
+        }
+        let local_bytes = if local_matrix { matrix_bytes } else { 0 } + partial_bytes;
+        if !fits(local_bytes) {
             bail!(
-                "the bmfr filter with block_size {b} needs {local_bytes} bytes of local memory, \
-                 {} has {have}; use a smaller block_size",
+                "the bmfr filter with block_size {b} and its matrix in local memory needs \
+                 {local_bytes} bytes of it, {} has {have}; set local_matrix auto (the matrix in \
+                 global memory) or use a smaller block_size",
                 gpu.summary.name
             );
         }
@@ -197,6 +209,7 @@ impl BmfrKernel {
             ("BMFR_EMISSION_K", format!("{:e}f", s.emission_k as f32)),
             ("BMFR_EMISSION_EPSILON", format!("{EMISSION_EPSILON:e}f")),
             ("BMFR_SPLIT_EMISSION", flag(s.splits_emission())),
+            ("BMFR_GLOBAL_MATRIX", flag(!packed && !local_matrix)),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -207,9 +220,18 @@ impl BmfrKernel {
         let weights = gpu.zeroed::<f32>(slots * TARGETS * k, "bmfr weights")?;
         let info = gpu.zeroed::<f32>(slots * INFO_FLOATS, "bmfr block information")?;
         let out = gpu.zeroed::<Float4>(width as usize * height as usize, "bmfr image")?;
+        // The work-group fit's matrices in global memory: one per block of a grid, reused by
+        // the next grid's launch (in order on the queue).
+        let matrices = gpu.zeroed::<f32>(
+            if packed || local_matrix {
+                1
+            } else {
+                stride as usize * matrix_bytes / 4
+            },
+            "bmfr fit matrices",
+        )?;
         // One work-item per block on CPU devices (same bytes; bmfr_fit_packed.cl), over the
         // pixels' rows of the fit written once by `bmfr_rows` for every grid.
-        let packed = s.packed_fit.or(gpu.summary.kind == "CPU");
         let rows = if packed {
             let pixels = width as usize * height as usize;
             let planes = gpu.zeroed::<f32>(
@@ -254,10 +276,11 @@ impl BmfrKernel {
                 if rows.is_none() {
                     kb.arg_named("spp", 0f32);
                 }
-                kb.arg(&weights)
-                    .arg(&info)
-                    .build()
-                    .context("creating the bmfr fit kernel")
+                kb.arg(&weights).arg(&info);
+                if rows.is_none() {
+                    kb.arg(&matrices);
+                }
+                kb.build().context("creating the bmfr fit kernel")
             })
             .collect::<Result<Vec<_>>>()?;
         // With the packed fit, the packed application too (bmfr_apply_packed.cl: 16 pixels
@@ -600,6 +623,7 @@ impl BmfrKernel {
             needs: s.needs(),
             _weights: weights,
             _info: info,
+            _matrices: matrices,
             out,
             width,
             height,

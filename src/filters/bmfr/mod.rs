@@ -120,8 +120,9 @@ pub const WORK_GROUP: u32 = 64;
 /// pixel at the default noise, rounding about 1e-6 · the column norm (≤ 32).
 pub const PIVOT_MIN: f32 = 1.0e-4;
 
-/// Block sizes the kernel supports: block_size² must be a multiple of [`WORK_GROUP`], and the
-/// matrix (block_size² × up to 23 floats) must fit in local memory (368 KiB at 64).
+/// Block sizes the kernel supports: block_size² must be a multiple of [`WORK_GROUP`]. The
+/// matrix (block_size² × up to 23 floats, 368 KiB at 64) is in local memory where it fits,
+/// else in global memory (`local_matrix`).
 pub const BLOCK_SIZES: [u32; 3] = [16, 32, 64];
 
 crate::filter_settings! {
@@ -208,6 +209,11 @@ crate::filter_settings! {
         /// (paper Algorithm 1) and the per-pixel application, which PoCL runs on scalar
         /// floats. auto: on CPU devices.
         pub packed_fit: Auto<bool> = Auto::Auto,
+        /// The work-group fit keeps its block's matrix (block_size² × (features + 6) floats)
+        /// in local memory; off, in a global buffer, one slice per block, as the paper's own
+        /// code does: the same bytes. auto: where it fits (not at block_size 32 on NVIDIA's
+        /// 48 KiB).
+        pub local_matrix: Auto<bool> = Auto::Auto,
         /// The non-local means (the selection's candidate, the albedo prefilter and the
         /// emission's) and the selection's window sums on float16 lanes, one work-item per
         /// 14 × 32, 16 × 1, 12 × 16 or 16 × 1 pixels (kernels/filters/bmfr_nlm_packed.cl,
