@@ -453,20 +453,21 @@ __kernel void bmfr_residuals(__global const FilterVector* fv,
 // bmfr_select: the window sums R (residuals) and V (variances) over the (2 r + 1)^2 pixels
 // around, row by row, and the blend y + lambda (f - y) with lambda = min(1, kappa V / R) (1
 // when R = 0: no estimate).
-// The selection's window: runs the statements given for each pixel j of the
-// (2 BMFR_SELECT_RADIUS + 1)^2 window around (x, y) inside the image, row by row, as
-// src/filters/bmfr/select.rs `window_for_each` does. Unrolled (the radius is a build constant),
-// so that the kernel has no loop of its own and PoCL packs its work-items into SIMD lanes, as
-// bmfr_apply's.
-#define BMFR_SELECT_WINDOW(...)                                                     \
+// The selection's window: the statements between BMFR_SELECT_WINDOW_BEGIN and
+// BMFR_SELECT_WINDOW_END run for each pixel j of the (2 BMFR_SELECT_RADIUS + 1)^2 window around
+// (x, y) inside the image, row by row, as src/filters/bmfr/select.rs `window_for_each` does.
+// Unrolled (the radius is a build constant), so that the kernel has no loop of its own and
+// PoCL packs its work-items into SIMD lanes, as bmfr_apply's. Two macros rather than one
+// taking the statements: OpenCL C 1.2 has no variadic macros (NVIDIA's compiler refuses them).
+#define BMFR_SELECT_WINDOW_BEGIN                                                    \
     _Pragma("unroll") for (int dy = -BMFR_SELECT_RADIUS; dy <= BMFR_SELECT_RADIUS; ++dy) { \
         int yy = y + dy;                                                            \
         if (yy < 0 || yy >= (int)height) continue;                                  \
         _Pragma("unroll") for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) { \
             int xx = x + dx;                                                        \
             if (xx < 0 || xx >= (int)width) continue;                               \
-            uint j = (uint)yy * width + (uint)xx;                                   \
-            __VA_ARGS__                                                             \
+            uint j = (uint)yy * width + (uint)xx;
+#define BMFR_SELECT_WINDOW_END                                                      \
         }                                                                           \
     }
 
@@ -478,11 +479,11 @@ __kernel void bmfr_select(__global const FilterVector* fv,
     if (x >= (int)width || y >= (int)height) return;
     uint i = (uint)y * width + (uint)x;
     float sum_r = 0.0f, sum_v = 0.0f;
-    BMFR_SELECT_WINDOW(
+    BMFR_SELECT_WINDOW_BEGIN
         float2 e = residuals[j];
         sum_r += e.x;
         sum_v += e.y;
-    )
+    BMFR_SELECT_WINDOW_END
     float lambda = sum_r > 0.0f ? fmin(1.0f, BMFR_SELECT_SCALE * sum_v / sum_r) : 1.0f;
     float3 beauty = bmfr_beauty(fv + i);
     float3 fit = fitted[i].xyz;

@@ -370,7 +370,7 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
     float3 sum = (float3)(0.0f);
     float count = 0.0f;
     float excess_sum = 0.0f, excess_min = INFINITY;
-    BMFR_SELECT_WINDOW(
+    BMFR_SELECT_WINDOW_BEGIN
         float4 e = residuals[j];
         if (e.w == class) {
             sum += e.xyz;
@@ -380,15 +380,15 @@ __kernel void bmfr_select_nlm(__global const FilterVector* fv,
                 excess_min = fmin(excess_min, e.y - e.x);
             }
         }
-    )
+    BMFR_SELECT_WINDOW_END
     float excess = BMFR_SELECT_FLOOR > 0.0f ? excess_sum : sum.y - sum.x;
     if (bmfr_select_needs_floor(class, sum, count, excess_sum, excess_min)) {
         float floor_ = bmfr_select_floor_of(sum.x, count);
         excess = 0.0f;
-        BMFR_SELECT_WINDOW(
+        BMFR_SELECT_WINDOW_BEGIN
             float4 e = residuals[j];
             if (e.w == class) excess += fmax(e.y - e.x, floor_);
-        )
+        BMFR_SELECT_WINDOW_END
     }
     bmfr_select_nlm_blend(fv + i, class, sum, excess, nlm_out + 3 * i, fitted + i);
 }
