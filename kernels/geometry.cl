@@ -49,22 +49,32 @@ inline bool ray_aabb(float3 o, float3 inv_d, float t_near_plane, float t_far_pla
     return t1 * ROBUST_FAR_SCALE >= t0;
 }
 
+// dot and cross written out, products left to right, rather than the builtins: a builtin is
+// the driver's library code, which the FP_CONTRACT OFF of our files does not reach. NVIDIA's
+// rounds differently from these products (an fma, seen as the skip-index and the wide BVH,
+// whose pack_hits writes them out, giving different bits on an H200), PoCL's as here.
+inline float dot_exact(float3 a, float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline float3 cross_exact(float3 a, float3 b) {
+    return (float3)(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+
 // Algorithm 3 (Möller-Trumbore 1997) as printed: divide by the determinant, reject det == 0
-// (ray parallel to the plane, or a degenerate triangle). Returns t, or -1 for a miss.
+// (ray parallel to the plane, or a degenerate triangle). Returns t, or -1 for a miss. The
+// same float operations as pack_hits's lanes (arrays/trace_wide.cl) on any device.
 inline float ray_triangle(float3 o, float3 d, float3 p1, float3 p2, float3 p3,
                           float* out_u, float* out_v) {
     float3 e1 = p2 - p1;
     float3 e2 = p3 - p1;
-    float3 c = cross(d, e2);
-    float det = dot(e1, c);
+    float3 c = cross_exact(d, e2);
+    float det = dot_exact(e1, c);
     if (det == 0.0f) return -1.0f;
     float3 vec1 = o - p1;
-    float u = dot(vec1, c) / det;
+    float u = dot_exact(vec1, c) / det;
     if (u < 0.0f || u > 1.0f) return -1.0f;
-    float3 vec2 = cross(vec1, e1);
-    float v = dot(d, vec2) / det;
+    float3 vec2 = cross_exact(vec1, e1);
+    float v = dot_exact(d, vec2) / det;
     if (v < 0.0f || u + v > 1.0f) return -1.0f;
-    float t = dot(e2, vec2) / det;
+    float t = dot_exact(e2, vec2) / det;
     *out_u = u;
     *out_v = v;
     return t;

@@ -280,11 +280,12 @@ impl FilterKind for PathDensity {
     fn needs(s: &PathDensitySettings) -> OutputSet {
         let samples = OutputSet::of(&[Output::Samples]);
         match chained(s.then, &SceneInfo::unknown()) {
-            // bmfr's albedo prefilter (on with a thin lens) reads the variances; which camera
-            // the frame has is known only when the filter is prepared, so they are gathered.
+            // bmfr's albedo prefilter and its emission split (both on with a thin lens) read
+            // the variances and the emission; which camera the frame has is known only when
+            // the filter is prepared, so they are gathered.
             Some(c) if s.then == Then::Bmfr => samples
                 .union(c.needs())
-                .union(OutputSet::of(&[Output::Variance])),
+                .union(OutputSet::of(&[Output::Variance, Output::Emission])),
             Some(c) => samples.union(c.needs()),
             None => samples,
         }
