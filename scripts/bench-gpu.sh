@@ -112,7 +112,8 @@ log "benchmarking device $device ($name) into $out"
     echo "# Environment"
     echo
     echo "- date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
-    echo "- commit: $(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+    # The binary's own commit (build.rs), not this checkout's: NOISEFREE_BIN may be older.
+    echo "- binary: $("$bin" --version)"
     echo "- command: scripts/bench-gpu.sh --device $device $quick ${extra[*]:-}"
     echo "- OpenCL device: $line"
     echo "- host CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //') ($(nproc) threads)"

@@ -533,16 +533,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 /// device.md: what the results were measured on.
 fn write_device_info(ctx: &Context) -> Result<()> {
     let s = &ctx.gpu.summary;
-    // The commit of the source tree the binary was built from, wherever the run is.
-    let commit = std::process::Command::new("git")
-        .arg("-C")
-        .arg(env!("CARGO_MANIFEST_DIR"))
-        .args(["rev-parse", "--short", "HEAD"])
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_else(|| "unknown".into());
+    // The commit the binary was built from (build.rs), wherever the run is: a binary copied to
+    // another machine must not report that machine's checkout.
+    let commit = env!("NOISEFREE_COMMIT");
     let text = format!(
         "# Device\n\n| | |\n|---|---|\n| device | {} ({}){} |\n| platform | {} |\n| OpenCL | {} |\n| driver | {} |\n| compute units | {} |\n| max clock | {} MHz |\n| global memory | {} |\n| local memory | {} |\n| host CPUs | {} |\n| commit | {} |\n| command | `noisefree bench{}` |\n",
         s.name,

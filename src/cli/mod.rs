@@ -31,7 +31,7 @@ pub use render_cmd::{RenderArgs, RenderSummary, render};
 #[derive(Parser, Debug)]
 #[command(
     name = "noisefree",
-    version,
+    version = concat!(env!("CARGO_PKG_VERSION"), " (commit ", env!("NOISEFREE_COMMIT"), ")"),
     about = "Physically based OpenCL path tracing with real-time denoising filters"
 )]
 pub struct Cli {
