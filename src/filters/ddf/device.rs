@@ -67,7 +67,7 @@ impl DdfKernel {
     ) -> Result<Self> {
         settings.validate()?;
         let settings = &DdfSettings {
-            variant: settings.variant.for_device(&gpu.summary.kind),
+            variant: settings.variant.for_device(&gpu.summary, settings.holes),
             ..settings.clone()
         };
         let flag = |b: bool| (b as u32).to_string();

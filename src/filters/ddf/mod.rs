@@ -27,11 +27,14 @@ pub use reference::reference;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Variant {
-    /// `packed` on CPU devices, `rows` on the others: on PoCL (CPU) the packed variant took
-    /// 0.15x the time of rows at 512 x 512, kw 21, within 2.8e-7 (relative) of its image
-    /// (results/README.md "Roofline", tests/ddf.rs). A GPU's SIMD lanes are work-items already: 16 pixels per work-item would
-    /// mean 16 times fewer work-items, each holding ~50 float16 values in registers (lower
-    /// occupancy); not measured (no GPU was available), so GPUs keep the thesis's variant.
+    /// `packed` on CPU devices, `naive` on NVIDIA's GPUs without holes, `rows` on the others:
+    /// on PoCL (CPU) the packed variant took 0.15x the time of rows at 512 x 512, kw 21,
+    /// within 2.8e-7 (relative) of its image (results/README.md "Roofline", tests/ddf.rs).
+    /// On an H200 packed took 9-15x the time of rows (16 pixels per work-item leave 16 times
+    /// fewer work-items), and the thesis's local-memory rows were slower than the naive
+    /// kernel, whose reads the L1 cache serves: 0.97 against 1.52 ms at kw 21, 6.4 against
+    /// 10.6 ms at kw 55 (512 x 512, cornell_diffuse; results/gpu/nvidia-h200/). Naive with
+    /// holes was not measured there, so holes keep rows; other GPUs keep the thesis's rows.
     Auto,
     /// Every neighbour's FilterVector from global memory, field by field (Fig. 6.8).
     Naive,
@@ -45,11 +48,12 @@ pub enum Variant {
 }
 
 impl Variant {
-    /// The variant this one stands for on a device of `kind` (`DeviceSummary::kind`: "CPU",
-    /// "GPU", ...): [`Variant::Auto`] chosen, the others as they are.
-    pub fn for_device(self, kind: &str) -> Variant {
+    /// The variant this one stands for on `device` with or without `holes`:
+    /// [`Variant::Auto`] chosen, the others as they are.
+    pub fn for_device(self, device: &crate::gpu::DeviceSummary, holes: bool) -> Variant {
         match self {
-            Variant::Auto if kind == "CPU" => Variant::Packed,
+            Variant::Auto if device.kind == "CPU" => Variant::Packed,
+            Variant::Auto if device.platform.contains("NVIDIA") && !holes => Variant::Naive,
             Variant::Auto => Variant::Rows,
             v => v,
         }
@@ -122,7 +126,8 @@ crate::filter_settings! {
         /// environment light (else no pixel can be sky).
         pub sky: Auto<bool> = Auto::Auto,
         /// Kernel variant (§6.3): "naive", "vector", "rows", "packed" (ours: 16 pixels per
-        /// work-item on float16 lanes) or "auto" (packed on a CPU, rows on other devices).
+        /// work-item on float16 lanes) or "auto" (packed on a CPU, naive on NVIDIA GPUs
+        /// without holes, rows on other devices).
         pub variant: Variant = Variant::Auto,
         /// Work-group size of the rows variant (§6.3.2).
         pub work_group: u32 = 64,
@@ -275,5 +280,42 @@ impl FilterKind for Ddf {
             frame.width,
             frame.height,
         )?))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Variant;
+    use crate::gpu::DeviceSummary;
+
+    fn device(platform: &str, kind: &str) -> DeviceSummary {
+        DeviceSummary {
+            index: 0,
+            platform: platform.into(),
+            name: String::new(),
+            kind: kind.into(),
+            version: String::new(),
+            driver: String::new(),
+            compute_units: 1,
+            local_mem_bytes: 0,
+            global_mem_bytes: 0,
+            max_alloc_bytes: 0,
+            max_work_group_size: 1,
+            max_clock_mhz: 0,
+        }
+    }
+
+    #[test]
+    fn auto_takes_the_variant_measured_fastest_on_each_kind_of_device() {
+        let pocl = device("Portable Computing Language", "CPU");
+        let nvidia = device("NVIDIA CUDA", "GPU");
+        let amd = device("AMD Accelerated Parallel Processing", "GPU");
+        assert_eq!(Variant::Auto.for_device(&pocl, false), Variant::Packed);
+        assert_eq!(Variant::Auto.for_device(&pocl, true), Variant::Packed);
+        assert_eq!(Variant::Auto.for_device(&nvidia, false), Variant::Naive);
+        assert_eq!(Variant::Auto.for_device(&nvidia, true), Variant::Rows);
+        assert_eq!(Variant::Auto.for_device(&amd, false), Variant::Rows);
+        // A variant named is kept.
+        assert_eq!(Variant::Vector.for_device(&nvidia, false), Variant::Vector);
     }
 }
