@@ -152,17 +152,27 @@ impl BmfrKernel {
         let partial_bytes = wg as usize * (k + TARGETS) * 4;
         let have = gpu.summary.local_mem_bytes;
         let fits = |bytes: usize| have == 0 || bytes as u64 <= have;
-        let packed = s.packed_fit.or(gpu.summary.kind == "CPU");
-        let local_matrix = s.local_matrix.or(fits(matrix_bytes + partial_bytes));
+        // The packed fit (one work-item per block) always holds the matrix in local memory:
+        // auto only where it fits; else the work-group fit with the matrix in global memory.
+        let packed = s.packed_fit.or(gpu.summary.kind == "CPU" && fits(matrix_bytes));
+        let local_matrix = s.local_matrix.or(packed || fits(matrix_bytes + partial_bytes));
         if packed && !local_matrix {
-            bail!("the bmfr packed_fit keeps the matrix in local memory: set local_matrix auto or on");
+            bail!(
+                "the bmfr packed_fit keeps the matrix in local memory: set local_matrix auto or \
+                 on, or packed_fit off"
+            );
         }
-        let local_bytes = if local_matrix { matrix_bytes } else { 0 } + partial_bytes;
+        let local_bytes = match (packed, local_matrix) {
+            (true, _) => matrix_bytes,
+            (false, true) => matrix_bytes + partial_bytes,
+            (false, false) => partial_bytes,
+        };
         if !fits(local_bytes) {
             bail!(
-                "the bmfr filter with block_size {b} and its matrix in local memory needs \
-                 {local_bytes} bytes of it, {} has {have}; set local_matrix auto (the matrix in \
-                 global memory) or use a smaller block_size",
+                "the bmfr filter with block_size {b} needs {local_bytes} bytes of local memory \
+                 (packed_fit {packed}, local_matrix {local_matrix}), {} has {have}; set \
+                 packed_fit and local_matrix auto (the matrix in global memory) or use a \
+                 smaller block_size",
                 gpu.summary.name
             );
         }

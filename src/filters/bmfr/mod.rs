@@ -207,12 +207,12 @@ crate::filter_settings! {
         /// (kernels/filters/bmfr_fit_packed.cl), and its application with one work-item per
         /// 16 pixels of a row (bmfr_apply_packed.cl): the same bytes as the work-group fit
         /// (paper Algorithm 1) and the per-pixel application, which PoCL runs on scalar
-        /// floats. auto: on CPU devices.
+        /// floats. auto: on CPU devices whose local memory holds the block's matrix.
         pub packed_fit: Auto<bool> = Auto::Auto,
         /// The work-group fit keeps its block's matrix (block_size² × (features + 6) floats)
         /// in local memory; off, in a global buffer, one slice per block, as the paper's own
         /// code does: the same bytes. auto: where it fits (not at block_size 32 on NVIDIA's
-        /// 48 KiB).
+        /// 48 KiB), and always with the packed fit.
         pub local_matrix: Auto<bool> = Auto::Auto,
         /// The non-local means (the selection's candidate, the albedo prefilter and the
         /// emission's) and the selection's window sums on float16 lanes, one work-item per
