@@ -1990,7 +1990,7 @@ fn filter_settings_written_flat_or_for_unknown_filters_are_explained() {
             .unwrap_err();
         let t = anyhow_text(&e);
         assert!(
-            t.contains(&format!("filters.toml:5: [filter.")) && t.contains(needle),
+            t.contains("filters.toml:5: [filter.") && t.contains(needle),
             "{t}"
         );
     }

@@ -178,14 +178,14 @@ fn filter_on_bands(
     configured.adjust_render(&mut o);
     o.sample_capacity = 4;
     let mut single = SplitRenderer::single(
-        Renderer::with_arrays(fast.clone(), &scene, arrays.clone(), &o).unwrap(),
+        Renderer::with_arrays(fast.clone(), scene, arrays.clone(), &o).unwrap(),
     );
     let mut one = DeviceFilter::prepare(&configured, &mut single, Placement::Merged).unwrap();
     single.render_samples(4).unwrap();
     let want = one.run(&single).unwrap().image;
     for placement in [Placement::Merged, Placement::Bands] {
         let mut split =
-            SplitRenderer::new(&[fast.clone(), slow.clone()], &scene, arrays.clone(), &o).unwrap();
+            SplitRenderer::new(&[fast.clone(), slow.clone()], scene, arrays.clone(), &o).unwrap();
         split.balancer.enabled = false;
         let mut f = DeviceFilter::prepare(&configured, &mut split, placement).unwrap();
         split.render_samples(3).unwrap();

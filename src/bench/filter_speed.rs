@@ -93,17 +93,17 @@ pub(super) fn filter_input_with(
 /// Filter kernel time over scenes x resolutions x kernel widths x variants x work-group sizes,
 /// min / median / max over repeated runs after a warm-up (thesis §7.1-7.2).
 pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {
-    let (scenes, resolutions, widths, groups): (&[&str], Vec<(u32, u32)>, Vec<u32>, Vec<usize>) =
-        if ctx.quick {
-            (&SCENES[..1], vec![(64, 48)], vec![7, 15], vec![64])
-        } else {
-            (
-                SCENES,
-                vec![(320, 240), (512, 512), (640, 480), (1280, 768)],
-                vec![7, 15, 25, 55],
-                vec![64, 256],
-            )
-        };
+    type Plan<'a> = (&'a [&'a str], Vec<(u32, u32)>, Vec<u32>, Vec<usize>);
+    let (scenes, resolutions, widths, groups): Plan = if ctx.quick {
+        (&SCENES[..1], vec![(64, 48)], vec![7, 15], vec![64])
+    } else {
+        (
+            SCENES,
+            vec![(320, 240), (512, 512), (640, 480), (1280, 768)],
+            vec![7, 15, 25, 55],
+            vec![64, 256],
+        )
+    };
     let columns = [
         "scene",
         "width",

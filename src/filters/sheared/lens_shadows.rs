@@ -83,8 +83,8 @@ pub fn combine(
             o.green[k] += ls.albedo_green[k] * d[1];
             o.blue[k] += ls.albedo_blue[k] * d[2];
         }
-        for c in 0..3 {
-            o.extra[c] += ls.albedo_extra[c] * d[c];
+        for ((e, a), dc) in o.extra.iter_mut().zip(&ls.albedo_extra).zip(d) {
+            *e += a * dc;
         }
     }
 }
