@@ -32,9 +32,6 @@ log() { echo "bench-gpu: $*" >&2; }
 # 1-3. The binary, OpenCL and the device (scripts/gpu-env.sh).
 source scripts/gpu-env.sh
 
-line=$(echo "$devices" | grep -F "[$device]" | head -n1)
-name=$(echo "$line" | sed -E 's/^ *\[[0-9]+\] (.*) \((GPU|CPU|accelerator|other)\).*/\1/')
-slug=$(echo "$name" | tr '[:upper:]' '[:lower:]' | sed -E 's/[^a-z0-9]+/-/g; s/^-+|-+$//g')
 out="${out:-results/gpu/$slug}"
 mkdir -p "$out"
 log "benchmarking device $device ($name) into $out"

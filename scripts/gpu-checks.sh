@@ -33,9 +33,6 @@ done
 log() { echo "gpu-checks: $*" >&2; }
 source scripts/gpu-env.sh
 
-line=$(echo "$devices" | grep -F "[$device]" | head -n1)
-name=$(echo "$line" | sed -E 's/^ *\[[0-9]+\] (.*) \((GPU|CPU|accelerator|other)\).*/\1/')
-slug=$(echo "$name" | tr '[:upper:]' '[:lower:]' | sed -E 's/[^a-z0-9]+/-/g; s/^-+|-+$//g')
 out="${out:-results/gpu/$slug/checks.md}"
 mkdir -p "$(dirname "$out")"
 cpu=$(echo "$devices" | awk -F'[][]' '/\(CPU\)/ {print $2; exit}')
@@ -116,9 +113,13 @@ if [ -n "$cpu" ] && [ "$cpu" != "$device" ]; then
     echo "|---|---|" >> "$out"
     for scene in cornell_glossy outside conference_dof; do
         common=(--width 64 --height 64 --spp 4 --out "$work/x.png")
-        render "scenes/$scene.toml" "${common[@]}" --device "$device" --exr "$work/gpu.exr"
-        render "scenes/$scene.toml" "${common[@]}" --device "$cpu" --exr "$work/cpu.exr"
-        echo "| $scene | $("$bin" compare "$work/gpu.exr" "$work/cpu.exr" 2>&1 | head -n 1) |" >> "$out"
+        if render "scenes/$scene.toml" "${common[@]}" --device "$device" --exr "$work/gpu.exr" \
+            && render "scenes/$scene.toml" "${common[@]}" --device "$cpu" --exr "$work/cpu.exr"; then
+            echo "| $scene | $("$bin" compare "$work/gpu.exr" "$work/cpu.exr" 2>&1 | head -n 1) |" >> "$out"
+        else
+            echo "| $scene | FAIL: $(first_error) |" >> "$out"
+            failed=$((failed + 1))
+        fi
     done
 else
     echo "No CPU device besides this one: nothing to compare." >> "$out"

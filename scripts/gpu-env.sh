@@ -10,7 +10,7 @@
 #    OpenCL/vendors/nvidia.icd pointing at it and exports OCL_ICD_VENDORS. It also finds an
 #    OpenCL ICD loader (libOpenCL.so.1) if the system has none on its library path (CUDA
 #    ships one).
-# 3. Lists the OpenCL devices and picks the first GPU.
+# 3. Lists the OpenCL devices and picks the first GPU; sets $line, $name and $slug for it.
 
 # 1. The binary.
 if [ -n "${NOISEFREE_BIN:-}" ]; then
@@ -79,3 +79,7 @@ if [ -z "$device" ]; then
         exit 1
     fi
 fi
+# Its line in the list, its name, and the name as a folder (results/gpu/<slug>/).
+line=$(echo "$devices" | grep -F "[$device]" | head -n1)
+name=$(echo "$line" | sed -E 's/^ *\[[0-9]+\] (.*) \((GPU|CPU|accelerator|other)\).*/\1/')
+slug=$(echo "$name" | tr '[:upper:]' '[:lower:]' | sed -E 's/[^a-z0-9]+/-/g; s/^-+|-+$//g')
