@@ -82,14 +82,16 @@ __kernel void bmfr_nlm_inputs_lines(__global const FilterVector* fv,
 // images (h[0..2]) and the valid taps (h[3]); right only in lanes P .. 15 - P (the others lack
 // a neighbour). `images` (a constant
 // after inlining: 3, or 1 outside the halves' estimate window) says how many of the three
-// images are computed; the others' h[m] are left unset. Always inlined, and
+// images are computed; the others' h[m] are left unset. `inside` (a constant too): every
+// tap of the sixteen lanes lies in the image, for a and b alike (bmfr_nlm_inside), so each
+// tap is valid, h[3] is not computed and no distance is zeroed. Always inlined, and
 // every small loop over private float16 arrays here and in the kernel unrolled: PoCL called it
 // per row and kept those arrays on the stack (same bytes; Cornell diffuse 512² 124 -> 113 ms,
 // `noisefree filter --profile`, binaries alternating).
 __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* lines,
                                                         uint stride, int xv, int ay, int by,
                                                         int dx, float k2, const int images,
-                                                        float16 h[4]) {
+                                                        const int inside, float16 h[4]) {
     __global const float* a = lines + bmfr_line_at(xv, ay, BMFR_NLM_LINES, stride);
     __global const float* b = lines + bmfr_line_at(xv + dx, by, BMFR_NLM_LINES, stride);
     // The distances of the tap for the frame (d[0]) and the two halves (d[1], d[2]),
@@ -114,13 +116,17 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
         }
     }
     float16 d[4];
-    d[3] = load16(a + 12 * (size_t)stride) * load16(b + 12 * (size_t)stride);
+    if (!inside) d[3] = load16(a + 12 * (size_t)stride) * load16(b + 12 * (size_t)stride);
     #pragma unroll
-    for (int m = 0; m < 3; ++m)
-        if (m < images) d[m] = d[3] != 0.0f ? (q[m][0] + q[m][1]) + q[m][2] : (float16)(0.0f);
+    for (int m = 0; m < 3; ++m) {
+        if (m < images) {
+            d[m] = (q[m][0] + q[m][1]) + q[m][2];
+            if (!inside) d[m] = d[3] != 0.0f ? d[m] : (float16)(0.0f);
+        }
+    }
     #pragma unroll
     for (int m = 0; m < 4; ++m) {
-        if (m < images || m == 3) {
+        if (m < images || (m == 3 && !inside)) {
         // The lanes shifted by each tap's offset, summed left to right.
         float16 sum = bmfr_nlm_shift(d[m], -BMFR_NLM_PATCH);
         #pragma unroll
@@ -131,18 +137,32 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
     }
 }
 
+// Whether every tap that the work-item at (xv, y0) reads for offset (dx, dy) lies in the
+// image, for a and for b = a + (dx, dy): its sixteen lanes and its rows with their patches'.
+// Then every patch has all its (2 P + 1)² taps, and bmfr_nlm_row's `inside` skips counting
+// them. The count it would make is 25 ones summed, exact, so the weights are the same bytes.
+// At 512², radius 5, 32-row work-items: 41 of 43 columns and 14 of 16 rows of them.
+inline bool bmfr_nlm_inside(int xv, int y0, int w, int h, int dx, int dy) {
+    int x_lo = min(xv, xv + dx), x_hi = max(xv, xv + dx) + BMFR_NLM_PACK - 1;
+    int y_lo = y0 - BMFR_NLM_PATCH + min(0, dy);
+    int y_hi = y0 + BMFR_NLM_ROWS - 1 + BMFR_NLM_PATCH + max(0, dy);
+    return x_lo >= 0 && x_hi < w && y_lo >= 0 && y_hi < h;
+}
+
 // One offset (dx, dy) of the search window for every row of the work-item, the weights of
-// `images` of the three images (see bmfr_nlm_row) added to acc and wsum.
+// `images` of the three images (see bmfr_nlm_row) added to acc and wsum; `inside`:
+// bmfr_nlm_inside holds for it.
 __attribute__((always_inline)) inline void bmfr_nlm_offset(
     __global const float* lines, uint stride, int xv, int y0, int h, int dx, int dy, float k2,
-    const int images, float16 acc[BMFR_NLM_ROWS][9], float16 wsum[BMFR_NLM_ROWS][3]) {
+    const int images, const int inside, float16 acc[BMFR_NLM_ROWS][9],
+    float16 wsum[BMFR_NLM_ROWS][3]) {
     // The row sums of rows r - 2 P .. r (hs[0] .. hs[2 P]): the patch rows of output row r - P.
     float16 hs[BMFR_NLM_TAPS][4];
     const int last = BMFR_NLM_TAPS - 1;
     for (int r = -BMFR_NLM_PATCH; r < BMFR_NLM_ROWS + BMFR_NLM_PATCH; ++r) {
         int ay = y0 + r, by = ay + dy;
         if (ay >= 0 && ay < h && by >= 0 && by < h) {
-            bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, images, hs[last]);
+            bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, images, inside, hs[last]);
         } else {
             #pragma unroll
             for (int m = 0; m < 4; ++m) hs[last][m] = (float16)(0.0f);
@@ -154,10 +174,15 @@ __attribute__((always_inline)) inline void bmfr_nlm_offset(
             // q takes part when it is of p's class (and p of one: others pass through).
             float16 class_q = load16(q + 13 * (size_t)stride);
             int16 same = class_q == load16(p + 13 * (size_t)stride) && class_q != 0.0f;
-            float16 valid = hs[0][3];
-            #pragma unroll
-            for (int t = 1; t < BMFR_NLM_TAPS; ++t) valid += hs[t][3];
-            float16 taps = 3.0f * valid;
+            float16 taps;
+            if (inside) {
+                taps = (float16)(3.0f * (float)(BMFR_NLM_TAPS * BMFR_NLM_TAPS));
+            } else {
+                float16 valid = hs[0][3];
+                #pragma unroll
+                for (int t = 1; t < BMFR_NLM_TAPS; ++t) valid += hs[t][3];
+                taps = 3.0f * valid;
+            }
             #pragma unroll
             for (int m = 0; m < 3; ++m) {
                 if (m < images) {
@@ -177,7 +202,7 @@ __attribute__((always_inline)) inline void bmfr_nlm_offset(
         for (int t = 0; t < last; ++t) {
             #pragma unroll
             for (int m = 0; m < 4; ++m)
-                if (m < images || m == 3) hs[t][m] = hs[t + 1][m];
+                if (m < images || (m == 3 && !inside)) hs[t][m] = hs[t + 1][m];
         }
     }
 }
@@ -204,10 +229,17 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
     for (int dy = -BMFR_NLM_RADIUS; dy <= BMFR_NLM_RADIUS; ++dy) {
         for (int dx = -BMFR_NLM_RADIUS; dx <= BMFR_NLM_RADIUS; ++dx) {
             if (x0 + dx + BMFR_NLM_STEP - 1 < 0 || x0 + dx >= w) continue;  // no q inside
-            if (BMFR_NLM_ESTIMATING(dx, dy))
-                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, acc, wsum);
-            else
-                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, acc, wsum);
+            bool inside = bmfr_nlm_inside(xv, y0, w, h, dx, dy);
+            if (BMFR_NLM_ESTIMATING(dx, dy)) {
+                if (inside)
+                    bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, 1, acc, wsum);
+                else
+                    bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, 0, acc, wsum);
+            } else if (inside) {
+                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, 1, acc, wsum);
+            } else {
+                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, 0, acc, wsum);
+            }
         }
     }
     for (int row = 0; row < BMFR_NLM_ROWS && y0 + row < h; ++row) {
