@@ -156,6 +156,71 @@ fn camera_rays_match_the_reference() {
     }
 }
 
+/// Every program is built with `-cl-fp32-correctly-rounded-divide-sqrt` where the device
+/// offers it (src/gpu/mod.rs `program_with_options`), so a division or square root gives one
+/// float for the same operands in every inlining context and on every such device: the
+/// megakernel, the wavefront steps and both BVH walks must agree to the byte. Checked here
+/// against Rust's IEEE `/` and `sqrt` on 2^20 pairs of normal floats (exponents -60..60, so no
+/// result is denormal, which OpenCL lets a device flush), and the option is in the build.
+#[test]
+fn division_and_sqrt_are_correctly_rounded_where_the_device_offers_it() {
+    let gpu = gpu();
+    let program = gpu
+        .program("test/probes.cl", &generic_defines(), "")
+        .unwrap();
+    let offers = gpu.summary.correctly_rounded_divide_sqrt;
+    let built = gpu.builds().iter().any(|b| {
+        b.main == "test/probes.cl" && b.options.contains("-cl-fp32-correctly-rounded-divide-sqrt")
+    });
+    assert_eq!(
+        built, offers,
+        "the option is given exactly where the device offers it"
+    );
+    // A counter-based hash (splitmix64) of the index: mantissa bits and a spread exponent.
+    let normal = |k: u64, lo: i32| -> f32 {
+        let mut z = k.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        let exp = lo + (z >> 32) as i32 % 61;
+        f32::from_bits((((exp + 127) as u32) << 23) | (z as u32 & 0x007f_ffff))
+    };
+    let n = 1usize << 20;
+    let pairs: Vec<[f32; 2]> = (0..n as u64)
+        .map(|i| [normal(2 * i, -30), normal(2 * i + 1, -30)])
+        .collect();
+    let flat: Vec<f32> = pairs.iter().flatten().copied().collect();
+    let ab = gpu.upload(&flat).unwrap();
+    let out = gpu.zeroed::<f32>(2 * n, "quotients and roots").unwrap();
+    let k = ocl::Kernel::builder()
+        .program(&program)
+        .name("probe_divide_sqrt")
+        .queue(gpu.queue.clone())
+        .global_work_size(n)
+        .arg(&ab)
+        .arg(&out)
+        .arg(n as u32)
+        .build()
+        .unwrap();
+    unsafe { k.enq().unwrap() };
+    let mut got = vec![0f32; 2 * n];
+    out.read(&mut got).enq().unwrap();
+    let wrong = pairs
+        .iter()
+        .zip(got.chunks_exact(2))
+        .filter(|([a, b], qr)| {
+            (a / b).to_bits() != qr[0].to_bits() || a.sqrt().to_bits() != qr[1].to_bits()
+        })
+        .count();
+    eprintln!("{wrong} of {n} quotients or roots differ from IEEE 754's (option given: {offers})");
+    if offers {
+        assert_eq!(
+            wrong, 0,
+            "the device rounds / or sqrt otherwise despite the option"
+        );
+    }
+}
+
 /// The samplers use one sincos per direction (issue 14: it halves their argument reductions)
 /// where the thesis's Algorithm 5 has sin and cos. The images stay those of sin and cos because
 /// on this device sincos returns exactly their bits for every angle the samplers can pass:

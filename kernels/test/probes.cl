@@ -93,3 +93,13 @@ __kernel void probe_sincos(__global uint* mismatches) {
     float c, sn = sincos(a, &c);
     if (as_uint(sn) != as_uint(sin(a)) || as_uint(c) != as_uint(cos(a))) atomic_inc(mismatches);
 }
+
+// a / b and sqrt(a) for each pair (a, b): with -cl-fp32-correctly-rounded-divide-sqrt (given
+// wherever the device offers it, src/gpu/mod.rs) they must be IEEE 754's results.
+__kernel void probe_divide_sqrt(__global const float* ab, __global float* out, uint n) {
+    uint i = get_global_id(0);
+    if (i >= n) return;
+    float a = ab[2 * i], b = ab[2 * i + 1];
+    out[2 * i] = a / b;
+    out[2 * i + 1] = sqrt(a);
+}

@@ -178,7 +178,7 @@ fn devices() -> Result<()> {
             platform = d.platform.clone();
         }
         say!(
-            "  [{}] {} ({}) — {} compute units, {} local memory, max work-group {}, {} global memory, {}, driver {}",
+            "  [{}] {} ({}) — {} compute units, {} local memory, max work-group {}, {} global memory, {}, driver {}, {}",
             d.index,
             d.name,
             d.kind,
@@ -187,7 +187,12 @@ fn devices() -> Result<()> {
             d.max_work_group_size,
             gpu::human_bytes(d.global_mem_bytes),
             d.version,
-            d.driver
+            d.driver,
+            if d.correctly_rounded_divide_sqrt {
+                "division and sqrt correctly rounded"
+            } else {
+                "division and sqrt within OpenCL's ulp bounds"
+            }
         );
     }
     Ok(())

@@ -11,7 +11,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result, anyhow, bail};
 use ocl::core::QUEUE_PROFILING_ENABLE;
 use ocl::enums::{DeviceInfo, DeviceInfoResult, ProgramInfo, ProgramInfoResult};
-use ocl::flags::{DeviceType, MemFlags};
+use ocl::flags::{DeviceFpConfig, DeviceType, MemFlags};
 use ocl::{Buffer, Context, Device, OclPrm, Platform, Program, Queue};
 
 use crate::kernels;
@@ -44,6 +44,10 @@ pub struct DeviceSummary {
     pub max_alloc_bytes: u64,
     pub max_work_group_size: usize,
     pub max_clock_mhz: u32,
+    /// The device offers correctly rounded single-precision division and square root
+    /// (CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT), so every program is built with
+    /// `-cl-fp32-correctly-rounded-divide-sqrt` ([`Gpu::program`]).
+    pub correctly_rounded_divide_sqrt: bool,
 }
 
 fn platforms() -> Result<Vec<Platform>> {
@@ -113,6 +117,11 @@ fn summarize(index: usize, p: &Platform, d: &Device) -> DeviceSummary {
         max_alloc_bytes: info_u64(d, DeviceInfo::MaxMemAllocSize),
         max_work_group_size: info_u64(d, DeviceInfo::MaxWorkGroupSize) as usize,
         max_clock_mhz: info_u64(d, DeviceInfo::MaxClockFrequency) as u32,
+        correctly_rounded_divide_sqrt: matches!(
+            d.info(DeviceInfo::SingleFpConfig),
+            Ok(DeviceInfoResult::SingleFpConfig(c))
+                if c.contains(DeviceFpConfig::CORRECTLY_ROUNDED_DIVIDE_SQRT)
+        ),
     }
 }
 
@@ -325,6 +334,16 @@ impl Gpu {
     ) -> Result<Program> {
         let source = kernels::assemble(main, prelude)?;
         let mut options = String::from("-cl-std=CL1.2");
+        // OpenCL lets single-precision `/` and `sqrt` be 2.5 and 3 ulp off unless this is
+        // given, and a compiler may then round one division differently in two inlining
+        // contexts (a reciprocal reused, a `div.full` elsewhere): the megakernel, the
+        // wavefront steps and the two BVH walks compile the same functions in different
+        // contexts and must give the same bytes. Correctly rounded, `/` and `sqrt` give one
+        // float for the same operands on every device that offers it, as a CPU's do anyway
+        // (PoCL's images are the same bytes with and without it).
+        if self.summary.correctly_rounded_divide_sqrt {
+            options.push_str(" -cl-fp32-correctly-rounded-divide-sqrt");
+        }
         if !extra.is_empty() {
             options.push(' ');
             options.push_str(extra);

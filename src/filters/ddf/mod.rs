@@ -302,6 +302,7 @@ mod tests {
             max_alloc_bytes: 0,
             max_work_group_size: 1,
             max_clock_mhz: 0,
+            correctly_rounded_divide_sqrt: true,
         }
     }
 
