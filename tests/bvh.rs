@@ -192,10 +192,8 @@ fn check(arrays: &SceneArrays, rays: &[(Vec3, Vec3, f32)]) -> Vec<String> {
         skip.iter()
             .zip(&wide)
             .enumerate()
-            .filter_map(|(i, (a, b))| {
-                (a.0.to_bits() != b.0.to_bits() || a.1 != b.1 || a.2 != b.2)
-                    .then(|| format!("ray {i}: device skip-index walk {a:?} != wide walk {b:?}"))
-            }),
+            .filter(|(_, (a, b))| a.0.to_bits() != b.0.to_bits() || a.1 != b.1 || a.2 != b.2)
+            .map(|(i, (a, b))| format!("ray {i}: device skip-index walk {a:?} != wide walk {b:?}")),
     );
     bad
 }

@@ -189,7 +189,8 @@ fn hard_edges_in_depth_normal_and_texture_are_kept() {
     // deterministic pattern) but has the same mean on both sides, except for an offset that
     // the edge must keep.
     let noise = |x: u32, y: u32| ((x * 7 + y * 13) % 5) as f32 * 0.02;
-    let cases: Vec<(&str, Box<dyn Fn(u32, u32) -> FilterVector>)> = vec![
+    type Case = (&'static str, Box<dyn Fn(u32, u32) -> FilterVector>);
+    let cases: Vec<Case> = vec![
         (
             "depth",
             Box::new(move |x, y| {

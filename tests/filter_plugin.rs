@@ -72,8 +72,8 @@ impl PreparedFilter for BoxSettings {
                         let q = pos[j];
                         let near = (c.xyz() - q.xyz()).length() <= limit || j == i as usize;
                         if near && (c.0[3] > 0.0) == (q.0[3] > 0.0) {
-                            for k in 0..3 {
-                                sum[k] += fv[j].direct[k] + fv[j].indirect[k];
+                            for (k, s) in sum.iter_mut().enumerate() {
+                                *s += fv[j].direct[k] + fv[j].indirect[k];
                             }
                             n += 1.0;
                         }

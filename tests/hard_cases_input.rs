@@ -1634,7 +1634,6 @@ fn small_aovs(w: u32, h: u32) -> common::Buffers {
                 normal: [0.0, 1.0, 0.0],
                 albedo: [0.5, v, 0.25],
                 albedo2: [v; 3],
-                ..Default::default()
             }
         })
     }
@@ -1857,11 +1856,10 @@ static SAMPLES: LazyLock<Vec<u8>> = LazyLock::new(|| {
     use noisefree::filters::rpf::samples::SampleSet;
     let (w, h, spp) = (3u32, 2u32, 2u32);
     let samples = (0..w * h * spp)
-        .map(|i| {
-            let mut s = noisefree::layout::SampleVector::default();
-            s.position = [(i % 3) as f32 + 0.5, (i / 6) as f32 + 0.5];
-            s.color = [i as f32 * 0.1; 3];
-            s
+        .map(|i| noisefree::layout::SampleVector {
+            position: [(i % 3) as f32 + 0.5, (i / 6) as f32 + 0.5],
+            color: [i as f32 * 0.1; 3],
+            ..Default::default()
         })
         .collect();
     let p = fresh("samples", "bin");

@@ -141,8 +141,8 @@ material = "white"
                 &mut rays,
                 ShadowTarget::NONE,
             );
-            for c in 0..3 {
-                total[c] += ps.total[c] as f64 / spp as f64;
+            for (t, v) in total.iter_mut().zip(ps.total.to_array()) {
+                *t += v as f64 / spp as f64;
             }
         }
         if f.direct.iter().sum::<f32>() > 0.0 && f.indirect.iter().sum::<f32>() > 0.0 {
@@ -255,8 +255,8 @@ translate = [0, 0, -3]
             // Every sample's first hit has the same albedo, and the running mean of equal
             // values is exact (measured: equal).
             assert_eq!(f.albedo, want_albedo, "{what}: albedo");
-            for c in 0..3 {
-                mean2[c] += f.albedo2[c] / film.len() as f32;
+            for (m, v) in mean2.iter_mut().zip(f.albedo2) {
+                *m += v / film.len() as f32;
             }
             // Each sample saw red, green or (escaping sideways) nothing: a mix with blue <= 0.1
             // and red + green = 9 blue. Measured: blue at most 0.1 exactly, |r + g - 9b| at most
@@ -509,8 +509,8 @@ fn sample_vectors_agree_with_the_pixel_means() {
                 .map(f32::to_bits),
                 "pixel {pixel} sample {k}: lens u, v and time"
             );
-            for c in 0..3 {
-                mean_color[c] += s.color[c] / spp as f32;
+            for (m, v) in mean_color.iter_mut().zip(s.color) {
+                *m += v / spp as f32;
             }
             // The first hit lies at the sample's depth from its point on the lens (every camera
             // ray hits the box: no sample's depth is the sky's).
