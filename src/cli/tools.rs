@@ -9,6 +9,7 @@ use super::slurm;
 use crate::bench::ground_truth::{self, ReferenceRequest};
 use crate::gpu::Gpu;
 use crate::imaging;
+use crate::metrics::worst::{self, PixelMetric};
 use crate::metrics::{self, ErrorScale};
 
 #[derive(Args, Debug, Clone)]
@@ -23,6 +24,12 @@ pub struct CompareArgs {
     /// Write a false-colour map of the per-pixel CIELUV error (log scale 1e-2 to 1e3).
     #[arg(long, value_name = "PATH.png")]
     pub error_map: Option<PathBuf>,
+    /// Also list the N pixels with the largest error, each with its share of the image's.
+    #[arg(long, value_name = "N")]
+    pub worst: Option<usize>,
+    /// The error --worst ranks by: the pixel's term of MSE in CIELUV, or of relative MSE.
+    #[arg(long, value_enum, default_value_t = PixelMetric::Luv, requires = "worst")]
+    pub worst_by: PixelMetric,
 }
 
 pub fn compare(args: &CompareArgs) -> Result<()> {
@@ -38,10 +45,19 @@ pub fn compare(args: &CompareArgs) -> Result<()> {
             args.reference.display()
         )
     })?;
-    let text = if args.json {
-        serde_json::to_string_pretty(&m)?
-    } else {
-        m.to_string()
+    let ranked = match args.worst {
+        Some(n) => Some(worst::worst_pixels(&test, &reference, args.worst_by, n)?),
+        None => None,
+    };
+    let text = match (&ranked, args.json) {
+        (Some(pixels), true) => serde_json::to_string_pretty(&serde_json::json!({
+            "metrics": m,
+            "worst_by": args.worst_by,
+            "worst": pixels,
+        }))?,
+        (None, true) => serde_json::to_string_pretty(&m)?,
+        (Some(pixels), false) => format!("{m}\n{}", worst_table(pixels, args.worst_by)),
+        (None, false) => m.to_string(),
     };
     say!("{text}");
     if let Some(p) = &args.error_map {
@@ -60,6 +76,44 @@ pub fn compare(args: &CompareArgs) -> Result<()> {
         })?;
     }
     Ok(())
+}
+
+/// `--worst`'s table: one pixel a line, with the running total of the shares.
+fn worst_table(pixels: &[worst::PixelError], by: PixelMetric) -> String {
+    let name = match by {
+        PixelMetric::Luv => "CIELUV",
+        PixelMetric::RelMse => "relMSE",
+    };
+    let total: f64 = pixels.iter().map(|p| p.share).sum();
+    let mut out = format!(
+        "the {} pixels with the largest {name} error hold {:.1} % of it:\n\
+         {:>5} {:>5}  {:>30}  {:>30}  {:>10}  {:>7}  {:>7}",
+        pixels.len(),
+        100.0 * total,
+        "x",
+        "y",
+        "test rgb",
+        "reference rgb",
+        "error",
+        "share",
+        "so far"
+    );
+    let rgb = |c: [f32; 3]| format!("{:.4} {:.4} {:.4}", c[0], c[1], c[2]);
+    let mut so_far = 0.0;
+    for p in pixels {
+        so_far += p.share;
+        out.push_str(&format!(
+            "\n{:>5} {:>5}  {:>30}  {:>30}  {:>10.4e}  {:>6.2}%  {:>6.2}%",
+            p.x,
+            p.y,
+            rgb(p.test),
+            rgb(p.reference),
+            p.error,
+            100.0 * p.share,
+            100.0 * so_far
+        ));
+    }
+    out
 }
 
 #[derive(Args, Debug, Clone)]

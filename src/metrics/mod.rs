@@ -27,6 +27,7 @@
 pub mod color;
 pub mod error_map;
 pub mod ssim;
+pub mod worst;
 
 use anyhow::{Result, bail};
 use serde::{Serialize, Serializer};
