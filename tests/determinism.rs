@@ -160,7 +160,7 @@ fn camera_rays_match_the_reference() {
 /// offers it (src/gpu/mod.rs `program_with_options`), so a division or square root gives one
 /// float for the same operands in every inlining context and on every such device: the
 /// megakernel, the wavefront steps and both BVH walks must agree to the byte. Checked here
-/// against Rust's IEEE `/` and `sqrt` on 2^20 pairs of normal floats (exponents -60..60, so no
+/// against Rust's IEEE `/` and `sqrt` on 2^20 pairs of normal floats (exponents -30..=30, so no
 /// result is denormal, which OpenCL lets a device flush), and the option is in the build.
 #[test]
 fn division_and_sqrt_are_correctly_rounded_where_the_device_offers_it() {
@@ -176,18 +176,16 @@ fn division_and_sqrt_are_correctly_rounded_where_the_device_offers_it() {
         built, offers,
         "the option is given exactly where the device offers it"
     );
-    // A counter-based hash (splitmix64) of the index: mantissa bits and a spread exponent.
-    let normal = |k: u64, lo: i32| -> f32 {
-        let mut z = k.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        let exp = lo + (z >> 32) as i32 % 61;
-        f32::from_bits((((exp + 127) as u32) << 23) | (z as u32 & 0x007f_ffff))
+    // The renderer's counter-based hash of the index: mantissa bits, and an exponent in
+    // -30..=30 (quotients and roots then stay within 2^±61, far from denormals).
+    let normal = |k: u32| -> f32 {
+        let h = noisefree::render::cpu::rng::hash_u32(k);
+        let exp = -30 + (noisefree::render::cpu::rng::hash_u32(h) % 61) as i32;
+        f32::from_bits((((exp + 127) as u32) << 23) | (h & 0x007f_ffff))
     };
     let n = 1usize << 20;
-    let pairs: Vec<[f32; 2]> = (0..n as u64)
-        .map(|i| [normal(2 * i, -30), normal(2 * i + 1, -30)])
+    let pairs: Vec<[f32; 2]> = (0..n as u32)
+        .map(|i| [normal(2 * i), normal(2 * i + 1)])
         .collect();
     let flat: Vec<f32> = pairs.iter().flatten().copied().collect();
     let ab = gpu.upload(&flat).unwrap();

@@ -203,9 +203,13 @@ pub fn rel_mse(test: &RgbImage, reference: &RgbImage) -> Result<f64> {
 }
 
 fn rel_mse_unchecked(test: &RgbImage, reference: &RgbImage) -> f64 {
-    let terms =
-        channel_pairs(test, reference).map(|(x, r)| (x - r) * (x - r) / (r * r + REL_MSE_EPSILON));
+    let terms = channel_pairs(test, reference).map(|(x, r)| rel_term(x, r));
     mean(terms, 3 * test.pixels.len())
+}
+
+/// One channel's term of [`rel_mse`]: (x − r)² / (r² + [`REL_MSE_EPSILON`]).
+fn rel_term(x: f64, r: f64) -> f64 {
+    (x - r) * (x - r) / (r * r + REL_MSE_EPSILON)
 }
 
 /// PSNR in dB with peak [`PSNR_PEAK`] = 1.0 and the linear-RGB [`mse_rgb`] (mean over

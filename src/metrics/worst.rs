@@ -10,7 +10,7 @@
 use anyhow::Result;
 use serde::Serialize;
 
-use super::{REL_MSE_EPSILON, check_pair, luv_errors};
+use super::{check_pair, luv_errors, rel_term};
 use crate::imaging::RgbImage;
 
 /// The per-pixel error the pixels are ranked by.
@@ -51,10 +51,7 @@ pub fn pixel_errors(
             .zip(&reference.pixels)
             .map(|(t, r)| {
                 (0..3)
-                    .map(|c| {
-                        let (x, r) = (f64::from(t[c]), f64::from(r[c]));
-                        (x - r) * (x - r) / (r * r + REL_MSE_EPSILON)
-                    })
+                    .map(|c| rel_term(f64::from(t[c]), f64::from(r[c])))
                     .sum::<f64>()
                     / 3.0
             })
