@@ -3,7 +3,8 @@
 // operations in the same order in Rust). Included by filters/bmfr.cl.
 //
 // Build options: BMFR_EMISSION_RADIUS, BMFR_EMISSION_PATCH (half widths of the window and the
-// patches), BMFR_EMISSION_K, BMFR_EMISSION_EPSILON (float literals), BMFR_EMISSION_TILE (the
+// patches), BMFR_EMISSION_K, BMFR_EMISSION_EPSILON, BMFR_EMISSION_SELF (the pixel's own extra
+// weight, emission.rs "A light's edge through a pinhole"; float literals), BMFR_EMISSION_TILE (the
 // work-group kernel's tile side), BMFR_EMISSION_LINES and BMFR_EMISSION_ROWS (the packed
 // kernel's lines per image row and rows per work-item).
 //
@@ -199,6 +200,13 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
             wsum += wt;
         }
     if (!lit) return;
+    if (BMFR_EMISSION_SELF > 0.0f) {  // the pixel's own E, last (emission.rs `self_weight`)
+        __global const float* e = lines + bmfr_line_at(x, y, BMFR_EMISSION_LINES, stride);
+        acc.x += BMFR_EMISSION_SELF * e[0];
+        acc.y += BMFR_EMISSION_SELF * e[stride];
+        acc.z += BMFR_EMISSION_SELF * e[2 * (size_t)stride];
+        wsum += BMFR_EMISSION_SELF;
+    }
     float4 o = out[y * w + x];
     out[y * w + x] = (float4)(o.x + acc.x / wsum, o.y + acc.y / wsum, o.z + acc.z / wsum, o.w);
 }
@@ -303,6 +311,13 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
         }
     for (int row = 0; row < BMFR_EMISSION_ROWS && y0 + row < h; ++row) {
         float mean[3][BMFR_NLM_PACK], on[BMFR_NLM_PACK];
+        if (BMFR_EMISSION_SELF > 0.0f) {  // the pixels' own E, last (emission.rs `self_weight`)
+            __global const float* p =
+                lines + bmfr_line_at(xv, y0 + row, BMFR_EMISSION_LINES, stride);
+            for (int c = 0; c < 3; ++c)
+                acc[row][c] += BMFR_EMISSION_SELF * load16(p + c * (size_t)stride);
+            wsum[row] += BMFR_EMISSION_SELF;
+        }
         for (int c = 0; c < 3; ++c) vstore16(acc[row][c] / wsum[row], 0, mean[c]);
         vstore16(convert_float16(lit[row]), 0, on);
         for (int i = pr; i < pr + BMFR_EMISSION_STEP && xv + i < w; ++i) {

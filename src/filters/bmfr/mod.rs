@@ -223,14 +223,19 @@ crate::filter_settings! {
         pub packed_nlm: Auto<bool> = Auto::Auto,
         /// Take the light of lights seen directly (the render's emission output) out of the
         /// light the fit, the selection and the non-local means see, and filter it apart by
-        /// non-local means over its own half buffers (emission.rs): a defocused light's edge
-        /// no longer bends the fit. auto: on when the camera has a thin lens.
+        /// non-local means over its own half buffers (emission.rs): a light's edge no longer
+        /// bends the fit. auto: on when the camera has a thin lens or the scene has sphere or
+        /// triangle lights (a camera ray can hit them; the sky alone is left in the fit).
         pub emission: Auto<bool> = Auto::Auto,
         /// Half width of the emission's non-local means' search window, pixels.
         pub emission_radius: u32 = 7,
         /// k of the emission's patch distance: how many standard deviations of a difference
         /// count as noise.
         pub emission_k: f64 = 0.7,
+        /// How much more than its best match the pixel's own E weighs in the emission's
+        /// non-local means (emission.rs, "A light's edge through a pinhole"); auto: 4 with a
+        /// pinhole camera, 0 with a thin lens.
+        pub emission_self_weight: Auto<f64> = Auto::Auto,
     }
 }
 
@@ -271,6 +276,12 @@ impl BmfrSettings {
     /// specialised).
     pub fn splits_emission(&self) -> bool {
         self.emission.or(false)
+    }
+
+    /// The pixel's own extra weight in the emission's non-local means (`emission_self_weight`;
+    /// auto: the pinhole camera's, as [`Bmfr`] resolves it without a lens).
+    pub fn emission_self_weight(&self) -> f64 {
+        self.emission_self_weight.or(emission::PINHOLE_SELF_WEIGHT)
     }
 
     /// Whether surface pixels beside open pixels count as open (`open_margin`; `auto` reads
@@ -361,6 +372,10 @@ impl BmfrSettings {
                 self.emission_k
             );
         }
+        let own = self.emission_self_weight();
+        if !(0.0..=1000.0).contains(&own) {
+            bail!("the bmfr emission_self_weight must be a number in [0, 1000], got {own}");
+        }
         if !(self.geometry_k > 0.0 && self.geometry_k <= 1000.0) {
             bail!(
                 "the bmfr geometry_k must be a number in (0, 1000], got {}",
@@ -442,14 +457,32 @@ impl FilterKind for Bmfr {
             ));
         }
         if s.emission.is_auto() {
-            s.emission = Auto::Set(lens);
+            let lights = scene.has("HAS_SPHERE_LIGHTS") || scene.has("HAS_TRIANGLE_LIGHTS");
+            s.emission = Auto::Set(lens || lights);
             notes.push(format!(
-                "emission = {lens}: {}",
+                "emission = {}: {}",
+                lens || lights,
                 if lens {
                     "a thin lens, so a defocused light's edge spreads over pixels whose samples \
                      partly hit it (emission.rs)"
+                } else if lights {
+                    "sphere or triangle lights, whose edges would bend the fit where the camera \
+                     sees them (emission.rs)"
                 } else {
-                    "a pinhole camera, so a light's edge is one pixel wide"
+                    "a pinhole camera and no light but the sky"
+                }
+            ));
+        }
+        if s.emission_self_weight.is_auto() {
+            let own = if lens { 0.0 } else { emission::PINHOLE_SELF_WEIGHT };
+            s.emission_self_weight = Auto::Set(own);
+            notes.push(format!(
+                "emission_self_weight = {own}: {}",
+                if lens {
+                    "a thin lens, so a defocused light's edge is smooth along and across"
+                } else {
+                    "a pinhole camera, so a light's one-pixel edge matches along its length \
+                     whatever its coverage (emission.rs)"
                 }
             ));
         }
@@ -513,5 +546,46 @@ impl FilterKind for Bmfr {
             frame.width,
             frame.height,
         )?))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn specialised(lens_radius: f32, effects: &[&str]) -> BmfrSettings {
+        let mut scene = SceneInfo::unknown();
+        scene.camera.lens_radius = lens_radius;
+        for e in effects {
+            scene.effects.insert(e.to_string(), true);
+        }
+        let mut s = BmfrSettings::default();
+        Bmfr::specialise(&mut s, &scene);
+        s
+    }
+
+    /// `emission` auto: on through a lens, and through a pinhole where the scene has lights a
+    /// camera ray can hit (not for the sky alone); the self weight only through a pinhole.
+    #[test]
+    fn emission_follows_the_lens_and_the_lights() {
+        let s = specialised(0.0, &["HAS_ENV"]);
+        assert!(!s.splits_emission() && !s.needs().contains(Output::Emission));
+        for light in ["HAS_SPHERE_LIGHTS", "HAS_TRIANGLE_LIGHTS"] {
+            let s = specialised(0.0, &[light]);
+            assert!(s.splits_emission() && s.needs().contains(Output::Emission), "{light}");
+            assert_eq!(s.emission_self_weight(), emission::PINHOLE_SELF_WEIGHT);
+        }
+        let s = specialised(0.05, &[]);
+        assert!(s.splits_emission());
+        assert_eq!(s.emission_self_weight(), 0.0);
+        // What the user sets stays.
+        let mut s = BmfrSettings {
+            emission: Auto::Set(false),
+            emission_self_weight: Auto::Set(1.5),
+            ..Default::default()
+        };
+        Bmfr::specialise(&mut s, &SceneInfo::unknown());
+        assert!(!s.splits_emission());
+        assert_eq!(s.emission_self_weight(), 1.5);
     }
 }
