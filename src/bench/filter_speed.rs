@@ -13,7 +13,7 @@ use super::table::{ResultTable, num};
 use super::{Context, bar};
 use crate::filters::ddf::{DdfKernel, DdfSettings, PACKED_GROUP, Variant};
 use crate::layout::outputs::{Output, OutputSet};
-use crate::render::{Frame, RenderOptions, Renderer};
+use crate::render::{Frame, RenderOptions, Renderer, SceneArrays, SceneInfo};
 use crate::scene::{self, Scene};
 
 /// The scenes of Figs. 7.2-7.12; `outside_sky` is Outside looking straight up, so that the
@@ -72,6 +72,14 @@ pub(super) fn filter_input(ctx: &Context, scene: &Scene, w: u32, h: u32) -> Resu
         h,
         OutputSet::of(&[Output::Features, Output::Variance]),
     )
+}
+
+/// What a filter may know of `scene` rendered at w × h (to specialise it before rendering
+/// the outputs it reads).
+pub(super) fn scene_info(scene: &Scene, w: u32, h: u32) -> Result<SceneInfo> {
+    let mut o = RenderOptions::for_scene(scene);
+    (o.frame.width, o.frame.height) = (w, h);
+    Ok(SceneInfo::new(scene, &SceneArrays::build(scene, &o.frame)?))
 }
 
 /// [`filter_input`] with the outputs a filter reads (e.g. bmfr's positions and half buffers).

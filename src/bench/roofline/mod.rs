@@ -130,10 +130,14 @@ fn bmfr_kernels(
     use crate::layout::outputs::BufferId;
 
     let s = BmfrSettings::default();
-    let frame = super::filter_speed::filter_input_with(ctx, scene, n, n, Bmfr::needs(&s))?;
-    let info = &frame.info().scene;
+    // The outputs bmfr reads once specialised to the scene (`emission` follows its lights).
     let mut effective = s.clone();
-    Bmfr::specialise(&mut effective, info);
+    Bmfr::specialise(
+        &mut effective,
+        &super::filter_speed::scene_info(scene, n, n)?,
+    );
+    let frame = super::filter_speed::filter_input_with(ctx, scene, n, n, effective.needs())?;
+    let info = &frame.info().scene;
     let shape = models::BmfrShape {
         features: effective.features(),
         block: effective.block_size,
