@@ -25,8 +25,8 @@
 //!    pixels; the result is added to the filtered reflected light. Along a defocused edge the
 //!    patches find the pixels of the same coverage, so E is averaged along the edge, not
 //!    across it. A pixel whose window holds no light is left alone (most of the image).
-//! 3. Through a pinhole, the pixel's own E weighs `emission_self_weight` more ([`self_weight`]):
-//!    see "A light's edge through a pinhole" below.
+//! 3. Through a pinhole, the pixel's own E weighs `emission_self_weight` more than the window
+//!    gives it ([`self_weight`]): see "A light's edge through a pinhole" below.
 //!
 //! The kernels compute it in the box-filter form of non-local means: a patch term depends only
 //! on the pixel a = p + t and the offset q − p, so for one offset each term is evaluated once
@@ -56,8 +56,9 @@
 //! frame of cornell_diffuse a rim pixel none of whose samples hit the light matched a pixel
 //! two of whose did with the weight of itself (1.0), and came out with E 1.08 where the
 //! reference's is about 0.04 (its relMSE term alone 8.8 % of the frame's). So the pixel's own
-//! E, unbiased, weighs `emission_self_weight` more than its best match (auto: 4 through a
-//! pinhole, 0 through a lens, whose defocused edges are smooth and wide). Measured on the
+//! E, unbiased, weighs `emission_self_weight` more than the window gives it (where it has
+//! weight 1, as its patch distance is at most 0, and no other pixel more than 1; auto: 4
+//! through a pinhole, 0 through a lens, whose defocused edges are smooth and wide). Measured on the
 //! 8-spp 512² frames with a scratch program (not in the repository) that replaced only the
 //! filtered E of the render's `--filter bmfr --bmfr-emission=true` output; MSE-LUV / relMSE
 //! against the 2048-spp references, self weight 0 → 4 (emission off, for comparison):
@@ -68,8 +69,8 @@
 //! lost MSE-LUV along the panels' straight edges (cornell_plane 4.910); E's variance from a
 //! binomial model of each pixel's hits instead of the halves, 3 × 3 patches, or
 //! Gaussian-weighted patch distances were worse on both metrics or on one. Through a lens the
-//! same self weight cost the four depth-of-field Cornell and conference frames 2-9 % on both
-//! metrics (cornell_diffuse_dof 1.452 / 0.00235 → 1.582 / 0.00266).
+//! same self weight made the depth-of-field frames worse on both metrics (cornell_diffuse_dof
+//! 1.452 / 0.00235 → 1.582 / 0.00266, conference_dof and cornell_glossy_dof by 1-6 %).
 
 use anyhow::Result;
 use rayon::prelude::*;

@@ -232,9 +232,9 @@ crate::filter_settings! {
         /// k of the emission's patch distance: how many standard deviations of a difference
         /// count as noise.
         pub emission_k: f64 = 0.7,
-        /// How much more than its best match the pixel's own E weighs in the emission's
-        /// non-local means (emission.rs, "A light's edge through a pinhole"); auto: 4 with a
-        /// pinhole camera, 0 with a thin lens.
+        /// Extra weight of the pixel's own E in the emission's non-local means, on top of the 1
+        /// its window gives it and at most 1 to any other pixel (emission.rs, "A light's edge
+        /// through a pinhole"); auto: 4 with a pinhole camera, 0 with a thin lens.
         pub emission_self_weight: Auto<f64> = Auto::Auto,
     }
 }
