@@ -766,6 +766,18 @@ fn light_edge(frame: &Frame, take: impl Fn(&FilterVector) -> bool) -> Vec<bool> 
     (0..fv.len()).map(|i| take(&fv[i]) && near[i]).collect()
 }
 
+/// The pixels within 2 of one some but not all of whose samples hit a light (the render's
+/// emission output: the share of samples that hit one).
+fn partly_lit_edge(frame: &Frame) -> Vec<bool> {
+    let partly: Vec<bool> = frame
+        .host_slice::<Float4>(BufferId::FirstEmission)
+        .unwrap()
+        .iter()
+        .map(|e| e.0[3] > 0.0 && e.0[3] < 1.0)
+        .collect();
+    within_two(&partly, frame.width() as i32, frame.height() as i32)
+}
+
 /// The pixels of a `w` × `h` image within 2 (a 5 × 5 window) of a pixel of `seeds`.
 fn within_two(seeds: &[bool], w: i32, h: i32) -> Vec<bool> {
     (0..w * h)
@@ -913,13 +925,7 @@ fn a_defocused_lights_emission_is_filtered_apart_from_the_reflected_light() {
     let (w, h) = (256, 256);
     let truth = reference_image(&scene, w, h, 512, 99);
     let frame = render(&scene, w, h, 8, 3);
-    let share: Vec<bool> = frame
-        .host_slice::<Float4>(BufferId::FirstEmission)
-        .unwrap()
-        .iter()
-        .map(|e| e.0[3] > 0.0 && e.0[3] < 1.0)
-        .collect();
-    let edge = within_two(&share, w as i32, h as i32);
+    let edge = partly_lit_edge(&frame);
     let count = edge.iter().filter(|&&e| e).count();
     // With the absolute window sums the emission was made for (and their floor).
     let lens = BmfrSettings {
@@ -997,13 +1003,7 @@ fn a_pinhole_sphere_lights_rim_keeps_its_own_coverage() {
     let (w, h) = (256, 256);
     let truth = reference_image(&scene, w, h, 512, 99);
     let frame = render(&scene, w, h, 8, 3);
-    let partly: Vec<bool> = frame
-        .host_slice::<Float4>(BufferId::FirstEmission)
-        .unwrap()
-        .iter()
-        .map(|e| e.0[3] > 0.0 && e.0[3] < 1.0)
-        .collect();
-    let rim = within_two(&partly, w as i32, h as i32);
+    let rim = partly_lit_edge(&frame);
     let count = rim.iter().filter(|&&e| e).count();
     let filtered = |own: f64| {
         let s = BmfrSettings {

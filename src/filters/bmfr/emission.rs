@@ -58,15 +58,17 @@
 //! reference's is about 0.04 (its relMSE term alone 8.8 % of the frame's). So the pixel's own
 //! E, unbiased, weighs `emission_self_weight` more than the window gives it (where it has
 //! weight 1, as its patch distance is at most 0, and no other pixel more than 1; auto: 4
-//! through a pinhole, 0 through a lens, whose defocused edges are smooth and wide). Measured on the
-//! 8-spp 512² frames with a scratch program (not in the repository) that replaced only the
-//! filtered E of the render's `--filter bmfr --bmfr-emission=true` output; MSE-LUV / relMSE
-//! against the 2048-spp references, self weight 0 → 4 (emission off, for comparison):
-//! cornell_diffuse 1.107 / 0.00154 → 1.148 / 0.00126 (off: 1.332 / 0.00127), cornell_glossy
-//! 4.003 / 0.00609 → 4.043 / 0.00583 (4.216 / 0.00577), cornell_plane 4.078 / 0.00632 → 4.171 /
-//! 0.00607 (4.798 / 0.00648), conference 2.661 / 0.00537 → 2.759 / 0.00531 (2.935 / 0.00655).
-//! Keeping only the pixel's own E where none of its samples hit a light (no filtering there)
-//! lost MSE-LUV along the panels' straight edges (cornell_plane 4.910); E's variance from a
+//! through a pinhole, 0 through a lens, whose defocused edges are smooth and wide). Measured
+//! on the 8-spp 512² AOV files of `noisefree render S --spp 8 --filter bmfr
+//! --bmfr-emission=true --aovs F`, filtered with `--bmfr-emission-self-weight W` (or
+//! `--bmfr-emission=false`) and compared against the 2048-spp references; MSE-LUV / relMSE,
+//! self weight 0 → 4 (emission off, for comparison): cornell_diffuse 1.107 / 0.00154 → 1.148
+//! / 0.00126 (off: 1.332 / 0.00127), cornell_glossy 4.003 / 0.00609 → 4.043 / 0.00583 (4.216 /
+//! 0.00577), cornell_plane 4.078 / 0.00632 → 4.171 / 0.00607 (4.798 / 0.00648), conference
+//! 2.661 / 0.00537 → 2.759 / 0.00531 (2.935 / 0.00655).
+//! In a scratch program (not in the repository) that swapped only the filtered E: keeping
+//! only the pixel's own E where none of its samples hit a light (no filtering there) lost
+//! MSE-LUV along the panels' straight edges (cornell_plane 4.910); E's variance from a
 //! binomial model of each pixel's hits instead of the halves, 3 × 3 patches, or
 //! Gaussian-weighted patch distances were worse on both metrics or on one. Through a lens the
 //! same self weight made the depth-of-field frames worse on both metrics (cornell_diffuse_dof
