@@ -4,7 +4,9 @@
 //
 // Build options: BMFR_EMISSION_RADIUS, BMFR_EMISSION_PATCH (half widths of the window and the
 // patches), BMFR_EMISSION_K, BMFR_EMISSION_EPSILON, BMFR_EMISSION_SELF (the pixel's own extra
-// weight, emission.rs "A light's edge through a pinhole"; float literals), BMFR_EMISSION_TILE (the
+// weight, emission.rs "A light's edge through a pinhole"), BMFR_EMISSION_MEAN (the weight of the
+// patches' mean-difference test, emission.rs "A few samples per pixel"; 0: none; float
+// literals), BMFR_EMISSION_TILE (the
 // work-group kernel's tile side), BMFR_EMISSION_LINES and BMFR_EMISSION_ROWS (the packed
 // kernel's lines per image row and rows per work-item).
 //
@@ -101,6 +103,8 @@ __kernel void bmfr_emission_prep(__global const float4* emission,
 // The same float operations in the same order as the Rust reference (emission.rs
 // `emission_nlm`): per patch row the taps left to right, then the rows top to bottom; an
 // invalid tap (a + d or a outside the image) adds 0 and does not count.
+// With BMFR_EMISSION_MEAN above 0 the taps' differences and summed variances are box-summed the
+// same way, for the mean-difference test (emission.rs `mean_test`).
 // Work-groups of BMFR_EMISSION_TILE^2 pixels; the global size rounded up to the tile.
 #define BMFR_EMISSION_SIDE (BMFR_EMISSION_TILE + 2 * BMFR_EMISSION_PATCH)
 #define BMFR_EMISSION_APRON (BMFR_EMISSION_RADIUS + BMFR_EMISSION_PATCH)
@@ -114,14 +118,25 @@ inline int bmfr_emission_taps(int c, int dc, int n) {
     return max(hi - lo + 1, 0);
 }
 
+// emission.rs `mean_test`: the patches' summed differences squared, less their summed
+// variances, over k^2 times those, scaled by BMFR_EMISSION_MEAN.
+#define BMFR_EMISSION_MEAN_TEST(diff_sum, var_sum, k2)                                         \
+    (BMFR_EMISSION_MEAN * ((diff_sum) * (diff_sum) - (var_sum))                                \
+     / (BMFR_EMISSION_EPSILON + (k2) * (var_sum)))
+
 __kernel __attribute__((reqd_work_group_size(BMFR_EMISSION_TILE, BMFR_EMISSION_TILE, 1)))
 void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uint height,
                        __global float4* out) {
     // prep over the tile and a RADIUS + PATCH apron (0 outside the image), the offset's terms
     // over the tile and a PATCH border, and their patch-row sums over the tile's columns.
     __local float2 input[BMFR_EMISSION_INPUT * BMFR_EMISSION_INPUT];
+    // The terms, and for the mean-difference test the taps' differences and variances.
     __local float dist[BMFR_EMISSION_SIDE * BMFR_EMISSION_SIDE];
+    __local float dist_diff[BMFR_EMISSION_SIDE * BMFR_EMISSION_SIDE];
+    __local float dist_var[BMFR_EMISSION_SIDE * BMFR_EMISSION_SIDE];
     __local float rows[BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE];
+    __local float rows_diff[BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE];
+    __local float rows_var[BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE];
     __local int any_lit;
     const int r = BMFR_EMISSION_RADIUS, pr = BMFR_EMISSION_PATCH;
     int lx = get_local_id(0), ly = get_local_id(1);
@@ -168,31 +183,51 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
             for (int e = first; e < BMFR_EMISSION_SIDE * BMFR_EMISSION_SIDE; e += BMFR_EMISSION_ITEMS) {
                 int sx = e % BMFR_EMISSION_SIDE, sy = e / BMFR_EMISSION_SIDE;
                 int ax = tx - pr + sx, ay = ty - pr + sy, bx = ax + dx, by = ay + dy;
-                float t = 0.0f;
+                float t = 0.0f, diff = 0.0f, var = 0.0f;
                 if (ax >= 0 && ay >= 0 && ax < w && ay < h && bx >= 0 && by >= 0 && bx < w && by < h) {
                     float2 p = input[(sy + r) * BMFR_EMISSION_INPUT + sx + r];
                     float2 q = input[(sy + r + dy) * BMFR_EMISSION_INPUT + sx + r + dx];
-                    float diff = p.x - q.x;
-                    t = (diff * diff - (p.y + fmin(p.y, q.y)))
-                        / (BMFR_EMISSION_EPSILON + k2 * (p.y + q.y));
+                    diff = p.x - q.x;
+                    var = p.y + q.y;
+                    t = (diff * diff - (p.y + fmin(p.y, q.y))) / (BMFR_EMISSION_EPSILON + k2 * var);
                 }
                 dist[e] = t;
+                if (BMFR_EMISSION_MEAN > 0.0f) {
+                    dist_diff[e] = diff;
+                    dist_var[e] = var;
+                }
             }
             barrier(CLK_LOCAL_MEM_FENCE);
             for (int e = first; e < BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE; e += BMFR_EMISSION_ITEMS) {
                 int cx = e % BMFR_EMISSION_TILE, sy = e / BMFR_EMISSION_TILE;
-                __local const float* row = dist + sy * BMFR_EMISSION_SIDE + cx;
-                float s = 0.0f;
-                for (int px = 0; px <= 2 * pr; ++px) s += row[px];
+                int at = sy * BMFR_EMISSION_SIDE + cx;
+                float s = 0.0f, s_diff = 0.0f, s_var = 0.0f;
+                for (int px = 0; px <= 2 * pr; ++px) s += dist[at + px];
                 rows[e] = s;
+                if (BMFR_EMISSION_MEAN > 0.0f) {
+                    for (int px = 0; px <= 2 * pr; ++px) {
+                        s_diff += dist_diff[at + px];
+                        s_var += dist_var[at + px];
+                    }
+                    rows_diff[e] = s_diff;
+                    rows_var[e] = s_var;
+                }
             }
             barrier(CLK_LOCAL_MEM_FENCE);
             int u = x + dx, v = y + dy;
             if (!lit || u < 0 || v < 0 || u >= w || v >= h) continue;
-            float d = 0.0f;
+            float d = 0.0f, d_diff = 0.0f, d_var = 0.0f;
             for (int py = 0; py <= 2 * pr; ++py) d += rows[(ly + py) * BMFR_EMISSION_TILE + lx];
             float n = (float)(bmfr_emission_taps(x, dx, w) * bmfr_emission_taps(y, dy, h));
-            float wt = exp(-fmax(d / n, 0.0f));
+            float distance = d / n;
+            if (BMFR_EMISSION_MEAN > 0.0f) {
+                for (int py = 0; py <= 2 * pr; ++py) {
+                    d_diff += rows_diff[(ly + py) * BMFR_EMISSION_TILE + lx];
+                    d_var += rows_var[(ly + py) * BMFR_EMISSION_TILE + lx];
+                }
+                distance = fmax(distance, BMFR_EMISSION_MEAN_TEST(d_diff, d_var, k2));
+            }
+            float wt = exp(-fmax(distance, 0.0f));
             __global const float* e = lines + bmfr_line_at(u, v, BMFR_EMISSION_LINES, stride);
             acc.x += wt * e[0];
             acc.y += wt * e[stride];
@@ -229,23 +264,35 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
 #error "noisefree: bmfr_emission_nlm_packed sums patch rows of 5 taps (EMISSION_PATCH 2)"
 #endif
 
-// A patch row's sums for the lanes xv .. xv + 15 of row ay against row by shifted by dx:
-// per lane (((D(x - 2) + D(x - 1)) + D(x)) + D(x + 1)) + D(x + 2), right in lanes 2 .. 13.
-__attribute__((always_inline)) inline float16 bmfr_emission_row(__global const float* lines,
-                                                                uint stride, int xv, int ay,
-                                                                int by, int dx, float k2) {
-    __global const float* a = lines + bmfr_line_at(xv, ay, BMFR_EMISSION_LINES, stride);
-    __global const float* b = lines + bmfr_line_at(xv + dx, by, BMFR_EMISSION_LINES, stride);
-    float16 va = load16(a + 4 * (size_t)stride), vb = load16(b + 4 * (size_t)stride);
-    float16 diff = load16(a + 3 * (size_t)stride) - load16(b + 3 * (size_t)stride);
-    float16 t = (diff * diff - (va + fmin(va, vb))) / (BMFR_EMISSION_EPSILON + k2 * (va + vb));
-    float16 inside = load16(a + 5 * (size_t)stride) * load16(b + 5 * (size_t)stride);
-    t = inside != 0.0f ? t : (float16)(0.0f);
+// Per lane (((t(x - 2) + t(x - 1)) + t(x)) + t(x + 1)) + t(x + 2): a patch row's sum, right in
+// lanes 2 .. 13.
+__attribute__((always_inline)) inline float16 bmfr_emission_row_sum(float16 t) {
     float16 l2 = shuffle(t, (uint16)(0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13));
     float16 l1 = shuffle(t, (uint16)(0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14));
     float16 r1 = shuffle(t, (uint16)(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 15));
     float16 r2 = shuffle(t, (uint16)(2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 15, 15));
     return (((l2 + l1) + t) + r1) + r2;
+}
+
+// A patch row's sums for the lanes xv .. xv + 15 of row ay against row by shifted by dx: of the
+// terms (returned) and, for the mean-difference test, of the taps' differences and variances.
+__attribute__((always_inline)) inline float16 bmfr_emission_row(__global const float* lines,
+                                                                uint stride, int xv, int ay,
+                                                                int by, int dx, float k2,
+                                                                float16* diffs, float16* vars) {
+    __global const float* a = lines + bmfr_line_at(xv, ay, BMFR_EMISSION_LINES, stride);
+    __global const float* b = lines + bmfr_line_at(xv + dx, by, BMFR_EMISSION_LINES, stride);
+    float16 va = load16(a + 4 * (size_t)stride), vb = load16(b + 4 * (size_t)stride);
+    float16 diff = load16(a + 3 * (size_t)stride) - load16(b + 3 * (size_t)stride);
+    float16 var = va + vb;
+    float16 t = (diff * diff - (va + fmin(va, vb))) / (BMFR_EMISSION_EPSILON + k2 * var);
+    float16 inside = load16(a + 5 * (size_t)stride) * load16(b + 5 * (size_t)stride);
+    t = inside != 0.0f ? t : (float16)(0.0f);
+    if (BMFR_EMISSION_MEAN > 0.0f) {
+        *diffs = bmfr_emission_row_sum(inside != 0.0f ? diff : (float16)(0.0f));
+        *vars = bmfr_emission_row_sum(inside != 0.0f ? var : (float16)(0.0f));
+    }
+    return bmfr_emission_row_sum(t);
 }
 
 // Global size: ceil(width / STEP) x ceil(height / ROWS), work-groups of 1.
@@ -284,16 +331,29 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
             int16 hi = min((int16)(pr), min(w - 1 - xs, w - 1 - xs - dx));
             float16 taps_x = convert_float16(max(hi - lo + 1, (int16)(0)));
             // The row sums of rows rr - 4 .. rr: the patch rows of output row rr - 2.
+            // hd* and hv*: the same for the taps' differences and variances (the mean test).
             float16 h0 = 0.0f, h1 = 0.0f, h2 = 0.0f, h3 = 0.0f, h4 = 0.0f;
+            float16 hd0 = 0.0f, hd1 = 0.0f, hd2 = 0.0f, hd3 = 0.0f, hd4 = 0.0f;
+            float16 hv0 = 0.0f, hv1 = 0.0f, hv2 = 0.0f, hv3 = 0.0f, hv4 = 0.0f;
             for (int rr = -pr; rr < BMFR_EMISSION_ROWS + pr; ++rr) {
                 int ay = y0 + rr, by = ay + dy;
                 h0 = h1;
                 h1 = h2;
                 h2 = h3;
                 h3 = h4;
-                h4 = ay >= 0 && ay < h && by >= 0 && by < h
-                         ? bmfr_emission_row(lines, stride, xv, ay, by, dx, k2)
-                         : (float16)(0.0f);
+                hd0 = hd1;
+                hd1 = hd2;
+                hd2 = hd3;
+                hd3 = hd4;
+                hv0 = hv1;
+                hv1 = hv2;
+                hv2 = hv3;
+                hv3 = hv4;
+                if (ay >= 0 && ay < h && by >= 0 && by < h) {
+                    h4 = bmfr_emission_row(lines, stride, xv, ay, by, dx, k2, &hd4, &hv4);
+                } else {
+                    h4 = hd4 = hv4 = (float16)(0.0f);
+                }
                 int row = rr - pr, py = y0 + row, qy = py + dy;
                 if (row < 0 || py >= h || qy < 0 || qy >= h) continue;
                 __global const float* p = lines + bmfr_line_at(xv, py, BMFR_EMISSION_LINES, stride);
@@ -304,7 +364,13 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
                 lit[row] |= valid && load16(q + 3 * (size_t)stride) > 0.0f;
                 float16 d = (((h0 + h1) + h2) + h3) + h4;
                 float16 n = taps_x * (float)bmfr_emission_taps(py, dy, h);
-                float16 wt = valid ? exp(-fmax(d / n, 0.0f)) : (float16)(0.0f);
+                float16 distance = d / n;
+                if (BMFR_EMISSION_MEAN > 0.0f) {
+                    float16 d_diff = (((hd0 + hd1) + hd2) + hd3) + hd4;
+                    float16 d_var = (((hv0 + hv1) + hv2) + hv3) + hv4;
+                    distance = fmax(distance, BMFR_EMISSION_MEAN_TEST(d_diff, d_var, k2));
+                }
+                float16 wt = valid ? exp(-fmax(distance, 0.0f)) : (float16)(0.0f);
                 for (int c = 0; c < 3; ++c) acc[row][c] += wt * load16(q + c * (size_t)stride);
                 wsum[row] += wt;
             }

@@ -219,6 +219,7 @@ impl BmfrKernel {
             ("BMFR_EMISSION_K", format!("{:e}f", s.emission_k as f32)),
             ("BMFR_EMISSION_EPSILON", format!("{EMISSION_EPSILON:e}f")),
             ("BMFR_EMISSION_SELF", format!("{:e}f", s.emission_self_weight() as f32)),
+            ("BMFR_EMISSION_MEAN", format!("{:e}f", s.emission_mean_test() as f32)),
             ("BMFR_SPLIT_EMISSION", flag(s.splits_emission())),
             ("BMFR_GLOBAL_MATRIX", flag(!packed && !local_matrix)),
         ]

@@ -26,7 +26,9 @@
 //!    patches find the pixels of the same coverage, so E is averaged along the edge, not
 //!    across it. A pixel whose window holds no light is left alone (most of the image).
 //! 3. Through a pinhole, the pixel's own E weighs `emission_self_weight` more than the window
-//!    gives it ([`self_weight`]): see "A light's edge through a pinhole" below.
+//!    gives it ([`self_weight`]), and a patch whose taps differ one way from the pixel's more
+//!    than their noise explains is kept apart ([`mean_test`]): see "A light's edge through a
+//!    pinhole" and "A few samples per pixel" below.
 //!
 //! The kernels compute it in the box-filter form of non-local means: a patch term depends only
 //! on the pixel a = p + t and the offset q − p, so for one offset each term is evaluated once
@@ -58,7 +60,8 @@
 //! reference's is about 0.04 (its relMSE term alone 8.8 % of the frame's). So the pixel's own
 //! E, unbiased, weighs `emission_self_weight` more than the window gives it (where it has
 //! weight 1, as its patch distance is at most 0, and no other pixel more than 1; auto: 4
-//! through a pinhole, 0 through a lens, whose defocused edges are smooth and wide). Measured
+//! through a pinhole at stop 50, 2 since stop 51's mean test, below; 0 through a lens, whose
+//! defocused edges are smooth and wide). Measured
 //! on the 8-spp 512² AOV files of `noisefree render S --spp 8 --filter bmfr
 //! --bmfr-emission=true --aovs F`, filtered with `--bmfr-emission-self-weight W` (or
 //! `--bmfr-emission=false`) and compared against the 2048-spp references; MSE-LUV / relMSE,
@@ -73,6 +76,39 @@
 //! Gaussian-weighted patch distances were worse on both metrics or on one. Through a lens the
 //! same self weight made the depth-of-field frames worse on both metrics (cornell_diffuse_dof
 //! 1.452 / 0.00235 → 1.582 / 0.00266, conference_dof and cornell_glossy_dof by 1-6 %).
+//!
+//! **A few samples per pixel** (stop 51). With the self weight of 4, cornell_diffuse's relMSE
+//! at 2 spp was 4x stop 49's (accuracy-time study, 0.0043 → 0.0181). The pixels: a one-pixel
+//! dark seam (reference about 0.0003) along the straight top edge of the sphere light, where
+//! it meets the ceiling, came out at 1.0-1.3 (relMSE terms (t − r)² / (r² + 0.01) near 100:
+//! the frame's 15 largest, 14 of them on the seam, held 21 % of its relMSE). The seam's
+//! samples all missed the light; the row below, about 60 % covered, mostly had 1 of 2 on it. A 5 × 5 patch shifted one row down differs from the
+//! seam pixel's by 0 against half the light in one tap row and by half against all of it in the
+//! next: at 2 samples each difference is no larger than the binomial noise of a half-covered
+//! pixel (its variance from the halves, (L/2)², the difference's square), so each tap's term,
+//! difference² less variance, is about 0 and the shifted patch matched with weights up to 0.95.
+//! The self weight cannot help there: it only weighs the seam pixel's own 0 against ten other
+//! pixels that match as well. What the taps' terms lose is that all the differences have the
+//! same sign. So [`mean_test`]: the taps' differences summed, S, and their variances summed, V
+//! (S² has expectation V where both patches see the same light); the patch distance is the
+//! larger of the taps' mean term and `emission_mean_test` · (S² − V) / (k² V). Shifted by one
+//! row across the edge, S² is about ten times V, the distance at the test's weight of 0.25 about
+//! 4.6 and the weight 0.01; shifted along the edge, S is noise around 0. Measured on the AOV files of `noisefree render
+//! scenes/cornell_diffuse.toml --spp N --filter bmfr --bmfr-emission=true --aovs F` at 512²,
+//! filtered with `--bmfr-emission-mean-test T --bmfr-emission-self-weight W` (MSE-LUV / relMSE;
+//! results/README.md, "Stop 51"): at 2 spp, T 0, W 4 (stop 50): 4.761 / 0.0253; T 0.25, W 4:
+//! 3.530 / 0.00411; T 0.25, W 2: 3.443 / 0.00446 (emission off: 5.592 / 0.00377); at 4 spp
+//! 2.241 / 0.00358 → 1.938 / 0.00206 (off 2.560 / 0.00221); at 8, 16 and 32 spp within 1.5 %
+//! of stop 50 in relMSE (+0.8 % at 8) and 0.7-2.2 % better in MSE-LUV. With the test, a self
+//! weight of 4 instead of 2 gained relMSE only at 2-8 spp and lost it from 16 spp on, and lost
+//! MSE-LUV everywhere, and the test's weight of 0.5 instead of 0.25 gave about the same; hence
+//! 2 and 0.25. On the
+//! other pinhole scenes' 8-spp frames (cornell_glossy, cornell_plane, conference,
+//! two_lights_shadows) both metrics moved by at most 1.5 %, mostly down. Through a lens the
+//! test is off: on cornell_diffuse_dof it raised relMSE 0.00235 → 0.00263 (0.25), as the
+//! defocused edge's neighbouring patches truly differ a little, one way. It costs the packed
+//! kernel two more box sums: 4.9 → 6.4 ms on cornell_diffuse's 8-spp frame (`noisefree filter
+//! F --filter bmfr --bmfr-emission-mean-test T --repeat 7 --profile`, T 0 and 0.25 alternating).
 
 use anyhow::Result;
 use rayon::prelude::*;
@@ -106,8 +142,11 @@ pub const EMISSION_PACKED_STEP: u32 = 16 - 2 * EMISSION_PATCH as u32;
 pub const MAX_EMISSION_RADIUS: u32 = 12;
 
 /// `emission_self_weight` with a pinhole camera (the module's "A light's edge through a
-/// pinhole").
-pub const PINHOLE_SELF_WEIGHT: f64 = 4.0;
+/// pinhole"; 4 at stop 50, 2 since the mean-difference test, "A few samples per pixel").
+pub const PINHOLE_SELF_WEIGHT: f64 = 2.0;
+
+/// `emission_mean_test` with a pinhole camera (the module's "A few samples per pixel").
+pub const PINHOLE_MEAN_TEST: f64 = 0.25;
 
 /// Added to the denominator of the patch distance: no pixel's E has a variance estimate when
 /// none of its samples saw a light.
@@ -134,9 +173,7 @@ pub fn split(frame: &Frame, s: &BmfrSettings) -> Result<Split> {
         .map(|i| reflected(&fv[i], &odd[i], &e[i], &e_odd[i]))
         .unzip();
     let patches = prep(e, e_odd, (w, h), spp);
-    let radius = s.emission_radius as i32;
-    let (k, own) = (s.emission_k as f32, s.emission_self_weight() as f32);
-    let emitted = emission_nlm(e, &patches, (w, h), radius, k, own);
+    let emitted = emission_nlm(e, &patches, (w, h), NlmParams::of(s));
     Ok(Split { fv, odd, emitted })
 }
 
@@ -228,24 +265,50 @@ fn taps(c: i32, dc: i32, n: i32) -> i32 {
     (hi - lo + 1).max(0)
 }
 
+/// The emission's non-local means' settings (`emission_radius`, `emission_k`,
+/// `emission_self_weight`, `emission_mean_test`).
+#[derive(Clone, Copy, Debug)]
+pub struct NlmParams {
+    pub radius: i32,
+    pub k: f32,
+    /// The pixel's own extra weight ([`self_weight`]).
+    pub own: f32,
+    /// The weight of the patches' mean-difference test ([`mean_test`]); 0: none.
+    pub mean_test: f32,
+}
+
+impl NlmParams {
+    pub fn of(s: &BmfrSettings) -> NlmParams {
+        NlmParams {
+            radius: s.emission_radius as i32,
+            k: s.emission_k as f32,
+            own: s.emission_self_weight() as f32,
+            mean_test: s.emission_mean_test() as f32,
+        }
+    }
+}
+
 /// kernels/filters/bmfr_emission.cl `bmfr_emission_nlm`: E of every pixel filtered by
 /// non-local means over the (2 radius + 1)² window (0 where the window holds no light), the
-/// pixel's own E weighing `own` more than the window gives it (see [`self_weight`]). The
-/// kernel's order of float operations (its box-filter form): each patch row's taps left to
-/// right, an invalid tap adding 0, then the rows top to bottom, the pixel's own extra weight
-/// last.
-pub fn emission_nlm(e: &[Float4], prep: &[[f32; 2]], (w, h): (u32, u32), radius: i32, k: f32, own: f32) -> Vec<[f32; 3]> {
+/// pixel's own E weighing `own` more than the window gives it (see [`self_weight`]), a pair of
+/// patches whose taps differ one way more than their noise explains kept apart by
+/// [`mean_test`]. The kernel's order of float operations (its box-filter form): each patch
+/// row's taps left to right, an invalid tap adding 0, then the rows top to bottom, the pixel's
+/// own extra weight last.
+pub fn emission_nlm(e: &[Float4], prep: &[[f32; 2]], (w, h): (u32, u32), p: NlmParams) -> Vec<[f32; 3]> {
     let (w, h) = (w as i32, h as i32);
-    let k2 = k * k;
-    let term = |a: (i32, i32), b: (i32, i32)| {
+    let (radius, k2) = (p.radius, p.k * p.k);
+    // A tap's (term, difference, summed variance); 0s outside the image.
+    let tap = |a: (i32, i32), b: (i32, i32)| {
         let inside = |(x, y): (i32, i32)| x >= 0 && y >= 0 && x < w && y < h;
         if !inside(a) || !inside(b) {
-            return 0.0;
+            return [0.0; 3];
         }
         let p = prep[(a.1 * w + a.0) as usize];
         let q = prep[(b.1 * w + b.0) as usize];
         let diff = p[0] - q[0];
-        (diff * diff - (p[1] + p[1].min(q[1]))) / (EMISSION_EPSILON + k2 * (p[1] + q[1]))
+        let term = (diff * diff - (p[1] + p[1].min(q[1]))) / (EMISSION_EPSILON + k2 * (p[1] + q[1]));
+        [term, diff, p[1] + q[1]]
     };
     (0..e.len())
         .into_par_iter()
@@ -262,16 +325,26 @@ pub fn emission_nlm(e: &[Float4], prep: &[[f32; 2]], (w, h): (u32, u32), radius:
                     if u < 0 || v < 0 || u >= w || v >= h {
                         continue;
                     }
-                    let mut d = 0.0f32;
+                    // The patch's sums of the three: [term, difference, variance].
+                    let mut d = [0.0f32; 3];
                     for py in -EMISSION_PATCH..=EMISSION_PATCH {
-                        let mut row = 0.0f32;
+                        let mut row = [0.0f32; 3];
                         for px in -EMISSION_PATCH..=EMISSION_PATCH {
-                            row += term((x + px, y + py), (u + px, v + py));
+                            let t = tap((x + px, y + py), (u + px, v + py));
+                            for c in 0..3 {
+                                row[c] += t[c];
+                            }
                         }
-                        d += row;
+                        for c in 0..3 {
+                            d[c] += row[c];
+                        }
                     }
                     let n = (taps(x, dx, w) * taps(y, dy, h)) as f32;
-                    let wt = (-(d / n).max(0.0)).exp();
+                    let mut dist = d[0] / n;
+                    if p.mean_test > 0.0 {
+                        dist = dist.max(mean_test(d[1], d[2], k2, p.mean_test));
+                    }
+                    let wt = (-dist.max(0.0)).exp();
                     let j = (v * w + u) as usize;
                     for (a, v) in acc.iter_mut().zip(&e[j].0) {
                         *a += wt * v;
@@ -279,12 +352,20 @@ pub fn emission_nlm(e: &[Float4], prep: &[[f32; 2]], (w, h): (u32, u32), radius:
                     wsum += wt;
                 }
             }
-            if own > 0.0 {
-                self_weight(&mut acc, &mut wsum, &e[i], own);
+            if p.own > 0.0 {
+                self_weight(&mut acc, &mut wsum, &e[i], p.own);
             }
             acc.map(|a| a / wsum)
         })
         .collect()
+}
+
+/// The patches' mean-difference test (`emission_mean_test`, the module's "A few samples per
+/// pixel"): the sum of the taps' differences squared, less the sum of their variances (its
+/// expectation where both patches see the same light), over k² times that sum, scaled by
+/// `weight`; the patch distance is the larger of this and the taps' mean term.
+pub fn mean_test(diff_sum: f32, var_sum: f32, k2: f32, weight: f32) -> f32 {
+    weight * (diff_sum * diff_sum - var_sum) / (EMISSION_EPSILON + k2 * var_sum)
 }
 
 /// The pixel's own E weighs `own` more than the window gave it (`emission_self_weight`; the

@@ -234,8 +234,14 @@ crate::filter_settings! {
         pub emission_k: f64 = 0.7,
         /// Extra weight of the pixel's own E in the emission's non-local means, on top of the 1
         /// its window gives it and at most 1 to any other pixel (emission.rs, "A light's edge
-        /// through a pinhole"); auto: 4 with a pinhole camera, 0 with a thin lens.
+        /// through a pinhole"); auto: 2 with a pinhole camera, 0 with a thin lens.
         pub emission_self_weight: Auto<f64> = Auto::Auto,
+        /// Weight of the patches' mean-difference test in the emission's patch distance: the
+        /// taps' differences summed, squared, against their summed variances, which sees a
+        /// patch shifted across a light's one-pixel edge where each tap's own noise hides it
+        /// at a few samples per pixel (emission.rs, "A few samples per pixel"); 0: none.
+        /// auto: 0.25 with a pinhole camera, 0 with a thin lens.
+        pub emission_mean_test: Auto<f64> = Auto::Auto,
     }
 }
 
@@ -282,6 +288,12 @@ impl BmfrSettings {
     /// auto: the pinhole camera's, as [`Bmfr`] resolves it without a lens).
     pub fn emission_self_weight(&self) -> f64 {
         self.emission_self_weight.or(emission::PINHOLE_SELF_WEIGHT)
+    }
+
+    /// The weight of the emission's mean-difference test (`emission_mean_test`; auto: the
+    /// pinhole camera's, as [`Bmfr`] resolves it without a lens).
+    pub fn emission_mean_test(&self) -> f64 {
+        self.emission_mean_test.or(emission::PINHOLE_MEAN_TEST)
     }
 
     /// Whether surface pixels beside open pixels count as open (`open_margin`; `auto` reads
@@ -375,6 +387,10 @@ impl BmfrSettings {
         let own = self.emission_self_weight();
         if !(0.0..=1000.0).contains(&own) {
             bail!("the bmfr emission_self_weight must be a number in [0, 1000], got {own}");
+        }
+        let mean_test = self.emission_mean_test();
+        if !(0.0..=100.0).contains(&mean_test) {
+            bail!("the bmfr emission_mean_test must be a number in [0, 100], got {mean_test}");
         }
         if !(self.geometry_k > 0.0 && self.geometry_k <= 1000.0) {
             bail!(
@@ -486,6 +502,19 @@ impl FilterKind for Bmfr {
                 }
             ));
         }
+        if s.emission_mean_test.is_auto() {
+            let test = if lens { 0.0 } else { emission::PINHOLE_MEAN_TEST };
+            s.emission_mean_test = Auto::Set(test);
+            notes.push(format!(
+                "emission_mean_test = {test}: {}",
+                if lens {
+                    "a thin lens, so a defocused light's edge changes little from pixel to pixel"
+                } else {
+                    "a pinhole camera, so a patch shifted across a light's one-pixel edge must \
+                     not match at a few samples per pixel (emission.rs)"
+                }
+            ));
+        }
         if s.open_margin.is_auto() {
             s.open_margin = Auto::Set(lens);
             notes.push(format!(
@@ -565,7 +594,8 @@ mod tests {
     }
 
     /// `emission` auto: on through a lens, and through a pinhole where the scene has lights a
-    /// camera ray can hit (not for the sky alone); the self weight only through a pinhole.
+    /// camera ray can hit (not for the sky alone); the self weight and the mean-difference
+    /// test only through a pinhole.
     #[test]
     fn emission_follows_the_lens_and_the_lights() {
         let s = specialised(0.0, &["HAS_ENV"]);
@@ -574,18 +604,22 @@ mod tests {
             let s = specialised(0.0, &[light]);
             assert!(s.splits_emission() && s.needs().contains(Output::Emission), "{light}");
             assert_eq!(s.emission_self_weight(), emission::PINHOLE_SELF_WEIGHT);
+            assert_eq!(s.emission_mean_test(), emission::PINHOLE_MEAN_TEST);
         }
         let s = specialised(0.05, &[]);
         assert!(s.splits_emission());
         assert_eq!(s.emission_self_weight(), 0.0);
+        assert_eq!(s.emission_mean_test(), 0.0);
         // What the user sets stays.
         let mut s = BmfrSettings {
             emission: Auto::Set(false),
             emission_self_weight: Auto::Set(1.5),
+            emission_mean_test: Auto::Set(0.0),
             ..Default::default()
         };
         Bmfr::specialise(&mut s, &SceneInfo::unknown());
         assert!(!s.splits_emission());
         assert_eq!(s.emission_self_weight(), 1.5);
+        assert_eq!(s.emission_mean_test(), 0.0);
     }
 }
