@@ -295,6 +295,15 @@ __attribute__((always_inline)) inline float16 bmfr_emission_row(__global const f
     return bmfr_emission_row_sum(t);
 }
 
+// The window of five row sums v0 .. v4 one row down (v4 is then written).
+#define BMFR_EMISSION_SLIDE(v) \
+    do {                           \
+        v##0 = v##1;               \
+        v##1 = v##2;               \
+        v##2 = v##3;               \
+        v##3 = v##4;               \
+    } while (0)
+
 // Global size: ceil(width / STEP) x ceil(height / ROWS), work-groups of 1.
 __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride, uint width,
                                        uint height, __global float4* out) {
@@ -337,18 +346,9 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
             float16 hv0 = 0.0f, hv1 = 0.0f, hv2 = 0.0f, hv3 = 0.0f, hv4 = 0.0f;
             for (int rr = -pr; rr < BMFR_EMISSION_ROWS + pr; ++rr) {
                 int ay = y0 + rr, by = ay + dy;
-                h0 = h1;
-                h1 = h2;
-                h2 = h3;
-                h3 = h4;
-                hd0 = hd1;
-                hd1 = hd2;
-                hd2 = hd3;
-                hd3 = hd4;
-                hv0 = hv1;
-                hv1 = hv2;
-                hv2 = hv3;
-                hv3 = hv4;
+                BMFR_EMISSION_SLIDE(h);
+                BMFR_EMISSION_SLIDE(hd);
+                BMFR_EMISSION_SLIDE(hv);
                 if (ay >= 0 && ay < h && by >= 0 && by < h) {
                     h4 = bmfr_emission_row(lines, stride, xv, ay, by, dx, k2, &hd4, &hv4);
                 } else {

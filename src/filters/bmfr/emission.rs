@@ -61,14 +61,14 @@
 //! E, unbiased, weighs `emission_self_weight` more than the window gives it (where it has
 //! weight 1, as its patch distance is at most 0, and no other pixel more than 1; auto: 4
 //! through a pinhole at stop 50, 2 since stop 51's mean test, below; 0 through a lens, whose
-//! defocused edges are smooth and wide). Measured
-//! on the 8-spp 512² AOV files of `noisefree render S --spp 8 --filter bmfr
-//! --bmfr-emission=true --aovs F`, filtered with `--bmfr-emission-self-weight W` (or
-//! `--bmfr-emission=false`) and compared against the 2048-spp references; MSE-LUV / relMSE,
-//! self weight 0 → 4 (emission off, for comparison): cornell_diffuse 1.107 / 0.00154 → 1.148
-//! / 0.00126 (off: 1.332 / 0.00127), cornell_glossy 4.003 / 0.00609 → 4.043 / 0.00583 (4.216 /
-//! 0.00577), cornell_plane 4.078 / 0.00632 → 4.171 / 0.00607 (4.798 / 0.00648), conference
-//! 2.661 / 0.00537 → 2.759 / 0.00531 (2.935 / 0.00655).
+//! defocused edges are smooth and wide). Measured on the 8-spp 512² AOV files of `noisefree
+//! render S --spp 8 --filter bmfr --bmfr-emission=true --aovs F`, filtered with
+//! `--bmfr-emission-self-weight W` (or `--bmfr-emission=false`) and compared against the
+//! 2048-spp references; MSE-LUV / relMSE, self weight 0 → 4 (emission off, for comparison):
+//! cornell_diffuse 1.107 / 0.00154 → 1.148 / 0.00126 (off: 1.332 / 0.00127), cornell_glossy
+//! 4.003 / 0.00609 → 4.043 / 0.00583 (4.216 / 0.00577), cornell_plane 4.078 / 0.00632 → 4.171
+//! / 0.00607 (4.798 / 0.00648), conference 2.661 / 0.00537 → 2.759 / 0.00531 (2.935 /
+//! 0.00655); stop 50, without the mean test below.
 //! In a scratch program (not in the repository) that swapped only the filtered E: keeping
 //! only the pixel's own E where none of its samples hit a light (no filtering there) lost
 //! MSE-LUV along the panels' straight edges (cornell_plane 4.910); E's variance from a
@@ -82,33 +82,35 @@
 //! dark seam (reference about 0.0003) along the straight top edge of the sphere light, where
 //! it meets the ceiling, came out at 1.0-1.3 (relMSE terms (t − r)² / (r² + 0.01) near 100:
 //! the frame's 15 largest, 14 of them on the seam, held 21 % of its relMSE). The seam's
-//! samples all missed the light; the row below, about 60 % covered, mostly had 1 of 2 on it. A 5 × 5 patch shifted one row down differs from the
-//! seam pixel's by 0 against half the light in one tap row and by half against all of it in the
-//! next: at 2 samples each difference is no larger than the binomial noise of a half-covered
-//! pixel (its variance from the halves, (L/2)², the difference's square), so each tap's term,
-//! difference² less variance, is about 0 and the shifted patch matched with weights up to 0.95.
-//! The self weight cannot help there: it only weighs the seam pixel's own 0 against ten other
-//! pixels that match as well. What the taps' terms lose is that all the differences have the
-//! same sign. So [`mean_test`]: the taps' differences summed, S, and their variances summed, V
-//! (S² has expectation V where both patches see the same light); the patch distance is the
-//! larger of the taps' mean term and `emission_mean_test` · (S² − V) / (k² V). Shifted by one
-//! row across the edge, S² is about ten times V, the distance at the test's weight of 0.25 about
-//! 4.6 and the weight 0.01; shifted along the edge, S is noise around 0. Measured on the AOV files of `noisefree render
-//! scenes/cornell_diffuse.toml --spp N --filter bmfr --bmfr-emission=true --aovs F` at 512²,
-//! filtered with `--bmfr-emission-mean-test T --bmfr-emission-self-weight W` (MSE-LUV / relMSE;
-//! results/README.md, "Stop 51"): at 2 spp, T 0, W 4 (stop 50): 4.761 / 0.0253; T 0.25, W 4:
-//! 3.530 / 0.00411; T 0.25, W 2: 3.443 / 0.00446 (emission off: 5.592 / 0.00377); at 4 spp
-//! 2.241 / 0.00358 → 1.938 / 0.00206 (off 2.560 / 0.00221); at 8, 16 and 32 spp within 1.5 %
-//! of stop 50 in relMSE (+0.8 % at 8) and 0.7-2.2 % better in MSE-LUV. With the test, a self
-//! weight of 4 instead of 2 gained relMSE only at 2-8 spp and lost it from 16 spp on, and lost
-//! MSE-LUV everywhere, and the test's weight of 0.5 instead of 0.25 gave about the same; hence
-//! 2 and 0.25. On the
-//! other pinhole scenes' 8-spp frames (cornell_glossy, cornell_plane, conference,
-//! two_lights_shadows) both metrics moved by at most 1.5 %, mostly down. Through a lens the
-//! test is off: on cornell_diffuse_dof it raised relMSE 0.00235 → 0.00263 (0.25), as the
-//! defocused edge's neighbouring patches truly differ a little, one way. It costs the packed
-//! kernel two more box sums: 4.9 → 6.4 ms on cornell_diffuse's 8-spp frame (`noisefree filter
-//! F --filter bmfr --bmfr-emission-mean-test T --repeat 7 --profile`, T 0 and 0.25 alternating).
+//! samples all missed the light; the row below, about 60 % covered, mostly had 1 of 2 on it.
+//! A 5 × 5 patch shifted one row down differs from the seam pixel's in two tap rows by about
+//! half the light's luminance (0 against half, half against all); at 2 samples the variances
+//! there (the halves' estimate, averaged over 3 × 3 pixels) are of the order of those
+//! differences squared, and the taps where both sides agree but one carries variance give
+//! negative terms, so the taps' mean term came out about 0.3 and the shifted patches matched
+//! with weights up to 0.95. The self weight cannot help there: it only weighs the seam pixel's
+//! own 0 against ten other pixels that match as well. What the taps' terms lose is that all
+//! the differences have the same sign. So [`mean_test`]: the taps' differences summed, S, and
+//! their variances summed, V (S² has expectation V where both patches see the same light); the
+//! patch distance is the larger of the taps' mean term and `emission_mean_test` · (S² − V) /
+//! (k² V). Shifted by one row across the edge, S² is about 12 times V, the distance at the
+//! test's weight of 0.25 about 6 and the weight about 0.003; shifted along the edge, S is noise
+//! around 0. Measured on the AOV files of `noisefree render scenes/cornell_diffuse.toml --spp
+//! N --filter bmfr --bmfr-emission=true --aovs F` at 512², filtered with
+//! `--bmfr-emission-mean-test T --bmfr-emission-self-weight W` (MSE-LUV / relMSE, every pixel
+//! counted; results/README.md, "Stop 51"): at 2 spp, T 0, W 4 (stop 50): 4.761 / 0.0253; T
+//! 0.25, W 4: 3.530 / 0.00411; T 0.25, W 2: 3.443 / 0.00446 (emission off: 5.592 / 0.00377);
+//! at 4 spp 2.241 / 0.00358 → 1.938 / 0.00206 (off 2.560 / 0.00221); at 8, 16 and 32 spp
+//! within 1.5 % of stop 50 in relMSE (+0.8 % at 8) and 0.7-2.2 % better in MSE-LUV. With the
+//! test, a self weight of 4 instead of 2 gained relMSE only at 2-8 spp and lost it from 16 spp
+//! on, and lost MSE-LUV everywhere, and the test's weight of 0.5 instead of 0.25 gave about the
+//! same; hence 2 and 0.25. On the other pinhole scenes' 8-spp frames (cornell_glossy,
+//! cornell_plane, conference, two_lights_shadows) both metrics moved by at most 1.5 %, mostly
+//! down. Through a lens the test is off: on cornell_diffuse_dof it raised relMSE 0.00235 →
+//! 0.00263 (0.25), as the defocused edge's neighbouring patches truly differ a little, one
+//! way. It costs the packed kernel two more box sums: 4.9 → 6.4 ms on cornell_diffuse's 8-spp
+//! frame (`noisefree filter F --filter bmfr --bmfr-emission-mean-test T --repeat 7 --profile`,
+//! T 0 and 0.25 alternating).
 
 use anyhow::Result;
 use rayon::prelude::*;
