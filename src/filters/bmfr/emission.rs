@@ -77,40 +77,40 @@
 //! same self weight made the depth-of-field frames worse on both metrics (cornell_diffuse_dof
 //! 1.452 / 0.00235 → 1.582 / 0.00266, conference_dof and cornell_glossy_dof by 1-6 %).
 //!
-//! **A few samples per pixel** (stop 51). With the self weight of 4, cornell_diffuse's relMSE
-//! at 2 spp was 4x stop 49's (accuracy-time study, 0.0043 → 0.0181). The pixels: a one-pixel
-//! dark seam (reference about 0.0003) along the straight top edge of the sphere light, where
-//! it meets the ceiling, came out at 1.0-1.3 (relMSE terms (t − r)² / (r² + 0.01) near 100:
-//! the frame's 15 largest, 14 of them on the seam, held 21 % of its relMSE). The seam's
-//! samples all missed the light; the row below, about 60 % covered, mostly had 1 of 2 on it.
-//! A 5 × 5 patch shifted one row down differs from the seam pixel's in two tap rows by about
-//! half the light's luminance (0 against half, half against all); at 2 samples the variances
-//! there (the halves' estimate, averaged over 3 × 3 pixels) are of the order of those
-//! differences squared, and the taps where both sides agree but one carries variance give
-//! negative terms, so the taps' mean term came out about 0.3 and the shifted patches matched
-//! with weights up to 0.95. The self weight cannot help there: it only weighs the seam pixel's
-//! own 0 against ten other pixels that match as well. What the taps' terms lose is that all
-//! the differences have the same sign. So [`mean_test`]: the taps' differences summed, S, and
-//! their variances summed, V (S² has expectation V where both patches see the same light); the
-//! patch distance is the larger of the taps' mean term and `emission_mean_test` · (S² − V) /
-//! (k² V). Shifted by one row across the edge, S² is about 12 times V, the distance at the
-//! test's weight of 0.25 about 6 and the weight about 0.003; shifted along the edge, S is noise
-//! around 0. Measured on the AOV files of `noisefree render scenes/cornell_diffuse.toml --spp
-//! N --filter bmfr --bmfr-emission=true --aovs F` at 512², filtered with
-//! `--bmfr-emission-mean-test T --bmfr-emission-self-weight W` (MSE-LUV / relMSE, every pixel
-//! counted; results/README.md, "Stop 51"): at 2 spp, T 0, W 4 (stop 50): 4.761 / 0.0253; T
-//! 0.25, W 4: 3.530 / 0.00411; T 0.25, W 2: 3.443 / 0.00446 (emission off: 5.592 / 0.00377);
-//! at 4 spp 2.241 / 0.00358 → 1.938 / 0.00206 (off 2.560 / 0.00221); at 8, 16 and 32 spp
-//! within 1.5 % of stop 50 in relMSE (+0.8 % at 8) and 0.7-2.2 % better in MSE-LUV. With the
-//! test, a self weight of 4 instead of 2 gained relMSE only at 2-8 spp and lost it from 16 spp
-//! on, and lost MSE-LUV everywhere, and the test's weight of 0.5 instead of 0.25 gave about the
-//! same; hence 2 and 0.25. On the other pinhole scenes' 8-spp frames (cornell_glossy,
-//! cornell_plane, conference, two_lights_shadows) both metrics moved by at most 1.5 %, mostly
-//! down. Through a lens the test is off: on cornell_diffuse_dof it raised relMSE 0.00235 →
-//! 0.00263 (0.25), as the defocused edge's neighbouring patches truly differ a little, one
-//! way. It costs the packed kernel two more box sums: 4.9 → 6.4 ms on cornell_diffuse's 8-spp
-//! frame (`noisefree filter F --filter bmfr --bmfr-emission-mean-test T --repeat 7 --profile`,
-//! T 0 and 0.25 alternating).
+//! **A few samples per pixel** (stop 51). With the self weight of 4, cornell_diffuse's relMSE at 2
+//! spp was 4x stop 49's (accuracy-time study, 0.0043 → 0.0181). The pixels: a one-pixel dark seam
+//! (reference about 0.0003) along the straight top edge of the sphere light, where it meets the
+//! ceiling, came out at 1.0-1.3 (relMSE terms (t − r)² / (r² + 0.01) near 100: the frame's 15
+//! largest, 14 of them on the seam, held 21 % of its relMSE). The seam's samples all missed the
+//! light; the row below, about 60 % covered, mostly had 1 of 2 on it. A 5 × 5 patch shifted one row
+//! down differs from the seam pixel's in two tap rows by about half the light's luminance (0
+//! against half, half against all); at 2 samples the variances there (the halves' estimate,
+//! averaged over 3 × 3 pixels) are of the order of those differences squared, and the taps where
+//! both sides agree but one carries variance give negative terms, so the taps' mean term came out
+//! about 0.3 and the shifted patches matched with weights up to 0.95 (a scratch program that
+//! printed the window's weights and each pixel's E, hits and variance; not in the repository). The
+//! self weight cannot help there: it only weighs the seam pixel's own 0 against ten other pixels
+//! that match as well. What the taps' terms lose is that all the differences have the same sign. So
+//! [`mean_test`]: the taps' differences summed, S, and their variances summed, V (S² has
+//! expectation V where both patches see the same light); the patch distance is the larger of the
+//! taps' mean term and `emission_mean_test` · (S² − V) / (k² V). Shifted by one row across the
+//! edge, S² is about 12 times V, the distance at the test's weight of 0.25 about 6 and the weight
+//! about 0.003 (worked by hand from that program's values at pixel (270, 11) of the 2-spp frame);
+//! shifted along the edge, S is noise around 0. Measured on the AOV files of `noisefree render
+//! scenes/cornell_diffuse.toml --spp N --filter bmfr --bmfr-emission=true --aovs F` at 512²,
+//! filtered with `--bmfr-emission-mean-test T --bmfr-emission-self-weight W` (MSE-LUV / relMSE,
+//! every pixel counted; results/README.md, "Stop 51"): at 2 spp, T 0, W 4 (stop 50): 4.761 /
+//! 0.0253; T 0.25, W 4: 3.530 / 0.00411; T 0.25, W 2: 3.443 / 0.00446 (emission off: 5.592 /
+//! 0.00377); at 4 spp 2.241 / 0.00358 → 1.938 / 0.00206 (off 2.560 / 0.00221); at 8, 16 and 32 spp
+//! within 1.5 % of stop 50 in relMSE (+0.8 % at 8) and 0.7-2.2 % better in MSE-LUV. With the test,
+//! a self weight of 4 instead of 2 gained relMSE only at 2-8 spp and lost it from 16 spp on, and
+//! lost MSE-LUV everywhere, and the test's weight of 0.5 instead of 0.25 gave about the same; hence
+//! 2 and 0.25. On the other pinhole scenes' 8-spp frames (cornell_glossy, cornell_plane,
+//! conference, two_lights_shadows) both metrics moved by at most 1.5 %, mostly down. Through a lens
+//! the test is off: on cornell_diffuse_dof it raised relMSE 0.00235 → 0.00263 (0.25), as the
+//! defocused edge's neighbouring patches truly differ a little, one way. It costs the packed kernel
+//! two more box sums: 4.9 → 6.4 ms on cornell_diffuse's 8-spp frame (`noisefree filter F --filter
+//! bmfr --bmfr-emission-mean-test T --repeat 7 --profile`, T 0 and 0.25 alternating).
 
 use anyhow::Result;
 use rayon::prelude::*;
