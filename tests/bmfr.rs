@@ -456,6 +456,54 @@ fn the_fit_matrix_in_global_memory_gives_the_same_bytes() {
     assert!(format!("{e:#}").contains("local_matrix"), "{e:#}");
 }
 
+/// The emission's work-group kernel declares the local memory of the mean-difference test only
+/// where the test is on (BMFR_EMISSION_MEAN_ON): the device's own count of the kernel's local
+/// memory is the host's (`emission_local_bytes`), with and without the test, at the default and
+/// the largest radius; without the test it is smaller by the test's four arrays.
+#[test]
+fn the_emission_kernel_declares_the_mean_tests_local_memory_only_when_on() {
+    use noisefree::filters::bmfr::emission_local_bytes;
+    let mut reported = Vec::new();
+    for radius in [BmfrSettings::default().emission_radius, MAX_EMISSION_RADIUS] {
+        for test in [0.0, PINHOLE_MEAN_TEST] {
+            let s = BmfrSettings {
+                packed_nlm: Auto::Set(false),
+                emission: Auto::Set(true),
+                emission_radius: radius,
+                emission_self_weight: Auto::Set(0.0),
+                emission_mean_test: Auto::Set(test),
+                ..Default::default()
+            };
+            let f = BmfrKernel::new(gpu(), &s, 64, 48).unwrap_or_else(|e| panic!("{e:#}"));
+            let bytes = f
+                .emission_kernel_local_bytes()
+                .unwrap()
+                .expect("work-group kernel");
+            eprintln!("radius {radius}, test {test}: {bytes} bytes of local memory");
+            assert_eq!(
+                bytes,
+                emission_local_bytes(radius, test > 0.0),
+                "radius {radius}, test {test}"
+            );
+            reported.push(bytes);
+        }
+        let (off, on) = (reported[reported.len() - 2], reported[reported.len() - 1]);
+        // dist_diff and dist_var over the 20² side, rows_diff and rows_var over 20 × 16.
+        assert_eq!(
+            on - off,
+            2 * (20 * 20 * 4) + 2 * (20 * 16 * 4),
+            "radius {radius}"
+        );
+    }
+    let packed = BmfrSettings {
+        packed_nlm: Auto::Set(true),
+        emission: Auto::Set(true),
+        ..Default::default()
+    };
+    let f = BmfrKernel::new(gpu(), &packed, 64, 48).unwrap();
+    assert_eq!(f.emission_kernel_local_bytes().unwrap(), None);
+}
+
 /// Random surface points in a box (so that x, y, z and their squares are independent features)
 /// with random normals and albedos, and light that is exactly albedo × a polynomial of the
 /// features: the fit must give it back (no noise, no regularisation); sky pixels and pixels

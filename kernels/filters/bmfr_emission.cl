@@ -5,8 +5,9 @@
 // Build options: BMFR_EMISSION_RADIUS, BMFR_EMISSION_PATCH (half widths of the window and the
 // patches), BMFR_EMISSION_K, BMFR_EMISSION_EPSILON, BMFR_EMISSION_SELF (the pixel's own extra
 // weight, emission.rs "A light's edge through a pinhole"), BMFR_EMISSION_MEAN (the weight of the
-// patches' mean-difference test, emission.rs "A few samples per pixel"; 0: none; float
-// literals), BMFR_EMISSION_TILE (the
+// patches' mean-difference test, emission.rs "A few samples per pixel"; float literals),
+// BMFR_EMISSION_MEAN_ON (1 where BMFR_EMISSION_MEAN is above 0, else 0: the work-group kernel
+// then declares no local memory for the test), BMFR_EMISSION_TILE (the
 // work-group kernel's tile side), BMFR_EMISSION_LINES and BMFR_EMISSION_ROWS (the packed
 // kernel's lines per image row and rows per work-item).
 //
@@ -103,8 +104,10 @@ __kernel void bmfr_emission_prep(__global const float4* emission,
 // The same float operations in the same order as the Rust reference (emission.rs
 // `emission_nlm`): per patch row the taps left to right, then the rows top to bottom; an
 // invalid tap (a + d or a outside the image) adds 0 and does not count.
-// With BMFR_EMISSION_MEAN above 0 the taps' differences and summed variances are box-summed the
-// same way, for the mean-difference test (emission.rs `mean_test`).
+// With BMFR_EMISSION_MEAN_ON the taps' differences and summed variances are box-summed the
+// same way, for the mean-difference test (emission.rs `mean_test`), in two more pairs of local
+// arrays; without it they are not declared, so that the group's local memory, and a GPU's
+// occupancy, are those of the kernel without the test (device.rs `emission_local_bytes`).
 // Work-groups of BMFR_EMISSION_TILE^2 pixels; the global size rounded up to the tile.
 #define BMFR_EMISSION_SIDE (BMFR_EMISSION_TILE + 2 * BMFR_EMISSION_PATCH)
 #define BMFR_EMISSION_APRON (BMFR_EMISSION_RADIUS + BMFR_EMISSION_PATCH)
@@ -132,11 +135,13 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
     __local float2 input[BMFR_EMISSION_INPUT * BMFR_EMISSION_INPUT];
     // The terms, and for the mean-difference test the taps' differences and variances.
     __local float dist[BMFR_EMISSION_SIDE * BMFR_EMISSION_SIDE];
+    __local float rows[BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE];
+#if BMFR_EMISSION_MEAN_ON
     __local float dist_diff[BMFR_EMISSION_SIDE * BMFR_EMISSION_SIDE];
     __local float dist_var[BMFR_EMISSION_SIDE * BMFR_EMISSION_SIDE];
-    __local float rows[BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE];
     __local float rows_diff[BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE];
     __local float rows_var[BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE];
+#endif
     __local int any_lit;
     const int r = BMFR_EMISSION_RADIUS, pr = BMFR_EMISSION_PATCH;
     int lx = get_local_id(0), ly = get_local_id(1);
@@ -192,10 +197,10 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
                     t = (diff * diff - (p.y + fmin(p.y, q.y))) / (BMFR_EMISSION_EPSILON + k2 * var);
                 }
                 dist[e] = t;
-                if (BMFR_EMISSION_MEAN > 0.0f) {
-                    dist_diff[e] = diff;
-                    dist_var[e] = var;
-                }
+#if BMFR_EMISSION_MEAN_ON
+                dist_diff[e] = diff;
+                dist_var[e] = var;
+#endif
             }
             barrier(CLK_LOCAL_MEM_FENCE);
             for (int e = first; e < BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE; e += BMFR_EMISSION_ITEMS) {
@@ -204,14 +209,14 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
                 float s = 0.0f, s_diff = 0.0f, s_var = 0.0f;
                 for (int px = 0; px <= 2 * pr; ++px) s += dist[at + px];
                 rows[e] = s;
-                if (BMFR_EMISSION_MEAN > 0.0f) {
-                    for (int px = 0; px <= 2 * pr; ++px) {
-                        s_diff += dist_diff[at + px];
-                        s_var += dist_var[at + px];
-                    }
-                    rows_diff[e] = s_diff;
-                    rows_var[e] = s_var;
+#if BMFR_EMISSION_MEAN_ON
+                for (int px = 0; px <= 2 * pr; ++px) {
+                    s_diff += dist_diff[at + px];
+                    s_var += dist_var[at + px];
                 }
+                rows_diff[e] = s_diff;
+                rows_var[e] = s_var;
+#endif
             }
             barrier(CLK_LOCAL_MEM_FENCE);
             int u = x + dx, v = y + dy;
@@ -220,13 +225,13 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
             for (int py = 0; py <= 2 * pr; ++py) d += rows[(ly + py) * BMFR_EMISSION_TILE + lx];
             float n = (float)(bmfr_emission_taps(x, dx, w) * bmfr_emission_taps(y, dy, h));
             float distance = d / n;
-            if (BMFR_EMISSION_MEAN > 0.0f) {
-                for (int py = 0; py <= 2 * pr; ++py) {
-                    d_diff += rows_diff[(ly + py) * BMFR_EMISSION_TILE + lx];
-                    d_var += rows_var[(ly + py) * BMFR_EMISSION_TILE + lx];
-                }
-                distance = fmax(distance, BMFR_EMISSION_MEAN_TEST(d_diff, d_var, k2));
+#if BMFR_EMISSION_MEAN_ON
+            for (int py = 0; py <= 2 * pr; ++py) {
+                d_diff += rows_diff[(ly + py) * BMFR_EMISSION_TILE + lx];
+                d_var += rows_var[(ly + py) * BMFR_EMISSION_TILE + lx];
             }
+            distance = fmax(distance, BMFR_EMISSION_MEAN_TEST(d_diff, d_var, k2));
+#endif
             float wt = exp(-fmax(distance, 0.0f));
             __global const float* e = lines + bmfr_line_at(u, v, BMFR_EMISSION_LINES, stride);
             acc.x += wt * e[0];
@@ -288,10 +293,10 @@ __attribute__((always_inline)) inline float16 bmfr_emission_row(__global const f
     float16 t = (diff * diff - (va + fmin(va, vb))) / (BMFR_EMISSION_EPSILON + k2 * var);
     float16 inside = load16(a + 5 * (size_t)stride) * load16(b + 5 * (size_t)stride);
     t = inside != 0.0f ? t : (float16)(0.0f);
-    if (BMFR_EMISSION_MEAN > 0.0f) {
-        *diffs = bmfr_emission_row_sum(inside != 0.0f ? diff : (float16)(0.0f));
-        *vars = bmfr_emission_row_sum(inside != 0.0f ? var : (float16)(0.0f));
-    }
+#if BMFR_EMISSION_MEAN_ON
+    *diffs = bmfr_emission_row_sum(inside != 0.0f ? diff : (float16)(0.0f));
+    *vars = bmfr_emission_row_sum(inside != 0.0f ? var : (float16)(0.0f));
+#endif
     return bmfr_emission_row_sum(t);
 }
 
@@ -365,11 +370,11 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
                 float16 d = (((h0 + h1) + h2) + h3) + h4;
                 float16 n = taps_x * (float)bmfr_emission_taps(py, dy, h);
                 float16 distance = d / n;
-                if (BMFR_EMISSION_MEAN > 0.0f) {
-                    float16 d_diff = (((hd0 + hd1) + hd2) + hd3) + hd4;
-                    float16 d_var = (((hv0 + hv1) + hv2) + hv3) + hv4;
-                    distance = fmax(distance, BMFR_EMISSION_MEAN_TEST(d_diff, d_var, k2));
-                }
+#if BMFR_EMISSION_MEAN_ON
+                float16 d_diff = (((hd0 + hd1) + hd2) + hd3) + hd4;
+                float16 d_var = (((hv0 + hv1) + hv2) + hv3) + hv4;
+                distance = fmax(distance, BMFR_EMISSION_MEAN_TEST(d_diff, d_var, k2));
+#endif
                 float16 wt = valid ? exp(-fmax(distance, 0.0f)) : (float16)(0.0f);
                 for (int c = 0; c < 3; ++c) acc[row][c] += wt * load16(q + c * (size_t)stride);
                 wsum[row] += wt;

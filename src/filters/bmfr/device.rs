@@ -5,6 +5,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result, bail};
+use ocl::enums::{KernelWorkGroupInfo, KernelWorkGroupInfoResult};
 use ocl::{Buffer, Kernel};
 
 use super::nlm::{
@@ -65,6 +66,37 @@ struct Emission {
     odd: Buffer<u8>,
     /// E's lines (bmfr_emission.cl), which `prep` writes and `nlm` reads.
     _lines: Buffer<f32>,
+}
+
+/// Bytes of local memory that the work-group kernel `bmfr_emission_nlm`
+/// (kernels/filters/bmfr_emission.cl) declares: the prep (float2) over the tile and its
+/// radius + patch apron; the offset's terms over the tile and its patch border, and their
+/// patch-row sums over the tile's columns (floats); with the mean-difference test the same two
+/// again for the taps' differences and for their variances; and the group's lit flag (an int).
+/// The device reports the same (tests/bmfr.rs asks it), so a GPU without the test keeps the
+/// occupancy of the kernel before the test existed.
+pub fn emission_local_bytes(radius: u32, mean_test: bool) -> u64 {
+    let tile = EMISSION_TILE as u64;
+    let side = tile + 2 * EMISSION_PATCH as u64;
+    let input = tile + 2 * (radius as u64 + EMISSION_PATCH as u64);
+    let per_sum = side * side * 4 + side * tile * 4;
+    let sums = if mean_test { 3 } else { 1 };
+    input * input * 8 + sums * per_sum + 4
+}
+
+impl BmfrKernel {
+    /// The local memory the device reports for the emission's work-group kernel: None without
+    /// `emission` or with the packed kernel (which declares none).
+    pub fn emission_kernel_local_bytes(&self) -> Result<Option<u64>> {
+        let Some(e) = &self.emission else { return Ok(None) };
+        if e.nlm.name()? != "bmfr_emission_nlm" {
+            return Ok(None);
+        }
+        match e.nlm.wg_info(self.gpu.device, KernelWorkGroupInfo::LocalMemSize)? {
+            KernelWorkGroupInfoResult::LocalMemSize(bytes) => Ok(Some(bytes)),
+            other => bail!("the device answered {other:?} for a kernel's local memory size"),
+        }
+    }
 }
 
 /// With `outliers` (outliers.rs): `bmfr_outlier_levels`, then `bmfr_outliers`, which writes the
@@ -220,6 +252,7 @@ impl BmfrKernel {
             ("BMFR_EMISSION_EPSILON", format!("{EMISSION_EPSILON:e}f")),
             ("BMFR_EMISSION_SELF", format!("{:e}f", s.emission_self_weight() as f32)),
             ("BMFR_EMISSION_MEAN", format!("{:e}f", s.emission_mean_test() as f32)),
+            ("BMFR_EMISSION_MEAN_ON", flag(s.emission_mean_test() > 0.0)),
             ("BMFR_SPLIT_EMISSION", flag(s.splits_emission())),
             ("BMFR_GLOBAL_MATRIX", flag(!packed && !local_matrix)),
         ]
@@ -576,6 +609,17 @@ impl BmfrKernel {
                     ])
                     .local_work_size([1, 1]);
             } else {
+                let need = emission_local_bytes(s.emission_radius, s.emission_mean_test() > 0.0);
+                let have = gpu.summary.local_mem_bytes;
+                if have > 0 && need > have {
+                    bail!(
+                        "the bmfr emission's non-local means with emission_radius {} needs \
+                         {need} bytes of local memory, {} has {have}; use a smaller \
+                         emission_radius",
+                        s.emission_radius,
+                        gpu.summary.name
+                    );
+                }
                 let tile = EMISSION_TILE as usize;
                 kb.name("bmfr_emission_nlm")
                     .global_work_size([

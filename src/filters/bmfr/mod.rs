@@ -95,7 +95,7 @@ use super::{Auto, FilterKind, PreparedFilter};
 use crate::gpu::Gpu;
 use crate::layout::outputs::{Output, OutputSet};
 use crate::render::{FrameInfo, SceneInfo};
-pub use device::BmfrKernel;
+pub use device::{BmfrKernel, emission_local_bytes};
 pub use nlm::{MAX_NLM_PATCH, MAX_NLM_RADIUS};
 pub use prefilter::MAX_ALBEDO_RADIUS;
 pub use reference::{kept, reference};
