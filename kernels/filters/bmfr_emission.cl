@@ -206,10 +206,11 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
             for (int e = first; e < BMFR_EMISSION_SIDE * BMFR_EMISSION_TILE; e += BMFR_EMISSION_ITEMS) {
                 int cx = e % BMFR_EMISSION_TILE, sy = e / BMFR_EMISSION_TILE;
                 int at = sy * BMFR_EMISSION_SIDE + cx;
-                float s = 0.0f, s_diff = 0.0f, s_var = 0.0f;
+                float s = 0.0f;
                 for (int px = 0; px <= 2 * pr; ++px) s += dist[at + px];
                 rows[e] = s;
 #if BMFR_EMISSION_MEAN_ON
+                float s_diff = 0.0f, s_var = 0.0f;
                 for (int px = 0; px <= 2 * pr; ++px) {
                     s_diff += dist_diff[at + px];
                     s_var += dist_var[at + px];
@@ -221,11 +222,12 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
             barrier(CLK_LOCAL_MEM_FENCE);
             int u = x + dx, v = y + dy;
             if (!lit || u < 0 || v < 0 || u >= w || v >= h) continue;
-            float d = 0.0f, d_diff = 0.0f, d_var = 0.0f;
+            float d = 0.0f;
             for (int py = 0; py <= 2 * pr; ++py) d += rows[(ly + py) * BMFR_EMISSION_TILE + lx];
             float n = (float)(bmfr_emission_taps(x, dx, w) * bmfr_emission_taps(y, dy, h));
             float distance = d / n;
 #if BMFR_EMISSION_MEAN_ON
+            float d_diff = 0.0f, d_var = 0.0f;
             for (int py = 0; py <= 2 * pr; ++py) {
                 d_diff += rows_diff[(ly + py) * BMFR_EMISSION_TILE + lx];
                 d_var += rows_var[(ly + py) * BMFR_EMISSION_TILE + lx];
