@@ -72,21 +72,29 @@ inline void path_begin(PathState* st, float3 o, float3 d, uint key) {
     st->connection_plane = -1;
 }
 
+// Whether a path may trace vertex `vertex` at all: within the vertex cap and, without Russian
+// roulette, below the fixed depth (rr_depth is then the path's last vertex + 1).
+inline bool path_may_continue(__constant const SceneParams* params, uint vertex) {
+    if (vertex >= params->max_vertices) return false;
+#if !HAS_RUSSIAN_ROULETTE
+    if (vertex >= params->rr_depth) return false;   // without Russian roulette: a fixed depth
+#endif
+    return true;
+}
+
 // Whether the path goes on to trace vertex st->bounce: within the vertex limit and, from
 // rr_depth on, through Russian roulette (Alg. 1 lines 5-11, eq. 2.9: the path survives with
 // probability 1/m and its weight is multiplied by m; 1/m = the weight's largest component,
 // capped at 0.95 so every path ends, so dim paths are cut and bright ones kept).
 inline bool path_survives(const SceneRefs* s, PathState* st) {
     __constant const SceneParams* params = s->params;
-    if (st->bounce >= params->max_vertices) return false;
+    if (!path_may_continue(params, st->bounce)) return false;
 #if HAS_RUSSIAN_ROULETTE
     if (st->bounce >= params->rr_depth) {
         float survive = fmin(0.95f, max3(st->throughput));
         if (!(rng_uniform(st->key, st->bounce, DIM_RUSSIAN_ROULETTE) < survive)) return false;
         st->throughput /= survive;
     }
-#else
-    if (st->bounce >= params->rr_depth) return false;   // without Russian roulette: a fixed depth
 #endif
     return true;
 }
@@ -222,6 +230,17 @@ inline bool path_vertex(const SceneRefs* s, PathState* st, const Hit* hit,
         if (ray_count) path_add_connection(st, trace_connection(s, connection, ray_count));
     }
 #endif
+    // The last vertex a path can have (path_survives would refuse the next one whatever the
+    // BSDF sample: the vertex cap, or the fixed depth without Russian roulette) needs no BSDF
+    // sample unless the features record its direction: nothing reads it, and the random
+    // numbers are counters, so skipping it leaves every output the same bytes. On the
+    // direct-light scenes (max_depth = 1) it is a sixth of the kernel's work.
+    if (!path_may_continue(params, bounce + 1u)
+#if OUTPUT_FEATURES
+        && bounce != 0u
+#endif
+    )
+        return false;
     Scatter sc = scatter(s, &sf, d, albedo, st->key, bounce);   // Alg. 1 line 17: SampleBRDF
 #if OUTPUT_FEATURES
     if (bounce == 0u && !sc.absorbed) ps->direction = sc.direction;
