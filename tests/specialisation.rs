@@ -136,7 +136,7 @@ fn absent_effects_never_run() {
 /// A path's last possible vertex (the fixed depth without Russian roulette) draws no BSDF
 /// sample (kernels/render/path.cl, path_vertex): nothing reads it, except the features'
 /// first-bounce direction. The images are the same bytes either way (the random numbers are
-/// counters); scripts/render-ab.sh measured 1.10-1.13x on the direct-light scenes.
+/// counters); scripts/render-ab.sh measured 1.06-1.14x on the scenes without Russian roulette.
 #[test]
 fn the_last_vertex_draws_no_bsdf_sample() {
     for all in [false, true] {

@@ -234,7 +234,7 @@ inline bool path_vertex(const SceneRefs* s, PathState* st, const Hit* hit,
     // BSDF sample: the vertex cap, or the fixed depth without Russian roulette) needs no BSDF
     // sample unless the features record its direction: nothing reads it, and the random
     // numbers are counters, so skipping it leaves every output the same bytes. On the
-    // direct-light scenes (max_depth = 1) it is a sixth of the kernel's work.
+    // direct-light scenes (max_depth = 1) it was a sixth of the kernel's time (perf).
     if (!path_may_continue(params, bounce + 1u)
 #if OUTPUT_FEATURES
         && bounce != 0u
