@@ -7,10 +7,12 @@
 # Each scene is exported by examples/mitsuba_scene.rs (its world-space triangles, shading
 # normals, uvs, textures as the renderer samples them, camera, lights) and rendered at its own
 # size, SPP samples per pixel (default 16; the conference room 4), ROUNDS times (default 3)
-# by each renderer in turn at seed 1: noisefree's figure is `render`'s kernel time and the
-# render's own wall-clock (scene loading and kernel builds not counted), Mitsuba's the
-# wall-clock of `mi.render` until the image is in host memory (its kernel compiled, or
-# loaded from Dr.Jit's cache, before the timed renders; scene loading not counted). Then each
+# by each renderer in turn at seed 1: noisefree's figure is `render`'s kernel time (the
+# comparable one), and beside it the whole `render` command's time as it prints it ("in X
+# s": scene loading, BVH build and the kernel build, from the disk cache, included; not
+# comparable); Mitsuba's the wall-clock of `mi.render` until the image is in host memory (its
+# kernel compiled, or loaded from Dr.Jit's cache, before the timed renders; scene loading not
+# counted). Then each
 # renders once more at seed 2, and the mean squared difference of its two images, times spp
 # / 2, is its variance per sample (RGB, the image's mean over pixels): the time to reach a
 # given error is proportional to variance / speed, the last column's ratio (above 1:
@@ -66,7 +68,7 @@ n = m(sys.argv[1]) + m(sys.argv[2]); k = m(sys.argv[3]) + m(sys.argv[4])
 print(f"{(n - k) / k:+.1e}")' "$work/n1.exr" "$work/n2.exr" "$work/m1.exr" "$work/m2.exr"
 }
 
-echo "| scene | size | spp | noisefree spp/s (kernel) | noisefree spp/s (wall) | Mitsuba spp/s | noisefree / Mitsuba (kernel) | variance per sample, noisefree | Mitsuba | equal-error time, Mitsuba / noisefree | image mean, noisefree / Mitsuba - 1 |"
+echo "| scene | size | spp | noisefree spp/s (kernel) | noisefree spp/s (whole command) | Mitsuba spp/s | noisefree / Mitsuba (kernel) | variance per sample, noisefree | Mitsuba | equal-error time, Mitsuba / noisefree | image mean, noisefree / Mitsuba - 1 |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for s in "${scenes[@]}"; do
     case $s in conference*) spp=${SPP:-4} ;; *) spp=${SPP:-16} ;; esac
