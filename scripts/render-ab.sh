@@ -3,16 +3,18 @@
 #
 #   scripts/render-ab.sh OLD_BINARY NEW_BINARY [SCENE...]
 #   FILTER=rpf scripts/render-ab.sh OLD_BINARY NEW_BINARY [SCENE...]
+#   FILTER=ddf FILTER_ARGS=--holes scripts/render-ab.sh OLD_BINARY NEW_BINARY [SCENE...]
 #
 # For each bundled scene (default: all of scenes/*.toml) renders it with each binary in turn,
 # ROUNDS times (default 3), alternating so that both see the same machine, and prints a
 # Markdown table of the medians, their ratio, and whether the two linear EXR images are the
 # same bytes. Without FILTER: the path tracer's samples per pixel per second (kernel time, as
 # `render` reports it) at the scene's own size; SPP (default 16; conference scenes 4, outside
-# scenes 32) sets the samples per render. With FILTER=NAME: that filter's median time in
-# seconds as `render` reports it (wall-clock for RPF, kernel time for a device filter) at
-# 512 × 512 and SPP (default 8), the filtered images compared; for RPF the default scenes
-# are the five of results/README.md's RPF table.
+# scenes 32) sets the samples per render. With FILTER=NAME: that filter's time as `render`
+# reports it (RPF: wall-clock seconds; a device filter: kernel milliseconds from the OpenCL
+# profiling events) at 512 × 512 and SPP (default 8), the filtered images compared; for RPF
+# the default scenes are the five of results/README.md's RPF table. FILTER_ARGS (split on
+# spaces) go to both binaries' `render` after the filter, e.g. `--holes` or `--kw 21`.
 # Build the old binary from the old commit first, e.g.
 #   git worktree add /tmp/old OLD_COMMIT && (cd /tmp/old && cargo build --release)
 set -euo pipefail
@@ -31,6 +33,11 @@ for b in "$old" "$new"; do
     fi
 done
 filter=${FILTER:-}
+read -r -a filter_args <<<"${FILTER_ARGS:-}"
+# RPF runs for tens of seconds, a device filter for milliseconds.
+unit=ms
+divisor=1
+[ "$filter" = rpf ] && { unit=s; divisor=1000; }
 scenes=("$@")
 if [ ${#scenes[@]} -eq 0 ]; then
     if [ "$filter" = rpf ]; then
@@ -50,9 +57,9 @@ measure() {
     local bin=$1 which=$2
     if [ -n "$filter" ]; then
         "$bin" render "$file" --spp "$spp" --width 512 --height 512 --filter "$filter" \
-            --out "$work/$which.png" --exr "$work/$which.exr" 2>&1 \
+            "${filter_args[@]}" --out "$work/$which.png" --exr "$work/$which.exr" 2>&1 \
             | sed -n "s/^$filter filter.* median \([0-9.]*\) ms.*/\1/p" \
-            | awk '{printf "%.2f\n", $1 / 1000}'
+            | awk -v d="$divisor" '{printf "%.2f\n", $1 / d}'
     else
         "$bin" render "$file" --spp "$spp" --out "$work/$which.png" --exr "$work/$which.exr" 2>&1 \
             | grep -o '[0-9.]* spp/s' | cut -d' ' -f1
@@ -60,7 +67,8 @@ measure() {
 }
 
 if [ -n "$filter" ]; then
-    echo "| scene | spp | old $filter s | new $filter s | new / old | same bytes |"
+    label="$filter${FILTER_ARGS:+ $FILTER_ARGS}"
+    echo "| scene | spp | old $label $unit | new $label $unit | new / old | same bytes |"
 else
     echo "| scene | spp | old spp/s | new spp/s | new / old | same bytes |"
 fi
@@ -87,5 +95,5 @@ for scene in "${scenes[@]}"; do
     n=$(median <"$work/new.txt")
     same=no
     cmp -s "$work/old.exr" "$work/new.exr" && same=yes
-    echo "| $scene | $spp | $o | $n | $(awk -v a="$o" -v b="$n" 'BEGIN {printf "%.3f", b / a}') | $same |"
+    echo "| $scene | $spp | $o | $n | $(awk -v a="$o" -v b="$n" 'BEGIN {if (a > 0) printf "%.3f", b / a; else printf "—"}') | $same |"
 done
