@@ -196,6 +196,8 @@ pub fn filter_frame(
     let (mut times, mut kernels) = (Vec::new(), Vec::new());
     let mut image = None;
     for _ in 0..choice.repeat.max(1) {
+        // Each run does a new frame's whole work (a filter may skip work on a frame it saw).
+        prepared.forget();
         if choice.profile {
             profile::start();
         }

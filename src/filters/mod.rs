@@ -184,6 +184,13 @@ pub trait PreparedFilter: Send {
 
     /// Shows a progress bar while a slow (host) filter runs.
     fn show_progress(&mut self, _on: bool) {}
+
+    /// Forgets what the filter keeps from the frames it filtered, so that its next run does
+    /// the whole work of a new frame. `filter --repeat` and the benchmarks call it before
+    /// every timed run of the same frame; only a filter that skips work on an unchanged frame
+    /// (stylized-shadows: the contour and D of the same shadow output, the thesis's fast
+    /// edits of the controls) has anything to forget.
+    fn forget(&mut self) {}
 }
 
 /// A filter's result on one frame.

@@ -341,6 +341,12 @@ impl PathDensityRun {
 }
 
 impl PreparedFilter for PathDensityRun {
+    fn forget(&mut self) {
+        if let Some((_, next)) = &mut self.then {
+            next.forget();
+        }
+    }
+
     fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
         let start = Instant::now();
         let run = self.kernel.run(frame)?;

@@ -85,3 +85,26 @@ pub fn compact(slots: &[Float4]) -> Vec<Float4> {
         .copied()
         .collect()
 }
+
+/// Points per group of `st_distance`'s lanes (kernels/filters/stylized.cl `ST_LANES`).
+pub const LANES: usize = 16;
+
+/// The list as seven planes (x, y, z, occluder distance, normal x, y, z), each padded with
+/// zeros to a whole number of [`LANES`], and that padded length: what `st_distance` reads
+/// when it uses every point (no more points than samples), sixteen at a time with one vector
+/// load per plane. (A drawn subset gathers from the list itself: scalar loads from planes
+/// measured slower there.)
+pub fn planes(list: &[Float4]) -> (Vec<f32>, usize) {
+    let count = list.len() / 2;
+    let stride = count.div_ceil(LANES) * LANES;
+    let mut out = vec![0.0; stride * 7];
+    for (k, point) in list.chunks_exact(2).enumerate() {
+        for lane in 0..4 {
+            out[lane * stride + k] = point[0].0[lane];
+        }
+        for lane in 0..3 {
+            out[(4 + lane) * stride + k] = point[1].0[lane];
+        }
+    }
+    (out, stride)
+}

@@ -171,12 +171,21 @@ impl StylizedKernel {
         let buffer = self.gpu.upload(&list)?;
         let sampling =
             super::distance::Sampling::new(count, s.contour_samples, DISTANCE_SEED, normal_cos);
+        // Every point used: the kernel reads them as planes (one float where they are not).
+        let (planes_of_points, stride) = if count <= sampling.n {
+            contour::planes(&list)
+        } else {
+            (Vec::new(), 0)
+        };
+        let point_planes = self.gpu.upload(&planes_of_points)?;
         let kernel = self
             .kernel("st_distance")
             .arg(pixels)
             .arg(plane)
             .arg(planes)
             .arg(&buffer)
+            .arg(&point_planes)
+            .arg(stride as u32)
             .arg(count)
             .arg(sampling.n)
             .arg(sampling.scale)
@@ -188,7 +197,8 @@ impl StylizedKernel {
             .arg(&p.occluder)
             .build()
             .context("creating the distance kernel")?;
-        // SAFETY: as above; `buffer` lives until it is stored below, after the wait.
+        // SAFETY: as above; `buffer` lives until it is stored below and `point_planes` until
+        // the end of this function, both after the wait.
         time += event_duration(&unsafe { enqueue(&kernel, "the distance kernel")? })?;
         let p = &mut self.lights[k];
         p.contour = Some(buffer);
@@ -417,6 +427,12 @@ impl Passes {
 impl PreparedFilter for StylizedKernel {
     fn run(&mut self, frame: &Frame) -> Result<FilterRun> {
         self.filter(frame)
+    }
+
+    /// The next run computes the contour, D and the blur again (a run on the same shadow
+    /// output otherwise re-runs only the compose).
+    fn forget(&mut self) {
+        self.last_pixels = None;
     }
 
     /// With a light, D at a pixel depends on every contour point of the image: no bounded
