@@ -12,7 +12,7 @@ mod stylized_common;
 use common::aaf::shadow_renderer;
 use common::*;
 use noisefree::filters::stylized::{
-    MAX_SAMPLES, StylizedKernel, StylizedSettings, reference, transfer,
+    MAX_SAMPLES, StylizedKernel, StylizedSettings, Variant, reference, transfer,
 };
 use noisefree::filters::{Auto, Configured};
 use noisefree::layout::ShadowTerms;
@@ -48,29 +48,46 @@ fn kernels_match_the_reference_on_a_rendered_frame() {
 }
 
 #[test]
-fn the_distance_in_lanes_of_sixteen_keeps_the_references_bits_at_any_sample_count() {
-    // st_distance takes a pixel's contour samples sixteen at a time (kernels/filters/
-    // stylized.cl): the last group may be partial, and with at least as many samples as
-    // points every point is used once (no draw). D and d(x) must stay the reference's, which
-    // takes one sample at a time: counts below, at and just past a group of sixteen, a count
-    // that is no multiple of it, and one above the frame's contour (every point, exactly).
+fn both_distance_loops_keep_the_references_bits_at_any_sample_count() {
+    // st_distance (kernels/filters/stylized.cl) in its two loops: one sample at a time, and
+    // sixteen at a time on vector lanes, whose last group may be partial and which read every
+    // point from planes when all are used (no draw). D and d(x) must stay the reference's,
+    // which takes one sample at a time: counts below, at and just past a group of sixteen, a
+    // count that is no multiple of it, and one above the frame's contour (every point).
     let frame = grids_frame(&styled());
-    for n in [1, 15, 16, 17, 37, MAX_SAMPLES] {
-        let s = StylizedSettings {
-            contour_samples: n,
-            ..styled()
-        };
-        let cpu = reference(&frame, &s).unwrap();
-        let (_, dev) = device(&frame, &s);
-        let points = cpu.contour.len() / 2;
-        assert!(points > 37 && points < MAX_SAMPLES as usize, "{points}");
-        let wd = worst(&dev.distance, &cpu.distance, 1e-3);
-        let wo = worst(&dev.occluder, &cpu.occluder, 1e-3);
-        eprintln!("{n} samples of {points} points: D {wd:e}, d(x) {wo:e}");
-        // Bit-identical on PoCL; 1e-6 for another driver's sqrt, as above.
-        assert!(wd < 1e-6 && wo < 1e-6, "{n} samples: D {wd}, d(x) {wo}");
-        assert!(dev.distance.iter().any(|d| d.is_finite()), "{n} samples");
+    for variant in [Variant::Scalar, Variant::Lanes] {
+        for n in [1, 15, 16, 17, 37, MAX_SAMPLES] {
+            let s = StylizedSettings {
+                contour_samples: n,
+                variant,
+                ..styled()
+            };
+            let cpu = reference(&frame, &s).unwrap();
+            let mut k = StylizedKernel::new(gpu(), &s, &s.stylized_lights(), 64, 48).unwrap();
+            assert_eq!(k.variant(), variant);
+            k.filter(&frame).unwrap();
+            let dev = k.stages().unwrap();
+            let points = cpu.contour.len() / 2;
+            assert!(points > 37 && points < MAX_SAMPLES as usize, "{points}");
+            let wd = worst(&dev.distance, &cpu.distance, 1e-3);
+            let wo = worst(&dev.occluder, &cpu.occluder, 1e-3);
+            eprintln!("{variant:?}, {n} samples of {points} points: D {wd:e}, d(x) {wo:e}");
+            // Bit-identical on PoCL; 1e-6 for another driver's sqrt, as above.
+            assert!(
+                wd < 1e-6 && wo < 1e-6,
+                "{variant:?}, {n} samples: D {wd}, d(x) {wo}"
+            );
+            assert!(dev.distance.iter().any(|d| d.is_finite()), "{n} samples");
+        }
     }
+    // `auto` is the lanes on a CPU device (PoCL in CI), the scalar loop elsewhere.
+    let s = styled();
+    let k = StylizedKernel::new(gpu(), &s, &s.stylized_lights(), 64, 48).unwrap();
+    let cpu = gpu().summary.kind == "CPU";
+    assert_eq!(
+        k.variant(),
+        if cpu { Variant::Lanes } else { Variant::Scalar }
+    );
 }
 
 #[test]

@@ -16,7 +16,8 @@
 //    rule skipped, computed as m (mean (m/d)^8)^(-1/8), m = min d (digest §1.7 item 6), and
 //    negated where V = 0; no contour point: D = +-inf. Also d(x) for the quadratic controls:
 //    the occluder distances of the contour points averaged with the same weights (m/d)^8.
-//    Sixteen samples per step on vector lanes, with the bits of one at a time (below).
+//    On CPU devices sixteen samples per step on vector lanes, with the bits of one at a
+//    time (below).
 // 3. st_blur, twice: G * D (§3.3.1 Abstraction, §3.3.3 Gaussian Blur), sigma = alpha/sqrt(2)
 //    per pass, importance-sampled Gaussian offsets from Halton points (bases 2 and 3) within
 //    3 sigma (a different stretch of the sequence per pass), neighbours failing the 45° rule,
@@ -88,15 +89,17 @@ __kernel void st_contour(__global const float* pixels, uint plane, uint planes,
     }
 }
 
-// Sixteen of a pixel's contour samples at once (issue 14: every image filter faster than
-// OIDN). PoCL runs each work-item as scalar code when its kernel loops, and this one loops
-// over up to `contour_samples` points per pixel: 99 % of the filter's time at 512², two
-// lights. So the work-item takes its samples k in lanes of 16 (uint16 / float16): the draw
-// of entry j, the 45° rule and the distance, each lane exactly the float operations of the
-// scalar loop it replaces (dot written out as PoCL's builtin rounds it). Only the sums of
-// pass 2 depend on the order of the samples; they are added lane by lane in k order, so D
-// and d(x) are the bits of the loop one sample at a time (src/filters/stylized/distance.rs,
-// tests/stylized.rs: bit-identical on PoCL).
+// Sixteen of a pixel's contour samples at once (ST_DISTANCE_LANES = 1: `variant` "lanes", the
+// default on CPU devices; issue 14: every image filter faster than OIDN). PoCL runs each
+// work-item as scalar code when its kernel loops, and this one loops over up to
+// `contour_samples` points per pixel: 99 % of the filter's time at 512², two lights. So the
+// work-item takes its samples k in lanes of 16 (uint16 / float16): the draw of entry j, the
+// 45° rule and the distance, each lane exactly the float operations of the scalar loop (dot
+// written out as PoCL's builtin rounds it). Only the sums of pass 2 depend on the order of
+// the samples; they are added lane by lane in k order, so D and d(x) are the bits of the
+// loop one sample at a time (src/filters/stylized/distance.rs, tests/stylized.rs:
+// bit-identical on PoCL). A GPU's lanes are its work-items already: there the scalar loop
+// (ST_DISTANCE_LANES = 0) stays, unmeasured (no GPU was lent).
 #define ST_LANES 16u
 
 inline uint16 st_hash16(uint16 x) {   // render/rng.cl hash_u32, lane-wise
@@ -194,6 +197,7 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
     uint samples = all ? count : n;
     uint key = rng_sample_key(seed, i, 0u);
     // Pass 1: m = min d over the kept points (a minimum: the same in any order).
+#if ST_DISTANCE_LANES
     float16 m16 = (float16)(INFINITY);
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
         int16 valid, keep;
@@ -207,6 +211,16 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
     float4 m4 = fmin(m8.lo, m8.hi);
     float2 m2 = fmin(m4.lo, m4.hi);
     float m = fmin(m2.x, m2.y);
+#else
+    float m = INFINITY;
+    for (uint k = 0u; k < samples; ++k) {
+        uint j = all ? k : min((uint)(((float)k + rng_uniform(key, k, 0u)) * scale), count - 1u);
+        float4 q = contour[2u * j], qn = contour[2u * j + 1u];
+        if (dot(nrm, qn.xyz) < normal_cos) continue;
+        float3 delta = q.xyz - p;
+        m = fmin(m, sqrt(dot(delta, delta)));
+    }
+#endif
     if (m == INFINITY) {
         // No contour point on this side of the 45° rule: the pixel is as far from any
         // boundary as can be (D = +-inf gives S = 1 or b below, never NaN).
@@ -218,6 +232,7 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
     // so the mean is at least 1/kept and its -1/8 power is finite.
     float sum = 0.0f, sum_occ = 0.0f;
     uint kept = 0u;
+#if ST_DISTANCE_LANES
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
         int16 valid, keep;
         float16 occ;
@@ -238,6 +253,25 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
         int2 k2 = k4.lo + k4.hi;
         kept += (uint)(k2.x + k2.y);
     }
+#else
+    for (uint k = 0u; k < samples; ++k) {
+        uint j = all ? k : min((uint)(((float)k + rng_uniform(key, k, 0u)) * scale), count - 1u);
+        float4 q = contour[2u * j], qn = contour[2u * j + 1u];
+        if (dot(nrm, qn.xyz) < normal_cos) continue;
+        float3 delta = q.xyz - p;
+        float d = sqrt(dot(delta, delta));
+        float w = 1.0f;
+        if (d > m) {
+            float r = m / d;
+            float r2 = r * r;
+            float r4 = r2 * r2;
+            w = r4 * r4;
+        }
+        sum += w;
+        sum_occ += w * q.w;
+        kept += 1u;
+    }
+#endif
     float mean = sum / (float)kept;
     float D = m / sqrt(sqrt(sqrt(mean)));
     dist[i] = lit ? D : -D;

@@ -12,7 +12,7 @@ use anyhow::{Context as _, Result, bail};
 use ocl::{Buffer, Kernel, Program};
 
 use super::transfer::{Controls, LANES};
-use super::{DISTANCE_SEED, StylizedSettings, blur, contour};
+use super::{DISTANCE_SEED, StylizedSettings, Variant, blur, contour};
 use crate::filters::{FilterRun, PreparedFilter};
 use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
 use crate::layout::outputs::{BufferId, Output, OutputSet};
@@ -45,6 +45,8 @@ pub struct StylizedKernel {
     gpu: Arc<Gpu>,
     settings: StylizedSettings,
     program: Option<Program>,
+    /// The distance kernel's loop (`auto` resolved for the device).
+    variant: Variant,
     /// One per stylized light, in the order of [`StylizedSettings::stylized_lights`] (empty:
     /// the image passes through).
     lights: Vec<Passes>,
@@ -72,12 +74,15 @@ impl StylizedKernel {
         if width == 0 || height == 0 {
             bail!("the image must be at least 1x1 pixels, got {width}x{height}");
         }
+        let variant = settings.variant.for_device(&gpu.summary.kind);
         let (program, image) = if lights.is_empty() {
             (None, None)
         } else {
             let n = width as usize * height as usize;
+            let lanes = (variant == Variant::Lanes) as u32;
+            let defines = [("ST_DISTANCE_LANES".to_string(), lanes.to_string())];
             (
-                Some(gpu.program("filters/stylized.cl", &[], "")?),
+                Some(gpu.program("filters/stylized.cl", &defines, "")?),
                 Some(gpu.zeroed::<Float4>(n, "stylized image")?),
             )
         };
@@ -89,12 +94,18 @@ impl StylizedKernel {
             gpu,
             settings: settings.clone(),
             program,
+            variant,
             lights,
             image,
             width,
             height,
             last_pixels: None,
         })
+    }
+
+    /// The distance kernel's loop (`auto` resolved for the device).
+    pub fn variant(&self) -> Variant {
+        self.variant
     }
 
     /// The sphere lights stylized, in pipeline order.
@@ -171,8 +182,8 @@ impl StylizedKernel {
         let buffer = self.gpu.upload(&list)?;
         let sampling =
             super::distance::Sampling::new(count, s.contour_samples, DISTANCE_SEED, normal_cos);
-        // Every point used: the kernel reads them as planes (one float where they are not).
-        let (planes_of_points, stride) = if count <= sampling.n {
+        // Every point used by the lanes: they read them as planes (one float where they do not).
+        let (planes_of_points, stride) = if count <= sampling.n && self.variant == Variant::Lanes {
             contour::planes(&list)
         } else {
             (Vec::new(), 0)

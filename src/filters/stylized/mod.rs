@@ -145,6 +145,39 @@ crate::filter_settings! {
         /// Light samples per pixel for r, the unshadowed term (a square; r is anti-aliased
         /// over them; their visibility is not used).
         pub unshadowed_spp: u32 = 4,
+        /// The distance kernel: "scalar" (one contour sample at a time), "lanes" (ours:
+        /// sixteen samples at a time on float16 lanes, the same bits) or "auto" (lanes on a
+        /// CPU, scalar on other devices).
+        pub variant: Variant = Variant::Auto,
+    }
+}
+
+/// Which loop of `st_distance` (kernels/filters/stylized.cl) runs eq. 3.2. Both give the
+/// same bits (tests/stylized.rs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Variant {
+    /// `lanes` on CPU devices, `scalar` on the others: on PoCL the lanes took 0.43-0.53x the
+    /// scalar loop's time at 512², 8 spp (results/README.md, "Issue 14's filter goals on this
+    /// machine"). A GPU's SIMD lanes are its work-items already; not measured (no GPU was
+    /// lent), so GPUs keep the scalar loop, as the à-trous and data-driven filters' `auto` do.
+    Auto,
+    /// One contour sample at a time per work-item.
+    Scalar,
+    /// Ours, for CPUs: sixteen samples at a time on float16 lanes, the sums added in sample
+    /// order.
+    Lanes,
+}
+
+impl Variant {
+    /// The variant this one stands for on a device of `kind` (`DeviceSummary::kind`: "CPU",
+    /// "GPU", ...): [`Variant::Auto`] chosen, the others as they are.
+    pub fn for_device(self, kind: &str) -> Variant {
+        match self {
+            Variant::Auto if kind == "CPU" => Variant::Lanes,
+            Variant::Auto => Variant::Scalar,
+            v => v,
+        }
     }
 }
 
