@@ -94,6 +94,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/atrous_packed.cl"),
     ),
     (
+        "filters/lanes.cl",
+        include_str!("../kernels/filters/lanes.cl"),
+    ),
+    (
         "filters/bmfr.cl",
         include_str!("../kernels/filters/bmfr.cl"),
     ),

@@ -27,6 +27,7 @@
 // first loop per grid 78-81 ms, with `bmfr_rows` 61-63 ms, with the one-sweep dots 55-60 ms.
 
 #include "vectors.cl"
+#include "filters/lanes.cl"
 
 #if BMFR_WG % 16 != 0 || BMFR_BLOCK % 16 != 0
 #error "noisefree: the packed bmfr fit needs BMFR_WG and BMFR_BLOCK to be multiples of 16"
@@ -36,15 +37,6 @@
 #define BMFR_COL_TEXTURE (BMFR_COL_DEPTH + BMFR_DEPTH)
 #define BMFR_COL_TEXTURE2 (BMFR_COL_TEXTURE + 3 * BMFR_TEXTURE)
 
-// hash_u32 (render/rng.cl) on 16 lanes.
-inline uint16 bmfr_hash16(uint16 x) {
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
-}
 #define BMFR_LANE_IDS (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
 
 // Plane c of `rows` holds column c of every pixel's row of the fit (0 for the pixels that are
@@ -180,9 +172,9 @@ void bmfr_fit_packed(__global const float* rows,
         int16 surface = one != 0.0f;
         int16 x = (int16)(x0 + r0 % BMFR_BLOCK) + BMFR_LANE_IDS;
         uint16 i = convert_uint16((int16)((y0 + r0 / BMFR_BLOCK) * (int)width) + x);
-        uint16 h = bmfr_hash16(i ^ 0x62d3f1a7u);
+        uint16 h = hash_u32_16(i ^ 0x62d3f1a7u);
 #define BMFR_NOISE16(c)                                                                        \
-    ((convert_float16(bmfr_hash16(h ^ (uint)(c)) >> 8) * 0x1.0p-24f - 0.5f) * BMFR_NOISE)
+    ((convert_float16(hash_u32_16(h ^ (uint)(c)) >> 8) * 0x1.0p-24f - 0.5f) * BMFR_NOISE)
 #define BMFR_PUT(c, v) store16_local(select((float16)(0.0f), (v) + BMFR_NOISE16(c), surface), \
                                      a + (c) * BMFR_N + r0)
         float16 sx = (load16_local(a + 4 * BMFR_N + r0) - blo.x) * bscale.x;

@@ -29,6 +29,7 @@
 
 #include "layout.cl"
 #include "render/rng.cl"
+#include "filters/lanes.cl"
 
 // The controls buffer: four quadratics in d, c0 + c1 d + c2 d^2 (src/filters/stylized/
 // transfer.rs `Controls::lanes`).
@@ -102,15 +103,6 @@ __kernel void st_contour(__global const float* pixels, uint plane, uint planes,
 // (ST_DISTANCE_LANES = 0) stays, unmeasured (no GPU was lent).
 #define ST_LANES 16u
 
-inline uint16 st_hash16(uint16 x) {   // render/rng.cl hash_u32, lane-wise
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
-}
-
 // Lanes k0 .. k0 + 15 of the pixel's draw: entry j of each sample k (rng.cl rng_uniform(key,
 // k, 0), stratified as in distance.rs `Sampling::entry`) and whether k is a sample at all.
 __attribute__((always_inline)) inline uint16 st_entries(uint k0, uint samples, bool all,
@@ -119,7 +111,7 @@ __attribute__((always_inline)) inline uint16 st_entries(uint k0, uint samples, b
     uint16 k = (uint16)(k0) + (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     *valid = k < (uint16)(samples);
     if (all) return select((uint16)(0u), k, *valid);
-    uint16 h = st_hash16((uint16)(key) ^ st_hash16(k << 8));
+    uint16 h = hash_u32_16((uint16)(key) ^ hash_u32_16(k << 8));
     float16 u = convert_float16(h >> 8) * 0x1.0p-24f;
     uint16 j = min(convert_uint16((convert_float16(k) + u) * scale), (uint16)(count - 1u));
     return select((uint16)(0u), j, *valid);
