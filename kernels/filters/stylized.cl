@@ -127,15 +127,18 @@ __attribute__((always_inline)) inline uint16 st_entries(uint k0, uint samples, b
         nx.s = qn.x; ny.s = qn.y; nz.s = qn.z;                                     \
     }
 
-// The 16 samples' distances d to p, their occluder distances, and which of them pass the 45°
-// rule (`keep`, as lanes of -1). With every point used (`all`), samples k0 .. k0 + 15 are
-// points k0 .. k0 + 15: one vector load from each of the host's seven planes of `stride`
-// floats (src/filters/stylized/contour.rs `planes`). Inlined by force: as a call, PoCL passed
-// the vectors through the stack (st_distance 1.21 s against 1.07 s at 512², two lights).
+// Samples k0 .. k0 + 15 of the pixel's draw: their distances d to p, their occluder distances,
+// and which of them are samples that pass the 45° rule (`keep`, as lanes of -1). With every
+// point used (`all`), samples k0 .. k0 + 15 are points k0 .. k0 + 15: one vector load from
+// each of the host's seven planes of `stride` floats (src/filters/stylized/contour.rs
+// `planes`). Inlined by force: as a call, PoCL passed the vectors through the stack
+// (st_distance 1.21 s against 1.07 s at 512², two lights).
 __attribute__((always_inline)) inline float16 st_lane_distances(
-        __global const float4* contour, __global const float* planes, uint stride, bool all,
-        uint k0, uint16 j, int16 valid, float3 p, float3 nrm, float normal_cos, float16* occ,
-        int16* keep) {
+        __global const float4* contour, __global const float* planes, uint stride, uint count,
+        uint samples, bool all, float scale, uint key, uint k0, float3 p, float3 nrm,
+        float normal_cos, float16* occ, int16* keep) {
+    int16 valid;
+    uint16 j = st_entries(k0, samples, all, key, count, scale, &valid);
     float16 qx, qy, qz, qw, nx, ny, nz;
     if (all) {
         __global const float* at = planes + k0;
@@ -192,11 +195,10 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
 #if ST_DISTANCE_LANES
     float16 m16 = (float16)(INFINITY);
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
-        int16 valid, keep;
+        int16 keep;
         float16 occ;
-        uint16 j = st_entries(k0, samples, all, key, count, scale, &valid);
-        float16 d = st_lane_distances(contour, points, stride, all, k0, j, valid, p, nrm,
-                                       normal_cos, &occ, &keep);
+        float16 d = st_lane_distances(contour, points, stride, count, samples, all, scale, key,
+                                      k0, p, nrm, normal_cos, &occ, &keep);
         m16 = select(m16, d, keep & (d < m16));   // fmin(m16, d), NaN included
     }
     float8 m8 = fmin(m16.lo, m16.hi);
@@ -226,11 +228,10 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
     uint kept = 0u;
 #if ST_DISTANCE_LANES
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
-        int16 valid, keep;
+        int16 keep;
         float16 occ;
-        uint16 j = st_entries(k0, samples, all, key, count, scale, &valid);
-        float16 d = st_lane_distances(contour, points, stride, all, k0, j, valid, p, nrm,
-                                       normal_cos, &occ, &keep);
+        float16 d = st_lane_distances(contour, points, stride, count, samples, all, scale, key,
+                                      k0, p, nrm, normal_cos, &occ, &keep);
         float16 r = m / d;
         float16 r2 = r * r;
         float16 r4 = r2 * r2;
