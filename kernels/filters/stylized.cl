@@ -134,14 +134,14 @@ __attribute__((always_inline)) inline uint16 st_entries(uint k0, uint samples, b
 // `planes`). Inlined by force: as a call, PoCL passed the vectors through the stack
 // (st_distance 1.21 s against 1.07 s at 512², two lights).
 __attribute__((always_inline)) inline float16 st_lane_distances(
-        __global const float4* contour, __global const float* planes, uint stride, uint count,
+        __global const float4* contour, __global const float* points, uint stride, uint count,
         uint samples, bool all, float scale, uint key, uint k0, float3 p, float3 nrm,
         float normal_cos, float16* occ, int16* keep) {
     int16 valid;
     uint16 j = st_entries(k0, samples, all, key, count, scale, &valid);
     float16 qx, qy, qz, qw, nx, ny, nz;
     if (all) {
-        __global const float* at = planes + k0;
+        __global const float* at = points + k0;
         qx = vload16(0, at);
         qy = vload16(0, at + stride);
         qz = vload16(0, at + 2u * stride);
