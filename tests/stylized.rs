@@ -91,6 +91,37 @@ fn both_distance_loops_keep_the_references_bits_at_any_sample_count() {
 }
 
 #[test]
+fn the_lanes_keep_the_bits_in_every_window_and_past_the_pass_cache() {
+    // The lanes' draws come from a window of at most two 32-point pieces of the planes (about
+    // four points per sample or fewer) or are gathered (more), and pass 2 reads pass 1's
+    // distances back for the first 1,024 samples and draws the rest again
+    // (kernels/filters/stylized.cl ST_WINDOW_CHUNKS, ST_CACHE). A frame with well over 1,024
+    // contour points, sampled at 1.4, 3 and 6 points per sample, 1,030 samples (drawn, past
+    // the cache) and every point (more than 1,024 of them): the reference's bits each time.
+    let frame =
+        shadow_renderer(&bundled_scene("grids"), 160, 120, 2, 7, styled().sampling()).frame();
+    let points = reference(&frame, &styled()).unwrap().contour.len() / 2;
+    assert!(points > 1500, "{points}"); // 1,592 on PoCL
+    let spread = |per: f32| (points as f32 / per) as u32;
+    for n in [spread(1.4), spread(3.0), spread(6.0), 1030, MAX_SAMPLES] {
+        let s = StylizedSettings {
+            contour_samples: n,
+            variant: Variant::Lanes,
+            ..styled()
+        };
+        let cpu = reference(&frame, &s).unwrap();
+        let mut k = StylizedKernel::new(gpu(), &s, &s.stylized_lights(), 160, 120).unwrap();
+        k.filter(&frame).unwrap();
+        let dev = k.stages().unwrap();
+        let wd = worst(&dev.distance, &cpu.distance, 1e-3);
+        let wo = worst(&dev.occluder, &cpu.occluder, 1e-3);
+        eprintln!("{n} samples of {points} points: D {wd:e}, d(x) {wo:e}");
+        // Bit-identical on PoCL; 1e-6 for another driver's sqrt, as above.
+        assert!(wd < 1e-6 && wo < 1e-6, "{n} samples: D {wd}, d(x) {wo}");
+    }
+}
+
+#[test]
 fn identity_at_zero_controls_reproduces_the_hard_shadow() {
     // i = 0, s = 0 (hard step), b = 0, α = 0: S = V at every pixel of the matte, and the image
     // is F − direct + r·V.

@@ -101,25 +101,58 @@ __kernel void st_contour(__global const float* pixels, uint plane, uint planes,
 // loop one sample at a time (src/filters/stylized/distance.rs, tests/stylized.rs:
 // bit-identical on PoCL). A GPU's lanes are its work-items already: there the scalar loop
 // (ST_DISTANCE_LANES = 0) stays, unmeasured (no GPU was lent).
+//
+// Pass 1 keeps its distances for pass 2 (ST_CACHE): a pass that draws and gathers again cost
+// as much as the first (st_distance 1.05 s -> 0.62 s at 512², two lights, the same bits).
+// Samples past the first ST_CACHE (contour_samples above 1024) are drawn again in pass 2.
 #define ST_LANES 16u
+#define ST_CACHE 1024u
 
 // Lanes k0 .. k0 + 15 of the pixel's draw: entry j of each sample k (rng.cl rng_uniform(key,
-// k, 0), stratified as in distance.rs `Sampling::entry`) and whether k is a sample at all.
-__attribute__((always_inline)) inline uint16 st_entries(uint k0, uint samples, bool all,
+// k, 0), stratified as in distance.rs `Sampling::entry`) and whether k is a sample at all (a
+// lane past the last sample takes lane 0's entry, inside the window below). `draws` holds
+// hash_u32(k << 8), the part of rng_uniform that is the same at every pixel (distance.rs
+// `draw_hashes`; 0.43 s -> 0.41 s).
+__attribute__((always_inline)) inline uint16 st_entries(__global const uint* draws,
+                                                        uint k0, uint samples, bool all,
                                                         uint key, uint count, float scale,
                                                         int16* valid) {
     uint16 k = (uint16)(k0) + (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     *valid = k < (uint16)(samples);
     if (all) return select((uint16)(0u), k, *valid);
-    uint16 h = hash_u32_16((uint16)(key) ^ hash_u32_16(k << 8));
+    uint16 h = hash_u32_16((uint16)(key) ^ vload16(0, draws + k0));
     float16 u = convert_float16(h >> 8) * 0x1.0p-24f;
     uint16 j = min(convert_uint16((convert_float16(k) + u) * scale), (uint16)(count - 1u));
-    return select((uint16)(0u), j, *valid);
+    return select((uint16)(j.s0), j, *valid);
 }
 
-// Lane s of sixteen drawn points: two float4 loads taken apart. (Gathered with scalar loads
-// from the planes below instead, st_distance measured slower on PoCL: 1.49 s against 1.07 s
-// at 512², two lights.)
+// One plane's sixteen drawn values from a window of the list (ST_WINDOW_CHUNKS). The draw's
+// entries are non-decreasing in k (k + u <= k + 1 <= k + 1 + u' in float, and the scaling and
+// the floor keep the order), so lanes k0 .. k0 + 15 read entries base = j.s0 .. top, top at
+// most (k0 + 16) * scale. Where that is at most 64 points, each 32 of them come in with two
+// vector loads and one two-source permute (AVX-512 vpermi2ps; `off` = j - base) instead of
+// sixteen gathered points taken apart: st_distance at 512², two lights, 0.58 s -> 0.42 s. PoCL's
+// shuffle2 with a mask known only at run time goes through memory a lane at a time (2.1 s),
+// so without AVX-512 the window is not used. Its last read, top + 31, stays inside the
+// planes: the host pads them by 32 points (contour.rs `planes`).
+#define ST_WINDOW_CHUNKS 2u
+#define ST_PERMUTE2(a, b, idx) \
+    as_float16(__builtin_ia32_vpermi2varps512(a, as_int16(idx), b))
+#define ST_WINDOW(dst, plane_at)                                                   \
+    {                                                                              \
+        __global const float* w = (plane_at) + base;                               \
+        dst = ST_PERMUTE2(vload16(0, w), vload16(0, w + 16), off);                 \
+        if (chunks > 1u) {                                                         \
+            float16 v = ST_PERMUTE2(vload16(0, w + 32), vload16(0, w + 48), off);  \
+            dst = select(dst, v, off > (uint16)(31u));                             \
+        }                                                                          \
+    }
+
+// Lane s of sixteen drawn points: two float4 loads taken apart, where the draw spreads over
+// more than the window's 64 points (more than about four points per sample: grids at 512²
+// has 7.5, and there the window measured slower, 0.30 s against 0.24 s) or without AVX-512.
+// (Gathered with scalar loads from the planes instead, st_distance measured slower on PoCL:
+// 1.49 s against 1.07 s at 512², two lights.)
 #define ST_GATHER_LANE(s)                                                          \
     {                                                                              \
         float4 q = contour[2u * j.s], qn = contour[2u * j.s + 1u];                 \
@@ -131,14 +164,14 @@ __attribute__((always_inline)) inline uint16 st_entries(uint k0, uint samples, b
 // and which of them are samples that pass the 45° rule (`keep`, as lanes of -1). With every
 // point used (`all`), samples k0 .. k0 + 15 are points k0 .. k0 + 15: one vector load from
 // each of the host's seven planes of `stride` floats (src/filters/stylized/contour.rs
-// `planes`). Inlined by force: as a call, PoCL passed the vectors through the stack
+// `planes`); a drawn subset comes from a window of the planes or is gathered (above). Inlined by force: as a call, PoCL passed the vectors through the stack
 // (st_distance 1.21 s against 1.07 s at 512², two lights).
 __attribute__((always_inline)) inline float16 st_lane_distances(
-        __global const float4* contour, __global const float* points, uint stride, uint count,
-        uint samples, bool all, float scale, uint key, uint k0, float3 p, float3 nrm,
+        __global const float4* contour, __global const float* points, uint stride,
+        __global const uint* draws, uint count, uint samples, bool all, float scale, uint key, uint k0, float3 p, float3 nrm,
         float normal_cos, float16* occ, int16* keep) {
     int16 valid;
-    uint16 j = st_entries(k0, samples, all, key, count, scale, &valid);
+    uint16 j = st_entries(draws, k0, samples, all, key, count, scale, &valid);
     float16 qx, qy, qz, qw, nx, ny, nz;
     if (all) {
         __global const float* at = points + k0;
@@ -149,7 +182,23 @@ __attribute__((always_inline)) inline float16 st_lane_distances(
         nx = vload16(0, at + 4u * stride);
         ny = vload16(0, at + 5u * stride);
         nz = vload16(0, at + 6u * stride);
-    } else {
+    }
+#if defined(__AVX512F__)
+    else if ((min((uint)((float)(k0 + ST_LANES) * scale), count - 1u) - j.s0) / 32u
+             < ST_WINDOW_CHUNKS) {
+        uint base = j.s0;
+        uint16 off = j - (uint16)(base);
+        uint chunks = (min((uint)((float)(k0 + ST_LANES) * scale), count - 1u) - base) / 32u + 1u;
+        ST_WINDOW(qx, points)
+        ST_WINDOW(qy, points + stride)
+        ST_WINDOW(qz, points + 2u * stride)
+        ST_WINDOW(qw, points + 3u * stride)
+        ST_WINDOW(nx, points + 4u * stride)
+        ST_WINDOW(ny, points + 5u * stride)
+        ST_WINDOW(nz, points + 6u * stride)
+    }
+#endif
+    else {
         ST_GATHER_LANE(s0) ST_GATHER_LANE(s1) ST_GATHER_LANE(s2) ST_GATHER_LANE(s3)
         ST_GATHER_LANE(s4) ST_GATHER_LANE(s5) ST_GATHER_LANE(s6) ST_GATHER_LANE(s7)
         ST_GATHER_LANE(s8) ST_GATHER_LANE(s9) ST_GATHER_LANE(sa) ST_GATHER_LANE(sb)
@@ -172,7 +221,7 @@ __attribute__((always_inline)) inline float16 st_lane_distances(
 // the same entries).
 __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
                           __global const float4* contour, __global const float* points,
-                          uint stride, uint count, uint n, float scale, uint seed, float normal_cos,
+                          uint stride, __global const uint* draws, uint count, uint n, float scale, uint seed, float normal_cos,
                           uint width, uint height, __global float* dist,
                           __global float* occluder) {
     uint x = get_global_id(0), y = get_global_id(1);
@@ -194,12 +243,20 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
     // Pass 1: m = min d over the kept points (a minimum: the same in any order).
 #if ST_DISTANCE_LANES
     float16 m16 = (float16)(INFINITY);
+    // The first ST_CACHE samples' d, with -1 for a sample that is not kept (a distance is +0
+    // or more, or NaN: pass 2 reads keep back from the sign), and their occluder distances.
+    // 8 KiB a work-item: the host launches this variant in work-groups of 8 (device.rs).
+    float16 cached_d[ST_CACHE / ST_LANES], cached_occ[ST_CACHE / ST_LANES];
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
         int16 keep;
         float16 occ;
-        float16 d = st_lane_distances(contour, points, stride, count, samples, all, scale, key,
+        float16 d = st_lane_distances(contour, points, stride, draws, count, samples, all, scale, key,
                                       k0, p, nrm, normal_cos, &occ, &keep);
         m16 = select(m16, d, keep & (d < m16));   // fmin(m16, d), NaN included
+        if (k0 < ST_CACHE) {
+            cached_d[k0 / ST_LANES] = select((float16)(-1.0f), d, keep);
+            cached_occ[k0 / ST_LANES] = occ;
+        }
     }
     float8 m8 = fmin(m16.lo, m16.hi);
     float4 m4 = fmin(m8.lo, m8.hi);
@@ -229,9 +286,15 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
 #if ST_DISTANCE_LANES
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
         int16 keep;
-        float16 occ;
-        float16 d = st_lane_distances(contour, points, stride, count, samples, all, scale, key,
-                                      k0, p, nrm, normal_cos, &occ, &keep);
+        float16 occ, d;
+        if (k0 < ST_CACHE) {
+            d = cached_d[k0 / ST_LANES];
+            occ = cached_occ[k0 / ST_LANES];
+            keep = !(d < (float16)(0.0f));
+        } else {
+            d = st_lane_distances(contour, points, stride, draws, count, samples, all, scale, key, k0,
+                                  p, nrm, normal_cos, &occ, &keep);
+        }
         float16 r = m / d;
         float16 r2 = r * r;
         float16 r4 = r2 * r2;

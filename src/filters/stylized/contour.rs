@@ -90,13 +90,15 @@ pub fn compact(slots: &[Float4]) -> Vec<Float4> {
 pub const LANES: usize = 16;
 
 /// The list as seven planes (x, y, z, occluder distance, normal x, y, z), each padded with
-/// zeros to a whole number of [`LANES`], and that padded length: what `st_distance` reads
-/// when it uses every point (no more points than samples), sixteen at a time with one vector
-/// load per plane. (A drawn subset gathers from the list itself: scalar loads from planes
-/// measured slower there.)
+/// zeros by at least two [`LANES`] to a whole number of them, and that padded length: what
+/// `st_distance`'s lanes read, sixteen at a time with one vector load per plane when they use
+/// every point (no more points than samples), and a window of up to 64 points from the
+/// first drawn entry when they draw (whose loads reach up to 31 points past the list's last
+/// point: the padding). A draw that spreads wider gathers from the list itself (scalar loads
+/// from planes measured slower there).
 pub fn planes(list: &[Float4]) -> (Vec<f32>, usize) {
     let count = list.len() / 2;
-    let stride = count.div_ceil(LANES) * LANES;
+    let stride = (count + 2 * LANES).div_ceil(LANES) * LANES;
     let mut out = vec![0.0; stride * 7];
     for (k, point) in list.chunks_exact(2).enumerate() {
         for lane in 0..4 {

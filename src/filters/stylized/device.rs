@@ -14,10 +14,13 @@ use ocl::{Buffer, Kernel, Program};
 use super::transfer::{Controls, LANES};
 use super::{DISTANCE_SEED, StylizedSettings, Variant, blur, contour};
 use crate::filters::{FilterRun, PreparedFilter};
-use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
+use crate::gpu::{Gpu, enqueue, event_duration, read_rgb, round_up};
 use crate::layout::outputs::{BufferId, Output, OutputSet};
 use crate::layout::{Float2, Float4};
 use crate::render::Frame;
+
+/// Work-items per work-group of the lanes' `st_distance` (see where it is launched).
+const DISTANCE_GROUP: usize = 8;
 
 /// The kernels' buffers of one stylized light for one image size.
 struct Passes {
@@ -182,21 +185,32 @@ impl StylizedKernel {
         let buffer = self.gpu.upload(&list)?;
         let sampling =
             super::distance::Sampling::new(count, s.contour_samples, DISTANCE_SEED, normal_cos);
-        // Every point used by the lanes: they read them as planes (one float where they do not).
-        let (planes_of_points, stride) = if count <= sampling.n && self.variant == Variant::Lanes {
+        // The lanes read the points as planes (a window of them when they draw a subset).
+        let (planes_of_points, stride) = if self.variant == Variant::Lanes {
             contour::planes(&list)
         } else {
             (Vec::new(), 0)
         };
         let point_planes = self.gpu.upload(&planes_of_points)?;
-        let kernel = self
-            .kernel("st_distance")
+        let draws = self.gpu.upload(&super::distance::draw_hashes(sampling.n))?;
+        let mut kernel = self.kernel("st_distance");
+        if self.variant == Variant::Lanes {
+            // The lanes keep pass 1's distances in private arrays (8 KiB a work-item), and PoCL
+            // holds a whole work-group's private arrays at once on its thread's stack: with the
+            // work-group it chose itself st_distance crashed at 512². Eight work-items fit;
+            // at 512², two lights, 1, 4, 8, 16 and 32 measured within 5 % of each other.
+            kernel
+                .local_work_size([DISTANCE_GROUP, 1])
+                .global_work_size([round_up(self.width as usize, DISTANCE_GROUP), self.height as usize]);
+        }
+        let kernel = kernel
             .arg(pixels)
             .arg(plane)
             .arg(planes)
             .arg(&buffer)
             .arg(&point_planes)
             .arg(stride as u32)
+            .arg(&draws)
             .arg(count)
             .arg(sampling.n)
             .arg(sampling.scale)

@@ -29,7 +29,7 @@ use rayon::prelude::*;
 
 use super::contour::in_matte;
 use crate::layout::{Float4, ShadowPixel};
-use crate::render::cpu::rng::{rng_sample_key, rng_uniform};
+use crate::render::cpu::rng::{hash_u32, rng_sample_key, rng_uniform};
 
 /// How the distance step samples the contour list.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,6 +62,14 @@ impl Sampling {
         }
         (((k as f32 + rng_uniform(key, k, 0)) * self.scale) as u32).min(self.count - 1)
     }
+}
+
+/// hash_u32(k << 8) for k < n, padded with zeros to a whole number of sixteen: the part of
+/// `rng_uniform(key, k, 0)` that is the same at every pixel, hashed once for `st_distance`'s
+/// lanes instead of at every pixel.
+pub fn draw_hashes(n: u32) -> Vec<u32> {
+    let padded = n.div_ceil(16) * 16;
+    (0..padded).map(|k| if k < n { hash_u32(k << 8) } else { 0 }).collect()
 }
 
 /// D and d(x) of one pixel at `p` with normal `n` and visibility `lit`, from `contour` (two
