@@ -131,9 +131,9 @@ __attribute__((always_inline)) inline uint16 st_entries(__global const uint* dra
 // the floor keep the order), so lanes k0 .. k0 + 15 read entries base = j.s0 .. top, top at
 // most (k0 + 16) * scale. Where that is at most 64 points, each 32 of them come in with two
 // vector loads and one two-source permute (AVX-512 vpermi2ps; `off` = j - base) instead of
-// sixteen gathered points taken apart: st_distance at 512², two lights, 0.58 s -> 0.42 s. PoCL's
-// shuffle2 with a mask known only at run time goes through memory a lane at a time (2.1 s),
-// so without AVX-512 the window is not used. Its last read, top + 31, stays inside the
+// sixteen gathered points taken apart: st_distance at 512², two lights, 0.58 s -> 0.42 s.
+// PoCL's shuffle2 with a mask known only at run time goes through memory a lane at a time
+// (2.1 s), so without AVX-512 the window is not used. Its last read, top + 31, stays inside the
 // planes: the host pads them by 32 points (contour.rs `planes`).
 #define ST_WINDOW_CHUNKS 2u
 #define ST_PERMUTE2(a, b, idx) \
@@ -164,12 +164,13 @@ __attribute__((always_inline)) inline uint16 st_entries(__global const uint* dra
 // and which of them are samples that pass the 45° rule (`keep`, as lanes of -1). With every
 // point used (`all`), samples k0 .. k0 + 15 are points k0 .. k0 + 15: one vector load from
 // each of the host's seven planes of `stride` floats (src/filters/stylized/contour.rs
-// `planes`); a drawn subset comes from a window of the planes or is gathered (above). Inlined by force: as a call, PoCL passed the vectors through the stack
-// (st_distance 1.21 s against 1.07 s at 512², two lights).
+// `planes`); a drawn subset comes from a window of the planes or is gathered (above).
+// Inlined by force: as a call, PoCL passed the vectors through the stack (st_distance 1.21 s
+// against 1.07 s at 512², two lights).
 __attribute__((always_inline)) inline float16 st_lane_distances(
         __global const float4* contour, __global const float* points, uint stride,
-        __global const uint* draws, uint count, uint samples, bool all, float scale, uint key, uint k0, float3 p, float3 nrm,
-        float normal_cos, float16* occ, int16* keep) {
+        __global const uint* draws, uint count, uint samples, bool all, float scale, uint key,
+        uint k0, float3 p, float3 nrm, float normal_cos, float16* occ, int16* keep) {
     int16 valid;
     uint16 j = st_entries(draws, k0, samples, all, key, count, scale, &valid);
     float16 qx, qy, qz, qw, nx, ny, nz;
@@ -184,11 +185,13 @@ __attribute__((always_inline)) inline float16 st_lane_distances(
         nz = vload16(0, at + 6u * stride);
     }
 #if defined(__AVX512F__)
+    // The last entry these lanes can draw: (k0 + 16) * scale bounds (k + u) * scale in float.
     else if ((min((uint)((float)(k0 + ST_LANES) * scale), count - 1u) - j.s0) / 32u
              < ST_WINDOW_CHUNKS) {
         uint base = j.s0;
         uint16 off = j - (uint16)(base);
-        uint chunks = (min((uint)((float)(k0 + ST_LANES) * scale), count - 1u) - base) / 32u + 1u;
+        uint chunks = (min((uint)((float)(k0 + ST_LANES) * scale), count - 1u) - base) / 32u
+                      + 1u;
         ST_WINDOW(qx, points)
         ST_WINDOW(qy, points + stride)
         ST_WINDOW(qz, points + 2u * stride)
@@ -216,14 +219,14 @@ __attribute__((always_inline)) inline float16 st_lane_distances(
 #define ST_ADD_LANE(s) sum += w.s; sum_occ += wo.s;
 
 // `contour` holds `count` points as (position, occluder distance), (normal, 1) pairs, and
-// `points` the same as planes of `stride` floats where count <= n (else unused); `n` is the
-// number of samples, `scale` = count / n as a float (the host's, so that the reference picks
-// the same entries).
+// `points` the same as planes of `stride` floats for the lanes (unused by the scalar loop);
+// `draws` the lanes' table of hash_u32(k << 8); `n` is the number of samples, `scale` =
+// count / n as a float (the host's, so that the reference picks the same entries).
 __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
                           __global const float4* contour, __global const float* points,
-                          uint stride, __global const uint* draws, uint count, uint n, float scale, uint seed, float normal_cos,
-                          uint width, uint height, __global float* dist,
-                          __global float* occluder) {
+                          uint stride, __global const uint* draws, uint count, uint n,
+                          float scale, uint seed, float normal_cos, uint width, uint height,
+                          __global float* dist, __global float* occluder) {
     uint x = get_global_id(0), y = get_global_id(1);
     if (x >= width || y >= height) return;
     uint i = y * width + x;
@@ -250,8 +253,8 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
         int16 keep;
         float16 occ;
-        float16 d = st_lane_distances(contour, points, stride, draws, count, samples, all, scale, key,
-                                      k0, p, nrm, normal_cos, &occ, &keep);
+        float16 d = st_lane_distances(contour, points, stride, draws, count, samples, all,
+                                      scale, key, k0, p, nrm, normal_cos, &occ, &keep);
         m16 = select(m16, d, keep & (d < m16));   // fmin(m16, d), NaN included
         if (k0 < ST_CACHE) {
             cached_d[k0 / ST_LANES] = select((float16)(-1.0f), d, keep);
@@ -292,8 +295,8 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
             occ = cached_occ[k0 / ST_LANES];
             keep = !(d < (float16)(0.0f));
         } else {
-            d = st_lane_distances(contour, points, stride, draws, count, samples, all, scale, key, k0,
-                                  p, nrm, normal_cos, &occ, &keep);
+            d = st_lane_distances(contour, points, stride, draws, count, samples, all, scale,
+                                  key, k0, p, nrm, normal_cos, &occ, &keep);
         }
         float16 r = m / d;
         float16 r2 = r * r;
