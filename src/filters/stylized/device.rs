@@ -54,6 +54,9 @@ pub struct StylizedKernel {
     /// the image passes through).
     lights: Vec<Passes>,
     image: Option<Buffer<Float4>>,
+    /// hash_u32(k << 8) for the `contour_samples` draws (`distance::draw_hashes`): the same
+    /// at every pixel and every frame, made once.
+    draws: Option<Buffer<u32>>,
     width: u32,
     height: u32,
     /// The shadow pixels the last distance step read (bytes), and whether the blur is of
@@ -78,8 +81,8 @@ impl StylizedKernel {
             bail!("the image must be at least 1x1 pixels, got {width}x{height}");
         }
         let variant = settings.variant.for_device(&gpu.summary.kind);
-        let (program, image) = if lights.is_empty() {
-            (None, None)
+        let (program, image, draws) = if lights.is_empty() {
+            (None, None, None)
         } else {
             let n = width as usize * height as usize;
             let lanes = (variant == Variant::Lanes) as u32;
@@ -87,6 +90,7 @@ impl StylizedKernel {
             (
                 Some(gpu.program("filters/stylized.cl", &defines, "")?),
                 Some(gpu.zeroed::<Float4>(n, "stylized image")?),
+                Some(gpu.upload(&super::distance::draw_hashes(settings.contour_samples))?),
             )
         };
         let lights = lights
@@ -100,6 +104,7 @@ impl StylizedKernel {
             variant,
             lights,
             image,
+            draws,
             width,
             height,
             last_pixels: None,
@@ -192,7 +197,6 @@ impl StylizedKernel {
             (Vec::new(), 0)
         };
         let point_planes = self.gpu.upload(&planes_of_points)?;
-        let draws = self.gpu.upload(&super::distance::draw_hashes(sampling.n))?;
         let mut kernel = self.kernel("st_distance");
         if self.variant == Variant::Lanes {
             // The lanes keep pass 1's distances in private arrays (8 KiB a work-item), and PoCL
@@ -211,7 +215,7 @@ impl StylizedKernel {
             .arg(&buffer)
             .arg(&point_planes)
             .arg(stride as u32)
-            .arg(&draws)
+            .arg(self.draws.as_ref().expect("built with a light"))
             .arg(count)
             .arg(sampling.n)
             .arg(sampling.scale)
