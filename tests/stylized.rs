@@ -122,6 +122,55 @@ fn the_lanes_keep_the_bits_in_every_window_and_past_the_pass_cache() {
 }
 
 #[test]
+fn the_lanes_two_pixels_a_work_item_keep_the_bits_at_an_odd_width_and_the_mattes_edge() {
+    // The lanes take pixels 2x and 2x + 1 of a row in one work-item and add their pass-2
+    // sums together (kernels/filters/stylized.cl st_add_pair); a pixel outside the image (the
+    // last work-item of a row of odd width), outside the matte or without a contour point
+    // on its side goes through pass 2 as an idle partner whose terms nobody reads. An odd
+    // width, drawn and exact sample counts: the reference's bits, and pairs with one pixel
+    // of each kind are in the frame.
+    let (width, height) = (63, 47);
+    let frame = shadow_renderer(
+        &bundled_scene("grids"),
+        width,
+        height,
+        2,
+        7,
+        styled().sampling(),
+    )
+    .frame();
+    for n in [37, MAX_SAMPLES] {
+        let s = StylizedSettings {
+            contour_samples: n,
+            variant: Variant::Lanes,
+            ..styled()
+        };
+        let cpu = reference(&frame, &s).unwrap();
+        let mut k = StylizedKernel::new(gpu(), &s, &s.stylized_lights(), width, height).unwrap();
+        k.filter(&frame).unwrap();
+        let dev = k.stages().unwrap();
+        let wd = worst(&dev.distance, &cpu.distance, 1e-3);
+        let wo = worst(&dev.occluder, &cpu.occluder, 1e-3);
+        // Pairs (2x, 2x + 1) with one finite D and one infinite (outside the matte or no
+        // contour point on its side), and rows whose last pixel has no partner.
+        let mixed = (0..height as usize)
+            .flat_map(|y| (0..width as usize / 2).map(move |x| y * width as usize + 2 * x))
+            .filter(|&i| dev.distance[i].is_finite() != dev.distance[i + 1].is_finite())
+            .count();
+        let lone = (0..height as usize)
+            .filter(|y| dev.distance[y * width as usize + width as usize - 1].is_finite())
+            .count();
+        eprintln!("{n} samples: D {wd:e}, d(x) {wo:e}; {mixed} mixed pairs, {lone} lone finite");
+        assert!(
+            mixed > 0 && lone > 0,
+            "{mixed} mixed pairs, {lone} lone pixels with a D"
+        );
+        // Bit-identical on PoCL; 1e-6 for another driver's sqrt, as above.
+        assert!(wd < 1e-6 && wo < 1e-6, "{n} samples: D {wd}, d(x) {wo}");
+    }
+}
+
+#[test]
 fn identity_at_zero_controls_reproduces_the_hard_shadow() {
     // i = 0, s = 0 (hard step), b = 0, α = 0: S = V at every pixel of the matte, and the image
     // is F − direct + r·V.

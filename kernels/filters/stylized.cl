@@ -107,6 +107,11 @@ __kernel void st_contour(__global const float* pixels, uint plane, uint planes,
 // Samples past the first ST_CACHE (contour_samples above 1024) are drawn again in pass 2.
 #define ST_LANES 16u
 #define ST_CACHE 1024u
+// ST_PIXELS: pixels a work-item of the lanes takes (the host's, device.rs PIXELS_PER_ITEM;
+// pass 2 below adds two at once).
+#if ST_DISTANCE_LANES && ST_PIXELS != 2
+#error "st_distance's lanes take two pixels a work-item (st_add_pair)"
+#endif
 
 // Lanes k0 .. k0 + 15 of the pixel's draw: entry j of each sample k (rng.cl rng_uniform(key,
 // k, 0), stratified as in distance.rs `Sampling::entry`) and whether k is a sample at all (a
@@ -214,47 +219,67 @@ __attribute__((always_inline)) inline float16 st_lane_distances(
     return sqrt(dx * dx + dy * dy + dz * dz);                // sqrt(dot(delta, delta))
 }
 
-// Adds lane s of (w, w·occ) to the sums, in k order (a sample the rule skipped adds +0: the
-// sums start at +0 and only grow, so it changes no bit).
-#define ST_ADD_LANE(s) sum += w.s; sum_occ += wo.s;
+// A pixel's part of st_distance before its loops: a pixel outside the matte gets D = inf and
+// d(x) = 0 and needs no distance; otherwise its position, normal and draw key.
+typedef struct {
+    uint i, key;
+    float3 p, nrm;
+    bool lit, active;   // active: D and d(x) are still to be written
+    float own_occluder, m;
+} StPixel;
 
-// `contour` holds `count` points as (position, occluder distance), (normal, 1) pairs, and
-// `points` the same as planes of `stride` floats for the lanes (unused by the scalar loop);
-// `draws` the lanes' table of hash_u32(k << 8); `n` is the number of samples, `scale` =
-// count / n as a float (the host's, so that the reference picks the same entries).
-__kernel void st_distance(__global const float* pixels, uint plane, uint planes,
-                          __global const float4* contour, __global const float* points,
-                          uint stride, __global const uint* draws, uint count, uint n,
-                          float scale, uint seed, float normal_cos, uint width, uint height,
-                          __global float* dist, __global float* occluder) {
-    uint x = get_global_id(0), y = get_global_id(1);
-    if (x >= width || y >= height) return;
-    uint i = y * width + x;
+__attribute__((always_inline)) inline bool st_begin(__global const float* pixels, uint plane,
+                                                    uint planes, uint i, uint seed,
+                                                    __global float* dist,
+                                                    __global float* occluder, StPixel* a) {
     __global const float* px = ST_PX(i);
-    float own_occluder = px[SHADOW_PIXEL_OCCLUDER_DISTANCE];
-    bool lit = px[SHADOW_PIXEL_CENTRE_VISIBLE] != 0.0f;
     if (!st_in_matte(px)) {
         dist[i] = INFINITY;
         occluder[i] = 0.0f;
+        return false;
+    }
+    a->i = i;
+    a->key = rng_sample_key(seed, i, 0u);
+    a->p = st_lane3(px, SHADOW_PIXEL_POSITION);
+    a->nrm = st_lane3(px, SHADOW_PIXEL_NORMAL);
+    a->lit = px[SHADOW_PIXEL_CENTRE_VISIBLE] != 0.0f;
+    a->own_occluder = px[SHADOW_PIXEL_OCCLUDER_DISTANCE];
+    return true;
+}
+
+// The pixel's D and d(x) from pass 1's m and pass 2's sums. No contour point on this side of
+// the 45° rule (m = inf): the pixel is as far from any boundary as can be (D = +-inf gives
+// S = 1 or b in st_compose, never NaN). Otherwise pass 2's mean of (m/d)^8 is at least
+// 1/kept (the nearest point adds 1), so its -1/8 power is finite.
+__attribute__((always_inline)) inline void st_end(const StPixel* a, float sum, float sum_occ,
+                                                  uint kept, __global float* dist,
+                                                  __global float* occluder) {
+    if (a->m == INFINITY) {
+        dist[a->i] = a->lit ? INFINITY : -INFINITY;
+        occluder[a->i] = a->own_occluder;
         return;
     }
-    float3 p = st_lane3(px, SHADOW_PIXEL_POSITION);
-    float3 nrm = st_lane3(px, SHADOW_PIXEL_NORMAL);
-    bool all = count <= n;
-    uint samples = all ? count : n;
-    uint key = rng_sample_key(seed, i, 0u);
-    // Pass 1: m = min d over the kept points (a minimum: the same in any order).
+    float mean = sum / (float)kept;
+    float D = a->m / sqrt(sqrt(sqrt(mean)));
+    dist[a->i] = a->lit ? D : -D;
+    occluder[a->i] = sum_occ / sum;
+}
+
 #if ST_DISTANCE_LANES
+// Pass 1 on lanes: m = min d over the kept samples (a minimum: the same in any order). The
+// first ST_CACHE samples' d go to `cached_d`, -1 for a sample that is not kept (a distance
+// is +0 or more, or NaN: pass 2 reads keep back from the sign), their occluder distances to
+// `cached_occ`.
+__attribute__((always_inline)) inline float st_pass1(
+        __global const float4* contour, __global const float* points, uint stride,
+        __global const uint* draws, uint count, uint samples, bool all, float scale,
+        float normal_cos, const StPixel* a, float16* cached_d, float16* cached_occ) {
     float16 m16 = (float16)(INFINITY);
-    // The first ST_CACHE samples' d, with -1 for a sample that is not kept (a distance is +0
-    // or more, or NaN: pass 2 reads keep back from the sign), and their occluder distances.
-    // 8 KiB a work-item: the host launches this variant in work-groups of 8 (device.rs).
-    float16 cached_d[ST_CACHE / ST_LANES], cached_occ[ST_CACHE / ST_LANES];
     for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
         int16 keep;
         float16 occ;
         float16 d = st_lane_distances(contour, points, stride, draws, count, samples, all,
-                                      scale, key, k0, p, nrm, normal_cos, &occ, &keep);
+                                      scale, a->key, k0, a->p, a->nrm, normal_cos, &occ, &keep);
         m16 = select(m16, d, keep & (d < m16));   // fmin(m16, d), NaN included
         if (k0 < ST_CACHE) {
             cached_d[k0 / ST_LANES] = select((float16)(-1.0f), d, keep);
@@ -264,60 +289,170 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
     float8 m8 = fmin(m16.lo, m16.hi);
     float4 m4 = fmin(m8.lo, m8.hi);
     float2 m2 = fmin(m4.lo, m4.hi);
-    float m = fmin(m2.x, m2.y);
+    return fmin(m2.x, m2.y);
+}
+
+// Pass 2's terms for samples k0 .. k0 + 15 of pixel a: (m/d)^8 (1 for d <= m) and its
+// product with the occluder distance, +0 for a sample that is not kept; and how many are.
+__attribute__((always_inline)) inline uint st_terms(
+        __global const float4* contour, __global const float* points, uint stride,
+        __global const uint* draws, uint count, uint samples, bool all, float scale,
+        float normal_cos, const StPixel* a, const float16* cached_d, const float16* cached_occ,
+        uint k0, float16* w, float16* wo) {
+    int16 keep;
+    float16 occ, d;
+    if (k0 < ST_CACHE) {
+        d = cached_d[k0 / ST_LANES];
+        occ = cached_occ[k0 / ST_LANES];
+        keep = !(d < (float16)(0.0f));
+    } else {
+        d = st_lane_distances(contour, points, stride, draws, count, samples, all, scale,
+                              a->key, k0, a->p, a->nrm, normal_cos, &occ, &keep);
+    }
+    float16 r = a->m / d;
+    float16 r2 = r * r;
+    float16 r4 = r2 * r2;
+    *w = select((float16)(0.0f), select((float16)(1.0f), r4 * r4, d > a->m), keep);
+    *wo = select((float16)(0.0f), *w * occ, keep);
+    int8 k8 = (keep & 1).lo + (keep & 1).hi;
+    int4 k4 = k8.lo + k8.hi;
+    int2 k2 = k4.lo + k4.hi;
+    return (uint)(k2.x + k2.y);
+}
+
+// A work-item's pixel that needs no pass 2 (outside the matte or the image, or m = inf)
+// still goes through it beside the others, as terms of +0 that nobody reads: no kept sample
+// in the cache, and for samples past it a pixel whose normal fails the 45° rule.
+__attribute__((always_inline)) inline void st_idle(StPixel* a, uint samples, float16* cached_d,
+                                                   float16* cached_occ) {
+    a->active = false;
+    a->key = 0u;
+    a->p = a->nrm = (float3)(0.0f);
+    a->m = 1.0f;
+    for (uint k0 = 0u; k0 < min(samples, ST_CACHE); k0 += ST_LANES) {
+        cached_d[k0 / ST_LANES] = (float16)(-1.0f);
+        cached_occ[k0 / ST_LANES] = (float16)(0.0f);
+    }
+}
+
+// Two pixels' terms (w, w·occ) as quads (w, wo, w_b, wo_b) of one sample: a 4 x 16 transpose
+// in eight two-source shuffles. q0 holds the quads of samples 0, 4, 8, 12; q1 of 1, 5, 9, 13;
+// q2 of 2, 6, 10, 14; q3 of 3, 7, 11, 15.
+__attribute__((always_inline)) inline void st_quads(float16 w, float16 wo, float16 w_b,
+                                                    float16 wo_b, float16* q) {
+    float16 a_lo = (float16)(w.s0, wo.s0, w.s1, wo.s1, w.s4, wo.s4, w.s5, wo.s5,
+                             w.s8, wo.s8, w.s9, wo.s9, w.sc, wo.sc, w.sd, wo.sd);
+    float16 a_hi = (float16)(w.s2, wo.s2, w.s3, wo.s3, w.s6, wo.s6, w.s7, wo.s7,
+                             w.sa, wo.sa, w.sb, wo.sb, w.se, wo.se, w.sf, wo.sf);
+    float16 b_lo = (float16)(w_b.s0, wo_b.s0, w_b.s1, wo_b.s1, w_b.s4, wo_b.s4, w_b.s5,
+                             wo_b.s5, w_b.s8, wo_b.s8, w_b.s9, wo_b.s9, w_b.sc, wo_b.sc,
+                             w_b.sd, wo_b.sd);
+    float16 b_hi = (float16)(w_b.s2, wo_b.s2, w_b.s3, wo_b.s3, w_b.s6, wo_b.s6, w_b.s7,
+                             wo_b.s7, w_b.sa, wo_b.sa, w_b.sb, wo_b.sb, w_b.se, wo_b.se,
+                             w_b.sf, wo_b.sf);
+    q[0] = (float16)(a_lo.s01, b_lo.s01, a_lo.s45, b_lo.s45, a_lo.s89, b_lo.s89, a_lo.scd,
+                     b_lo.scd);
+    q[1] = (float16)(a_lo.s23, b_lo.s23, a_lo.s67, b_lo.s67, a_lo.sab, b_lo.sab, a_lo.sef,
+                     b_lo.sef);
+    q[2] = (float16)(a_hi.s01, b_hi.s01, a_hi.s45, b_hi.s45, a_hi.s89, b_hi.s89, a_hi.scd,
+                     b_hi.scd);
+    q[3] = (float16)(a_hi.s23, b_hi.s23, a_hi.s67, b_hi.s67, a_hi.sab, b_hi.sab, a_hi.sef,
+                     b_hi.sef);
+}
+
+// Adds samples k0 .. k0 + 15 of two pixels' terms to their four sums (sum, sum_occ of each),
+// in k order: each lane adds one sample after another, the order that fixes the bits (a
+// sample the rule skipped adds +0: the sums start at +0 and only grow, so it changes no
+// bit), and the four chains are one vector addition a sample.
+__attribute__((always_inline)) inline float4 st_add_pair(float4 acc, const float16* w,
+                                                         const float16* wo) {
+    float16 q[4];
+    st_quads(w[0], wo[0], w[1], wo[1], q);
+    acc += q[0].s0123; acc += q[1].s0123; acc += q[2].s0123; acc += q[3].s0123;   // 0-3
+    acc += q[0].s4567; acc += q[1].s4567; acc += q[2].s4567; acc += q[3].s4567;   // 4-7
+    acc += q[0].s89ab; acc += q[1].s89ab; acc += q[2].s89ab; acc += q[3].s89ab;   // 8-11
+    acc += q[0].scdef; acc += q[1].scdef; acc += q[2].scdef; acc += q[3].scdef;   // 12-15
+    return acc;
+}
+#endif
+
+// `contour` holds `count` points as (position, occluder distance), (normal, 1) pairs, and
+// `points` the same as planes of `stride` floats for the lanes (unused by the scalar loop);
+// `draws` the lanes' table of hash_u32(k << 8); `n` is the number of samples, `scale` =
+// count / n as a float (the host's, so that the reference picks the same entries).
+//
+// The lanes take two pixels a work-item, (2x, y) and (2x + 1, y). Pass 2 adds each pixel's
+// terms one sample after another, the order that fixes the bits: with one pixel a
+// work-item, that chain of dependent additions, fed one lane at a time, was 36 % of the
+// kernel's time at 512², two lights (perf annotate). Two pixels' four sums as one float4
+// take one vector addition a sample (st_add_pair): st_distance 0.43 s -> 0.34 s, the same
+// bits. Four pixels a work-item (a float8 of sums, 32 KiB of cache) measured no faster.
+__kernel void st_distance(__global const float* pixels, uint plane, uint planes,
+                          __global const float4* contour, __global const float* points,
+                          uint stride, __global const uint* draws, uint count, uint n,
+                          float scale, uint seed, float normal_cos, uint width, uint height,
+                          __global float* dist, __global float* occluder) {
+    bool all = count <= n;
+    uint samples = all ? count : n;
+#if ST_DISTANCE_LANES
+    uint x = ST_PIXELS * get_global_id(0), y = get_global_id(1);
+    if (x >= width || y >= height) return;
+    // 16 KiB a work-item: the host launches this variant in small work-groups (device.rs).
+    float16 cached_d[ST_PIXELS][ST_CACHE / ST_LANES], cached_occ[ST_PIXELS][ST_CACHE / ST_LANES];
+    StPixel px[ST_PIXELS];
+    bool any = false;
+    for (uint h = 0u; h < ST_PIXELS; ++h) {
+        px[h].active = x + h < width && st_begin(pixels, plane, planes, y * width + x + h,
+                                                 seed, dist, occluder, &px[h]);
+        if (px[h].active) {
+            px[h].m = st_pass1(contour, points, stride, draws, count, samples, all, scale,
+                               normal_cos, &px[h], cached_d[h], cached_occ[h]);
+            if (px[h].m == INFINITY) st_end(&px[h], 0.0f, 0.0f, 0u, dist, occluder);
+        }
+        if (!px[h].active || px[h].m == INFINITY)
+            st_idle(&px[h], samples, cached_d[h], cached_occ[h]);
+        any = any || px[h].active;
+    }
+    if (!any) return;
+    // Pass 2: sum of (m/d)^8 in [0, 1] per sample (no overflow), both pixels at once.
+    float4 sums = (float4)(0.0f);   // sum, sum_occ of pixel 0, then of pixel 1
+    uint kept[ST_PIXELS] = {0u, 0u};
+    for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
+        float16 w[ST_PIXELS], wo[ST_PIXELS];
+#pragma unroll
+        for (uint h = 0u; h < ST_PIXELS; ++h)
+            kept[h] += st_terms(contour, points, stride, draws, count, samples, all, scale,
+                                normal_cos, &px[h], cached_d[h], cached_occ[h], k0, &w[h],
+                                &wo[h]);
+        sums = st_add_pair(sums, w, wo);
+    }
+    float s[4];
+    vstore4(sums, 0, s);
+    for (uint h = 0u; h < ST_PIXELS; ++h)
+        if (px[h].active) st_end(&px[h], s[2u * h], s[2u * h + 1u], kept[h], dist, occluder);
 #else
+    uint x = get_global_id(0), y = get_global_id(1);
+    if (x >= width || y >= height) return;
+    StPixel a;
+    if (!st_begin(pixels, plane, planes, y * width + x, seed, dist, occluder, &a)) return;
+    // Pass 1: m = min d over the kept points (a minimum: the same in any order).
     float m = INFINITY;
     for (uint k = 0u; k < samples; ++k) {
-        uint j = all ? k : min((uint)(((float)k + rng_uniform(key, k, 0u)) * scale), count - 1u);
+        uint j = all ? k : min((uint)(((float)k + rng_uniform(a.key, k, 0u)) * scale), count - 1u);
         float4 q = contour[2u * j], qn = contour[2u * j + 1u];
-        if (dot(nrm, qn.xyz) < normal_cos) continue;
-        float3 delta = q.xyz - p;
+        if (dot(a.nrm, qn.xyz) < normal_cos) continue;
+        float3 delta = q.xyz - a.p;
         m = fmin(m, sqrt(dot(delta, delta)));
     }
-#endif
-    if (m == INFINITY) {
-        // No contour point on this side of the 45° rule: the pixel is as far from any
-        // boundary as can be (D = +-inf gives S = 1 or b below, never NaN).
-        dist[i] = lit ? INFINITY : -INFINITY;
-        occluder[i] = own_occluder;
-        return;
-    }
-    // Pass 2: sum of (m/d)^8 in [0, 1] per point: no overflow, and the nearest point adds 1,
-    // so the mean is at least 1/kept and its -1/8 power is finite.
+    a.m = m;
+    // Pass 2: sum of (m/d)^8 in [0, 1] per point (no overflow).
     float sum = 0.0f, sum_occ = 0.0f;
     uint kept = 0u;
-#if ST_DISTANCE_LANES
-    for (uint k0 = 0u; k0 < samples; k0 += ST_LANES) {
-        int16 keep;
-        float16 occ, d;
-        if (k0 < ST_CACHE) {
-            d = cached_d[k0 / ST_LANES];
-            occ = cached_occ[k0 / ST_LANES];
-            keep = !(d < (float16)(0.0f));
-        } else {
-            d = st_lane_distances(contour, points, stride, draws, count, samples, all, scale,
-                                  key, k0, p, nrm, normal_cos, &occ, &keep);
-        }
-        float16 r = m / d;
-        float16 r2 = r * r;
-        float16 r4 = r2 * r2;
-        float16 w = select((float16)(0.0f), select((float16)(1.0f), r4 * r4, d > m), keep);
-        float16 wo = select((float16)(0.0f), w * occ, keep);
-        ST_ADD_LANE(s0) ST_ADD_LANE(s1) ST_ADD_LANE(s2) ST_ADD_LANE(s3)
-        ST_ADD_LANE(s4) ST_ADD_LANE(s5) ST_ADD_LANE(s6) ST_ADD_LANE(s7)
-        ST_ADD_LANE(s8) ST_ADD_LANE(s9) ST_ADD_LANE(sa) ST_ADD_LANE(sb)
-        ST_ADD_LANE(sc) ST_ADD_LANE(sd) ST_ADD_LANE(se) ST_ADD_LANE(sf)
-        int8 k8 = (keep & 1).lo + (keep & 1).hi;
-        int4 k4 = k8.lo + k8.hi;
-        int2 k2 = k4.lo + k4.hi;
-        kept += (uint)(k2.x + k2.y);
-    }
-#else
-    for (uint k = 0u; k < samples; ++k) {
-        uint j = all ? k : min((uint)(((float)k + rng_uniform(key, k, 0u)) * scale), count - 1u);
+    for (uint k = 0u; k < samples && m != INFINITY; ++k) {
+        uint j = all ? k : min((uint)(((float)k + rng_uniform(a.key, k, 0u)) * scale), count - 1u);
         float4 q = contour[2u * j], qn = contour[2u * j + 1u];
-        if (dot(nrm, qn.xyz) < normal_cos) continue;
-        float3 delta = q.xyz - p;
+        if (dot(a.nrm, qn.xyz) < normal_cos) continue;
+        float3 delta = q.xyz - a.p;
         float d = sqrt(dot(delta, delta));
         float w = 1.0f;
         if (d > m) {
@@ -330,11 +465,8 @@ __kernel void st_distance(__global const float* pixels, uint plane, uint planes,
         sum_occ += w * q.w;
         kept += 1u;
     }
+    st_end(&a, sum, sum_occ, kept, dist, occluder);
 #endif
-    float mean = sum / (float)kept;
-    float D = m / sqrt(sqrt(sqrt(mean)));
-    dist[i] = lit ? D : -D;
-    occluder[i] = sum_occ / sum;
 }
 
 // One blur pass over `in`. `stencil` holds this pass's n offsets of a unit Gaussian truncated

@@ -21,6 +21,9 @@ use crate::render::Frame;
 
 /// Work-items per work-group of the lanes' `st_distance` (see where it is launched).
 const DISTANCE_GROUP: usize = 8;
+/// Pixels a work-item of the lanes' `st_distance` takes, side by side in a row: pass 2's
+/// sums of two pixels overlap (kernels/filters/stylized.cl `st_add_pair`, which takes two).
+const PIXELS_PER_ITEM: usize = 2;
 
 /// The kernels' buffers of one stylized light for one image size.
 struct Passes {
@@ -86,7 +89,10 @@ impl StylizedKernel {
         } else {
             let n = width as usize * height as usize;
             let lanes = (variant == Variant::Lanes) as u32;
-            let defines = [("ST_DISTANCE_LANES".to_string(), lanes.to_string())];
+            let defines = [
+                ("ST_DISTANCE_LANES".to_string(), lanes.to_string()),
+                ("ST_PIXELS".to_string(), PIXELS_PER_ITEM.to_string()),
+            ];
             (
                 Some(gpu.program("filters/stylized.cl", &defines, "")?),
                 Some(gpu.zeroed::<Float4>(n, "stylized image")?),
@@ -199,11 +205,11 @@ impl StylizedKernel {
         let point_planes = self.gpu.upload(&planes_of_points)?;
         let mut kernel = self.kernel("st_distance");
         if self.variant == Variant::Lanes {
-            // The lanes keep pass 1's distances in private arrays (8 KiB a work-item), and PoCL
-            // holds a whole work-group's private arrays at once on its thread's stack: with the
-            // work-group it chose itself st_distance crashed at 512². Eight work-items fit;
-            // at 512², two lights, 1, 4, 8, 16 and 32 measured within 5 % of each other.
-            let columns = round_up(self.width as usize, DISTANCE_GROUP);
+            // The lanes take two pixels a work-item (2x and 2x + 1) and keep pass 1's
+            // distances of both in private arrays (16 KiB a work-item). PoCL holds a whole
+            // work-group's private arrays at once on its thread's stack: with the work-group
+            // it chose itself st_distance crashed at 512², so the host picks a small one.
+            let columns = round_up((self.width as usize).div_ceil(PIXELS_PER_ITEM), DISTANCE_GROUP);
             kernel
                 .local_work_size([DISTANCE_GROUP, 1])
                 .global_work_size([columns, self.height as usize]);
