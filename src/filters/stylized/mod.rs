@@ -158,15 +158,16 @@ crate::filter_settings! {
 #[serde(rename_all = "lowercase")]
 pub enum Variant {
     /// `lanes` on CPU devices, `scalar` on the others: on PoCL the lanes' st_distance took
-    /// 0.19-0.26x the scalar loop's time at 512², 8 spp (two lights, grids, curved;
-    /// results/README.md, "Stylized shadows below OIDN fast"). A GPU's SIMD lanes are its work-items already; not measured (no GPU was
-    /// lent), so GPUs keep the scalar loop, as the à-trous and data-driven filters' `auto` do.
+    /// 0.15-0.24x the scalar loop's time at 512², 8 spp (two lights, curved, grids;
+    /// results/README.md, "Stylized shadows below OIDN fast on the wall clock"). A GPU's SIMD
+    /// lanes are its work-items already; not measured (no GPU was lent), so GPUs keep the
+    /// scalar loop, as the à-trous and data-driven filters' `auto` do.
     Auto,
     /// One contour sample at a time per work-item.
     Scalar,
     /// Ours, for CPUs: sixteen samples at a time on float16 lanes, pass 1's distances kept
-    /// for pass 2, drawn points read from a window of the planes (AVX-512) or gathered; the
-    /// sums added in sample order.
+    /// for pass 2, drawn points read from a window of the planes (AVX-512) or gathered; two
+    /// pixels a work-item, their sums added together, each in sample order.
     Lanes,
 }
 
