@@ -193,3 +193,28 @@ fn bmfr_counts_match_a_walk_of_the_windows() {
         select
     );
 }
+
+/// Stylized shadows' distance step: pass 1 over the matte's pixels (a unit normal), pass 2
+/// over those whose D came out finite, each over min(points, contour_samples) samples, the
+/// draw's flops only when the samples are a subset of the contour.
+#[test]
+fn stylized_distance_counts_the_matte_and_the_summed_pixels() {
+    use noisefree::layout::ShadowPixel;
+    let matte = ShadowPixel {
+        normal: [0.0, 0.0, 1.0],
+        ..Default::default()
+    };
+    // Two pixels of the matte (one with a contour point on its side, one without: D = -inf)
+    // and two outside it (D = +inf).
+    let pixels = [matte, ShadowPixel::default(), matte, ShadowPixel::default()];
+    let distance = [0.5, f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY];
+    for (points, samples, draw) in [(100, 100, 0.0), (3000, 1024, models::ST_DRAW_FLOPS)] {
+        let got = models::stylized_distance_work(&pixels, &distance, points, 1024);
+        assert_eq!(got.taps, 3 * samples, "{points} points");
+        let want = (2 * samples) as f64 * (models::ST_PASS1_SAMPLE_FLOPS + draw)
+            + samples as f64 * models::ST_PASS2_SAMPLE_FLOPS
+            + models::ST_PIXEL_FLOPS;
+        assert_eq!(got.flops, want, "{points} points");
+        assert_eq!(got.exps, 0.0);
+    }
+}

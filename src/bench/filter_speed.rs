@@ -98,6 +98,24 @@ pub(super) fn filter_input_with(
     Ok(r.frame())
 }
 
+/// [`filter_input`] rendered as `filter` asks (its outputs and how they are gathered, e.g.
+/// stylized shadows' planes of several sphere lights).
+pub(super) fn filter_input_for(
+    ctx: &Context,
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    filter: &crate::filters::Configured,
+) -> Result<Frame> {
+    let mut o = RenderOptions::for_scene(scene);
+    (o.frame.width, o.frame.height) = (w, h);
+    o.outputs = filter.needs();
+    filter.adjust_render(&mut o);
+    let mut r = Renderer::new(ctx.gpu.clone(), scene, &o)?;
+    r.render_samples(8)?;
+    Ok(r.frame())
+}
+
 /// Filter kernel time over scenes x resolutions x kernel widths x variants x work-group sizes,
 /// min / median / max over repeated runs after a warm-up (thesis §7.1-7.2).
 pub fn filter_speed(ctx: &Context, fresh: bool) -> Result<()> {

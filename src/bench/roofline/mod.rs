@@ -12,7 +12,9 @@
 //! Counted: the data-driven filter's variants (thesis §6.3, kw 21), à-trous's (scalar and
 //! packed) and bmfr's four largest kernels (its non-local means, the fit, the selection and
 //! the fit's application, each timed by profiling events within one run of the filter, at its
-//! defaults; and the whole filter, its other kernels' time with no flops); `--method NAME`
+//! defaults; and the whole filter, its other kernels' time with no flops), and stylized
+//! shadows' distance step (DeCoro eq. 3.2, both lights of two_lights_shadows; and the whole
+//! filter, as for bmfr); `--method NAME`
 //! keeps the kernels labelled NAME or NAME-... (e.g. `--method atrous`: both à-trous kernels),
 //! all by default. Not counted: RPF, path-density and the AAF/sheared passes, whose arithmetic
 //! depends on the data (mutual-information buckets, kNN ring scans); their times are in the
@@ -51,7 +53,13 @@ const KERNELS: &[&str] = &[
     "atrous-packed",
     // One run of bmfr, a row per modelled kernel and one for the whole filter.
     "bmfr",
+    // Stylized shadows' distance step and the whole filter, on their own scene (STYLIZED_SCENE).
+    "stylized-shadows",
 ];
+
+/// Stylized shadows need sphere lights whose shadows fall in view: the scene of DeCoro's
+/// eq. 3.1 with two of them, where st_distance is the slowest (results/README.md).
+const STYLIZED_SCENE: &str = "two_lights_shadows";
 
 /// The scenes: a closed room (every pixel a surface) and Outside (a sky the filters skip).
 const SCENES: &[&str] = &["cornell_diffuse", "outside"];
@@ -216,6 +224,66 @@ fn bmfr_kernels(
     Ok(out)
 }
 
+/// Stylized shadows at their defaults on an 8-spp n × n frame of [`STYLIZED_SCENE`]: the
+/// distance step (every stylized light's st_distance launches of a run, their work summed)
+/// with its best time over `runs` runs after a warm-up, then the whole filter
+/// ("stylized-shadows-all": the distance step's work over every kernel's time).
+fn stylized_kernels(ctx: &Context, n: u32, runs: usize) -> Result<Vec<(String, Work, Duration)>> {
+    use crate::filters::stylized::light_plane;
+    use crate::filters::stylized::{StylizedKernel, StylizedSettings, StylizedShadows};
+    use crate::gpu::profile;
+    use crate::layout::ShadowPixel;
+    use crate::layout::outputs::BufferId;
+
+    let scene = crate::scene::load_scene(&ctx.scene_file(STYLIZED_SCENE)?)?;
+    let info = super::filter_speed::scene_info(&scene, n, n)?;
+    let configured = Configured::typed::<StylizedShadows>(StylizedSettings::default(), &info)?;
+    let frame = super::filter_speed::filter_input_for(ctx, &scene, n, n, &configured)?;
+    let mut s = StylizedSettings::default();
+    StylizedShadows::specialise(&mut s, &info);
+    let lights = s.stylized_lights();
+    let mut k = StylizedKernel::new(ctx.gpu.clone(), &s, &lights, n, n)?;
+    k.filter(&frame)?;
+    let mut work = Work::default();
+    for (i, &light) in lights.iter().enumerate() {
+        let pixels: Vec<ShadowPixel> = light_plane(&frame, BufferId::ShadowPixels, light)?;
+        let st = k.light_stages(i)?;
+        let w = models::stylized_distance_work(
+            &pixels,
+            &st.distance,
+            st.contour_points,
+            s.contour_samples,
+        );
+        work.taps += w.taps;
+        work.flops += w.flops;
+        work.bytes += w.bytes;
+    }
+    let (mut best, mut best_all) = (Duration::MAX, Duration::MAX);
+    for _ in 0..runs {
+        // A new filter each run: one that has seen these shadow pixels keeps its distances
+        // (the editing loop of `view`) and would time only the blur and compose.
+        let mut k = StylizedKernel::new(ctx.gpu.clone(), &s, &lights, n, n)?;
+        profile::start();
+        let run = k.filter(&frame);
+        let kernels = profile::finish()?;
+        run?;
+        let distance = kernels
+            .iter()
+            .filter(|t| t.kernel == "st_distance")
+            .map(|t| t.time);
+        best = best.min(distance.sum());
+        best_all = best_all.min(kernels.iter().map(|t| t.time).sum());
+    }
+    Ok(vec![
+        ("stylized-shadows: st_distance".to_string(), work, best),
+        (
+            "stylized-shadows-all (every kernel's time)".to_string(),
+            work,
+            best_all,
+        ),
+    ])
+}
+
 /// The best kernel time of `runs` runs after a warm-up.
 fn best_time(ctx: &Context, f: &Configured, frame: &Frame, runs: usize) -> Result<Duration> {
     let mut prepared = f.prepare(frame.info(), &ctx.gpu)?;
@@ -278,8 +346,14 @@ pub fn roofline(ctx: &Context) -> Result<()> {
     } else {
         (SCENES, 512, 5)
     };
-    let kernels = KERNELS.iter().filter(|l| ctx.wants(l)).count();
-    let pb = bar(ctx, (1 + scenes.len() * kernels) as u64, "roofline");
+    let per_scene = |l: &&&str| ctx.wants(l) && **l != "stylized-shadows";
+    let kernels = KERNELS.iter().filter(per_scene).count();
+    let stylized = ctx.wants("stylized-shadows");
+    let pb = bar(
+        ctx,
+        (1 + scenes.len() * kernels + stylized as usize) as u64,
+        "roofline",
+    );
     pb.set_message("roofline: the device's ceilings");
     let pk = peaks::measure(&ctx.gpu, ctx.quick)?;
     pb.inc(1);
@@ -287,7 +361,7 @@ pub fn roofline(ctx: &Context) -> Result<()> {
     for name in scenes {
         let scene = crate::scene::load_scene(&ctx.scene_file(name)?)?;
         let frame = super::filter_speed::filter_input(ctx, &scene, n, n)?;
-        for label in KERNELS.iter().filter(|l| ctx.wants(l)) {
+        for label in KERNELS.iter().filter(per_scene) {
             pb.set_message(format!("roofline: {name} {label}"));
             if *label == "bmfr" {
                 for (kernel, work, time) in bmfr_kernels(ctx, &scene, n, runs)? {
@@ -301,6 +375,13 @@ pub fn roofline(ctx: &Context) -> Result<()> {
             t.push(row(name, &size, label, &work, time, &pk))?;
             pb.inc(1);
         }
+    }
+    if stylized {
+        pb.set_message(format!("roofline: {STYLIZED_SCENE} stylized-shadows"));
+        for (kernel, work, time) in stylized_kernels(ctx, n, runs)? {
+            t.push(row(STYLIZED_SCENE, &size, &kernel, &work, time, &pk))?;
+        }
+        pb.inc(1);
     }
     pb.finish_and_clear();
     write_report(ctx, &t, &pk)

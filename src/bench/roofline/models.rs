@@ -305,3 +305,50 @@ pub fn bmfr_apply_work(fitted: u64, width: u32, height: u32, shape: &BmfrShape) 
         bytes: (width * height) as f64 * (64.0 + 16.0 + 16.0),
     }
 }
+
+/// One contour sample of st_distance's lanes (kernels/filters/stylized.cl, DeCoro eq. 3.2) in
+/// pass 1: the 45° rule (a 3-lane dot: 5, its compare: 1), the distance (3 sub, 3 mul, 2 add,
+/// the square root: 9) and the running minimum (1).
+pub const ST_PASS1_SAMPLE_FLOPS: f64 = 16.0;
+/// The stratified draw's entry when the samples are a subset of the contour: u scaled, k + u,
+/// times count/n (3; the conversions are not counted).
+pub const ST_DRAW_FLOPS: f64 = 3.0;
+/// One sample in pass 2 (read back from pass 1's cache): the keep test (1), m/d and its eighth
+/// power (4), the d > m test (1), w·occ (1) and the two sums (2).
+pub const ST_PASS2_SAMPLE_FLOPS: f64 = 9.0;
+/// Once per pixel with a pass 2: the mean (1), D = m / mean^(1/8) (three square roots and the
+/// division: 4) and d(x) (1).
+pub const ST_PIXEL_FLOPS: f64 = 6.0;
+
+/// st_distance (the lanes) for one light on its `pixels` (the light's plane of the shadow
+/// output), with the kernel's `distance` out (D: finite where pass 2 ran), `points` contour
+/// points and `n` = contour_samples. Useful work only: pass 1 over the matte's pixels, pass 2
+/// over those with a contour point on their side; the lanes past the last sample, and a
+/// work-item's idle second pixel, compute and mask out, not counted; nor does the scalar loop
+/// (GPUs) get credit for drawing and measuring each sample again in pass 2.
+pub fn stylized_distance_work(
+    pixels: &[crate::layout::ShadowPixel],
+    distance: &[f32],
+    points: u32,
+    n: u32,
+) -> Work {
+    use crate::filters::stylized::contour::in_matte;
+    let samples = points.min(n) as u64;
+    let draw = if points > n { ST_DRAW_FLOPS } else { 0.0 };
+    let matte = pixels.iter().filter(|p| in_matte(p)).count() as u64;
+    let summed = distance.iter().filter(|d| d.is_finite()).count() as u64;
+    let pixels_all = pixels.len() as f64;
+    Work {
+        taps: (matte + summed) * samples,
+        flops: (matte * samples) as f64 * (ST_PASS1_SAMPLE_FLOPS + draw)
+            + (summed * samples) as f64 * ST_PASS2_SAMPLE_FLOPS
+            + summed as f64 * ST_PIXEL_FLOPS,
+        exps: 0.0,
+        // Every pixel's normal (the matte test) and the two outputs; the matte's position,
+        // V and occluder distance; the contour's seven planes and the draws' hash table once.
+        bytes: pixels_all * (12.0 + 8.0)
+            + matte as f64 * 20.0
+            + points as f64 * 28.0
+            + n as f64 * 4.0,
+    }
+}
