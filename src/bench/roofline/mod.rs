@@ -53,9 +53,12 @@ const KERNELS: &[&str] = &[
     "atrous-packed",
     // One run of bmfr, a row per modelled kernel and one for the whole filter.
     "bmfr",
-    // Stylized shadows' distance step and the whole filter, on their own scene (STYLIZED_SCENE).
-    "stylized-shadows",
+    // Stylized shadows' distance step and the whole filter, on their own scene.
+    STYLIZED,
 ];
+
+/// The label of stylized shadows, measured on [`STYLIZED_SCENE`] only.
+const STYLIZED: &str = "stylized-shadows";
 
 /// Stylized shadows need sphere lights whose shadows fall in view: the scene of DeCoro's
 /// eq. 3.1 with two of them, where st_distance is the slowest (results/README.md).
@@ -210,10 +213,7 @@ fn bmfr_kernels(
         let Some((kernel, time)) = names.iter().find_map(|k| best.get(*k).map(|t| (k, t))) else {
             anyhow::bail!("roofline: bmfr ran none of {names:?} (src/filters/bmfr/device.rs)");
         };
-        total.taps += work.taps;
-        total.flops += work.flops;
-        total.exps += work.exps;
-        total.bytes += work.bytes;
+        total += work;
         out.push((format!("bmfr: {kernel}"), work, *time));
     }
     out.push((
@@ -248,23 +248,20 @@ fn stylized_kernels(ctx: &Context, n: u32, runs: usize) -> Result<Vec<(String, W
     for (i, &light) in lights.iter().enumerate() {
         let pixels: Vec<ShadowPixel> = light_plane(&frame, BufferId::ShadowPixels, light)?;
         let st = k.light_stages(i)?;
-        let w = models::stylized_distance_work(
+        work += models::stylized_distance_work(
             &pixels,
             &st.distance,
             st.contour_points,
             s.contour_samples,
         );
-        work.taps += w.taps;
-        work.flops += w.flops;
-        work.bytes += w.bytes;
     }
     let (mut best, mut best_all) = (Duration::MAX, Duration::MAX);
     for _ in 0..runs {
         // A new filter each run: one that has seen these shadow pixels keeps its distances
         // (the editing loop of `view`) and would time only the blur and compose.
-        let mut k = StylizedKernel::new(ctx.gpu.clone(), &s, &lights, n, n)?;
+        let mut fresh = StylizedKernel::new(ctx.gpu.clone(), &s, &lights, n, n)?;
         profile::start();
-        let run = k.filter(&frame);
+        let run = fresh.filter(&frame);
         let kernels = profile::finish()?;
         run?;
         let distance = kernels
@@ -275,9 +272,9 @@ fn stylized_kernels(ctx: &Context, n: u32, runs: usize) -> Result<Vec<(String, W
         best_all = best_all.min(kernels.iter().map(|t| t.time).sum());
     }
     Ok(vec![
-        ("stylized-shadows: st_distance".to_string(), work, best),
+        (format!("{STYLIZED}: st_distance"), work, best),
         (
-            "stylized-shadows-all (every kernel's time)".to_string(),
+            format!("{STYLIZED}-all (every kernel's time)"),
             work,
             best_all,
         ),
@@ -346,9 +343,9 @@ pub fn roofline(ctx: &Context) -> Result<()> {
     } else {
         (SCENES, 512, 5)
     };
-    let per_scene = |l: &&&str| ctx.wants(l) && **l != "stylized-shadows";
+    let per_scene = |l: &&&str| ctx.wants(l) && **l != STYLIZED;
     let kernels = KERNELS.iter().filter(per_scene).count();
-    let stylized = ctx.wants("stylized-shadows");
+    let stylized = ctx.wants(STYLIZED);
     let pb = bar(
         ctx,
         (1 + scenes.len() * kernels + stylized as usize) as u64,
@@ -377,7 +374,7 @@ pub fn roofline(ctx: &Context) -> Result<()> {
         }
     }
     if stylized {
-        pb.set_message(format!("roofline: {STYLIZED_SCENE} stylized-shadows"));
+        pb.set_message(format!("roofline: {STYLIZED_SCENE} {STYLIZED}"));
         for (kernel, work, time) in stylized_kernels(ctx, n, runs)? {
             t.push(row(STYLIZED_SCENE, &size, &kernel, &work, time, &pk))?;
         }

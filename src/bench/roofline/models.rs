@@ -18,6 +18,16 @@ pub struct Work {
     pub bytes: f64,
 }
 
+impl std::ops::AddAssign for Work {
+    /// Two kernels' (or two lights') work together.
+    fn add_assign(&mut self, o: Work) {
+        self.taps += o.taps;
+        self.flops += o.flops;
+        self.exps += o.exps;
+        self.bytes += o.bytes;
+    }
+}
+
 impl Work {
     /// Flops with each `exp` counted at `exp_flops` (Peaks::exp_flops).
     pub fn flop_equivalents(&self, exp_flops: f64) -> f64 {
