@@ -134,6 +134,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_emission.cl"),
     ),
     (
+        "filters/bmfr_guided.cl",
+        include_str!("../kernels/filters/bmfr_guided.cl"),
+    ),
+    (
         "filters/aaf_pass.cl",
         include_str!("../kernels/filters/aaf_pass.cl"),
     ),

@@ -145,9 +145,31 @@ fn variants() -> Vec<BmfrSettings> {
             outliers: false,
             ..d.clone()
         },
+        // The guided filter as the selection's fourth candidate (guided.rs), with the packed
+        // and the work-group selection.
+        BmfrSettings {
+            guided: true,
+            ..d.clone()
+        },
+        BmfrSettings {
+            guided: true,
+            guided_radius: 1,
+            ..groups.clone()
+        },
         BmfrSettings {
             outlier_ratio: 2.0,
             ..d.clone()
+        },
+        // The guided filter as the selection's fourth candidate (guided.rs), with the packed
+        // and the work-group selection.
+        BmfrSettings {
+            guided: true,
+            ..d.clone()
+        },
+        BmfrSettings {
+            guided: true,
+            guided_radius: 1,
+            ..groups.clone()
         },
         BmfrSettings {
             outlier_ratio: 2.0,
@@ -364,6 +386,21 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
                 (false, false) => 1e-6,
             };
             eprintln!("{name} {s:?}: {d:e}");
+            if s.guided {
+                // The comparison means something only where the fourth candidate changes the
+                // blend.
+                let with = reference(frame, &s).unwrap();
+                let plain = BmfrSettings {
+                    guided: false,
+                    ..s.clone()
+                };
+                let change = max_rel_diff(&with, &reference(frame, &plain).unwrap());
+                eprintln!("{name}: the guided filter changes the image by {change:e}");
+                assert!(
+                    change > 1e-2,
+                    "{name}: the guided filter changed little ({change:e})"
+                );
+            }
             assert!(
                 d <= bound,
                 "{name} {s:?}: max relative difference {d:e} between kernel and reference"

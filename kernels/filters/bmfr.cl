@@ -599,3 +599,6 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
 #include "filters/bmfr_select_packed.cl"
 #include "filters/bmfr_prefilter_packed.cl"
 #include "filters/bmfr_emission.cl"
+#if BMFR_GUIDED
+#include "filters/bmfr_guided.cl"
+#endif

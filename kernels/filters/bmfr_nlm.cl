@@ -354,8 +354,10 @@ inline void bmfr_select_nlm_blend(__global const FilterVector* f, float class, f
     }
     float e_f = fmax(excess / BMFR_SELECT_SCALE / sum.x, 1.0e-6f);
     float w_f = 1.0f / (e_f * e_f);
-    float3 out = (w_y * beauty + w_f * fitted->xyz + w_n * nlm->xyz) / (w_y + w_f + w_n);
-    *fitted = (float4)(out, 0.0f);
+    float weight = w_y + w_f + w_n;
+    float3 out = (w_y * beauty + w_f * fitted->xyz + w_n * nlm->xyz) / weight;
+    // With the guided filter (filters/bmfr_guided.cl) the blend's weight for its fourth term.
+    *fitted = (float4)(out, BMFR_GUIDED ? weight : 0.0f);
 }
 
 __kernel void bmfr_select_nlm(__global const FilterVector* fv,

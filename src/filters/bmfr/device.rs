@@ -16,6 +16,7 @@ use super::emission::{
     EMISSION_EPSILON, EMISSION_LINES, EMISSION_PACKED_ROWS, EMISSION_PACKED_STEP, EMISSION_PATCH,
     EMISSION_TILE,
 };
+use super::guided;
 use super::outliers::{NEIGHBOURS, OUTLIER_RADIUS};
 use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, prefilter_packed_lines};
 use super::{
@@ -255,6 +256,10 @@ impl BmfrKernel {
             ("BMFR_EMISSION_MEAN_ON", flag(s.emission_mean_test() > 0.0)),
             ("BMFR_SPLIT_EMISSION", flag(s.splits_emission())),
             ("BMFR_GLOBAL_MATRIX", flag(!packed && !local_matrix)),
+            ("BMFR_GUIDED", flag(s.uses_nlm() && s.guided)),
+            ("BMFR_GUIDED_RADIUS", s.guided_radius.to_string()),
+            ("BMFR_GUIDED_RIDGE", format!("{:e}f", s.guided_ridge as f32)),
+            ("BMFR_GUIDED_SCALE", format!("{:e}f", s.guided_scale() as f32)),
         ]
         .into_iter()
         .map(|(n, v)| (n.to_string(), v))
@@ -457,6 +462,29 @@ impl BmfrKernel {
             let mut kb = per_pixel("bmfr_residuals_nlm", no_positions);
             kb.arg(&raw).arg(&out).arg(&nlm_out).arg(&residuals);
             select.push(built(kb, no_positions)?);
+            // The guided filter's four passes (guided.rs), before the selection overwrites
+            // the fit that its error terms are relative to.
+            let guided_out = if s.guided {
+                let planes = |what| gpu.zeroed::<f32>(guided::MOMENTS * pixels, what);
+                let (moments, models) = (planes("bmfr guided moments")?, planes("bmfr guided models")?);
+                let guided_out = gpu.zeroed::<Float4>(pixels, "bmfr guided filter")?;
+                let mut kb = per_pixel("bmfr_guided_rows", all);
+                kb.arg(&raw).arg(&moments);
+                select.push(built(kb, all)?);
+                let mut kb = per_pixel("bmfr_guided_solve", none);
+                kb.arg(&moments).arg(&models);
+                select.push(built(kb, none)?);
+                // The models' row sums into the moments' planes, no longer needed.
+                let mut kb = per_pixel("bmfr_guided_average_rows", none);
+                kb.arg(&models).arg(&moments);
+                select.push(built(kb, none)?);
+                let mut kb = per_pixel("bmfr_guided_eval", all);
+                kb.arg(&raw).arg(&moments).arg(&out).arg(&nlm_out).arg(&guided_out);
+                select.push(built(kb, all)?);
+                Some(guided_out)
+            } else {
+                None
+            };
             // Packed on CPU devices too (kernels/filters/bmfr_select_packed.cl): 16 pixels'
             // windows per work-item, the same bytes.
             let mut kb = if packed_nlm {
@@ -469,6 +497,11 @@ impl BmfrKernel {
             };
             kb.arg(&residuals).arg(&nlm_out).arg(&out);
             select.push(built(kb, none)?);
+            if let Some(guided_out) = &guided_out {
+                let mut kb = per_pixel("bmfr_guided_blend", none);
+                kb.arg(&residuals).arg(guided_out).arg(&out);
+                select.push(built(kb, none)?);
+            }
         } else if s.select {
             let residuals = gpu.zeroed::<Float2>(pixels, "bmfr selection residuals")?;
             let mut kb = per_pixel("bmfr_residuals", all);

@@ -81,6 +81,7 @@
 
 mod device;
 pub mod emission;
+pub mod guided;
 pub mod nlm;
 pub mod outliers;
 pub mod prefilter;
@@ -242,6 +243,17 @@ crate::filter_settings! {
         /// at a few samples per pixel (emission.rs, "A few samples per pixel"); 0: none.
         /// auto: 0.25 with a pinhole camera, 0 with a thin lens.
         pub emission_mean_test: Auto<f64> = Auto::Auto,
+        /// With `nlm`: a fourth candidate of the selection, a guided filter of the light on the
+        /// normal and position over sliding windows, its error estimated by filtering each
+        /// half buffer alone (guided.rs).
+        pub guided: bool = false,
+        /// Half width of the guided filter's windows, pixels.
+        pub guided_radius: u32 = 3,
+        /// ε, the ridge added to the guides' covariance in each window (guided.rs).
+        pub guided_ridge: f64 = 1.0e-4,
+        /// What the first-hit positions are multiplied by before they guide; auto: 1 / the
+        /// scene's size, so that ε means the same in every scene.
+        pub guided_scale: Auto<f64> = Auto::Auto,
     }
 }
 
@@ -312,6 +324,12 @@ impl BmfrSettings {
     /// it without a lens).
     pub fn nlm_k(&self) -> f64 {
         self.nlm_k.or(nlm::PINHOLE_NLM_K)
+    }
+
+    /// The guided filter's position scale (`guided_scale`; auto: 1 until specialised to a
+    /// scene's size).
+    pub fn guided_scale(&self) -> f64 {
+        self.guided_scale.or(1.0)
     }
 
     /// Number of features K (columns of the fit, the constant included).
@@ -404,6 +422,22 @@ impl BmfrSettings {
                 self.outlier_ratio
             );
         }
+        if !(1..=MAX_GUIDED_RADIUS).contains(&self.guided_radius) {
+            bail!(
+                "the bmfr guided_radius must be 1 to {MAX_GUIDED_RADIUS} pixels, got {}",
+                self.guided_radius
+            );
+        }
+        if !(self.guided_ridge > 0.0 && self.guided_ridge <= 1.0) {
+            bail!(
+                "the bmfr guided_ridge must be a number in (0, 1], got {}",
+                self.guided_ridge
+            );
+        }
+        let scale = self.guided_scale();
+        if !(scale > 0.0 && scale.is_finite()) {
+            bail!("the bmfr guided_scale must be a positive number, got {scale}");
+        }
         if !(self.noise >= 0.0 && self.noise <= 1.0) {
             bail!(
                 "the bmfr noise must be a number in [0, 1], got {}",
@@ -437,6 +471,9 @@ pub fn grid_blocks(width: u32, height: u32, block: u32, offset: (i32, i32)) -> (
 pub fn blocks_per_grid(width: u32, height: u32, block: u32) -> u32 {
     (width.div_ceil(block) + 1) * (height.div_ceil(block) + 1)
 }
+
+/// The largest window half width of the guided filter (a 17 × 17 window).
+pub const MAX_GUIDED_RADIUS: u32 = 8;
 
 /// The largest window half width of the selection (a 33 × 33 window).
 pub const MAX_SELECT_RADIUS: u32 = 16;
@@ -526,6 +563,12 @@ impl FilterKind for Bmfr {
                     "a pinhole camera, so a silhouette's partly covered pixels are one pixel wide"
                 }
             ));
+        }
+        if s.guided_scale.is_auto() {
+            let size = scene.scene_size as f64;
+            let scale = if size > 0.0 && size.is_finite() { 1.0 / size } else { 1.0 };
+            s.guided_scale = Auto::Set(scale);
+            notes.push(format!("guided_scale = {scale:e}: 1 / the scene's size (guided.rs)"));
         }
         if s.nlm_k.is_auto() {
             s.nlm_k = Auto::Set(if lens { nlm::LENS_NLM_K } else { nlm::PINHOLE_NLM_K });

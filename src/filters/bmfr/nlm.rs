@@ -572,17 +572,33 @@ pub fn select(
     fit: [f32; 3],
     nlm: [f32; 3],
 ) -> [f32; 3] {
+    select_weighted(f, residuals, (width, height), (x, y), radius, (scale, floor), fit, nlm).0
+}
+
+/// [`select`] and the sum W of the three candidates' weights where it blends all three (0
+/// elsewhere): guided.rs adds a fourth candidate to that blend.
+#[allow(clippy::too_many_arguments)]
+pub fn select_weighted(
+    f: &FilterVector,
+    residuals: &[[f32; 4]],
+    (width, height): (u32, u32),
+    (x, y): (i32, i32),
+    radius: i32,
+    (scale, floor): (f32, f32),
+    fit: [f32; 3],
+    nlm: [f32; 3],
+) -> ([f32; 3], f32) {
     let class = residuals[(y as u32 * width + x as u32) as usize][3];
     let sum = window_sum(residuals, (width, height), (x, y), radius, |e| e[3] == class);
     let b = beauty(f);
     if !(sum[0] > 0.0) {
-        return if sum[1] > 0.0 { b } else { fit };
+        return (if sum[1] > 0.0 { b } else { fit }, 0.0);
     }
     let e_y = 1f32;
     let e_n = (0.5 * sum[2] / sum[0]).max(1.0e-6);
     let (w_y, w_n) = (1.0 / (e_y * e_y), 1.0 / (e_n * e_n));
     if class == OPEN {
-        return std::array::from_fn(|c| (w_y * b[c] + w_n * nlm[c]) / (w_y + w_n));
+        return (std::array::from_fn(|c| (w_y * b[c] + w_n * nlm[c]) / (w_y + w_n)), 0.0);
     }
     let mut excess = sum[1] - sum[0];
     if floor > 0.0 {
@@ -604,7 +620,8 @@ pub fn select(
     }
     let e_f = (excess / scale / sum[0]).max(1.0e-6);
     let w_f = 1.0 / (e_f * e_f);
-    std::array::from_fn(|c| (w_y * b[c] + w_f * fit[c] + w_n * nlm[c]) / (w_y + w_f + w_n))
+    let weight = w_y + w_f + w_n;
+    (std::array::from_fn(|c| (w_y * b[c] + w_f * fit[c] + w_n * nlm[c]) / weight), weight)
 }
 
 #[cfg(test)]

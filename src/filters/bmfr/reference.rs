@@ -5,6 +5,7 @@
 use anyhow::{Context as _, Result, bail};
 use rayon::prelude::*;
 
+use super::guided;
 use super::prefilter::prefilter;
 use super::{emission, nlm, outliers, select};
 use super::{
@@ -335,13 +336,24 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
                 nlm::residual(&fv[i], &odd[i], spp, fit, smooth, relative, classes[i])
             })
             .collect();
+        let fourth = s.guided.then(|| {
+            let frame_smooth: Vec<[f32; 3]> = smooth.iter().map(|m| m[0]).collect();
+            let settings = (s.guided_radius, s.guided_ridge as f32, s.guided_scale() as f32);
+            let (relative, dims) = (s.select_relative, (w, h));
+            guided::guided(fv, pos, odd, dims, spp, settings, &classes, &pixels, &frame_smooth, relative)
+        });
         (0..pixels.len())
             .into_par_iter()
             .map(|i| {
                 let xy = ((i as u32 % w) as i32, (i as u32 / w) as i32);
                 let r = s.select_radius as i32;
                 let trust = (s.select_scale as f32, s.select_floor());
-                nlm::select(&fv[i], &residuals, (w, h), xy, r, trust, pixels[i], smooth[i][0])
+                let (fit, smooth) = (pixels[i], smooth[i][0]);
+                let blend = nlm::select_weighted(&fv[i], &residuals, (w, h), xy, r, trust, fit, smooth);
+                match &fourth {
+                    Some(g) => guided::blend(&residuals, g, (w, h), xy, r, blend),
+                    None => blend.0,
+                }
             })
             .collect()
     } else if s.select {
