@@ -388,7 +388,8 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
             eprintln!("{name} {s:?}: {d:e}");
             if s.guided {
                 // The comparison means something only where the fourth candidate changes the
-                // blend.
+                // blend: measured 0.42-0.98 (largest relative change of a pixel) on the three
+                // frames.
                 let with = reference(frame, &s).unwrap();
                 let plain = BmfrSettings {
                     guided: false,

@@ -465,8 +465,10 @@ impl BmfrKernel {
             // The guided filter's four passes (guided.rs), before the selection overwrites
             // the fit that its error terms are relative to.
             let guided_out = if s.guided {
-                let planes = |what| gpu.zeroed::<f32>(guided::MOMENTS * pixels, what);
-                let (moments, models) = (planes("bmfr guided moments")?, planes("bmfr guided models")?);
+                let planes = |n, what| gpu.zeroed::<f32>(n * pixels, what);
+                // The moments' planes later hold the models' row sums (MODEL ≤ MOMENTS).
+                let moments = planes(guided::MOMENTS, "bmfr guided moments")?;
+                let models = planes(guided::MODEL, "bmfr guided models")?;
                 let guided_out = gpu.zeroed::<Float4>(pixels, "bmfr guided filter")?;
                 let mut kb = per_pixel("bmfr_guided_rows", all);
                 kb.arg(&raw).arg(&moments);
@@ -474,7 +476,6 @@ impl BmfrKernel {
                 let mut kb = per_pixel("bmfr_guided_solve", none);
                 kb.arg(&moments).arg(&models);
                 select.push(built(kb, none)?);
-                // The models' row sums into the moments' planes, no longer needed.
                 let mut kb = per_pixel("bmfr_guided_average_rows", none);
                 kb.arg(&models).arg(&moments);
                 select.push(built(kb, none)?);

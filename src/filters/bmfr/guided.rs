@@ -32,7 +32,7 @@
 //! adds the guided filter after them.
 //!
 //! Settings chosen with a double-precision prototype of this reference, then the kernels'
-//! error on 13 scenes and their cost (off by default: 540 ms on PoCL as one work-item per
+//! error on 13 scenes and their cost (off by default: about 550 ms on PoCL as one work-item per
 //! pixel, against 71 ms for the rest of bmfr): results/README.md, bmfr, "Stop 57".
 
 // Index loops on purpose: each mirrors a loop of the kernel, whose order fixes the bits.
@@ -40,8 +40,9 @@
 
 use rayon::prelude::*;
 
-use super::nlm::{RELATIVE_EPSILON, SURFACE};
+use super::nlm::{RELATIVE_EPSILON, SURFACE, beauty, even};
 use super::reference::albedo;
+use super::select::window_indices;
 use crate::layout::{FilterVector, Float4};
 
 /// Guides per pixel: the mean shading normal and the scaled mean first-hit position.
@@ -58,18 +59,8 @@ pub const MOMENTS: usize = 1 + GUIDES + GUIDES * (GUIDES + 1) / 2 + TARGETS + GU
 /// (bmfr_guided.cl BMFR_GUIDED_MODEL).
 pub const MODEL: usize = GUIDES * TARGETS + TARGETS + 1;
 
-fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
-    let n_even = spp - odd.0[3];
-    if n_even >= 1.0 {
-        std::array::from_fn(|c| (spp * beauty[c] - odd.0[3] * odd.0[c]) / n_even)
-    } else {
-        beauty
-    }
-}
-
-fn beauty(f: &FilterVector) -> [f32; 3] {
-    std::array::from_fn(|c| f.direct[c] + f.indirect[c])
-}
+// device.rs writes the models' row sums into the moments' planes.
+const _: () = assert!(MODEL <= MOMENTS);
 
 /// bmfr_guided.cl `bmfr_guided_guides`.
 fn guides(f: &FilterVector, p: &Float4, scale: f32) -> [f32; GUIDES] {
@@ -298,21 +289,12 @@ pub fn blend(
         return selected;
     }
     let (mut v, mut g) = (0f32, 0f32);
-    for yy in (y - radius)..=(y + radius) {
-        if yy < 0 || yy >= height as i32 {
-            continue;
+    window_indices((width, height), (x, y), radius, |j| {
+        if residuals[j][3] == SURFACE {
+            v += residuals[j][0];
+            g += guided[j][3];
         }
-        for xx in (x - radius)..=(x + radius) {
-            if xx < 0 || xx >= width as i32 {
-                continue;
-            }
-            let j = (yy as u32 * width + xx as u32) as usize;
-            if residuals[j][3] == SURFACE {
-                v += residuals[j][0];
-                g += guided[j][3];
-            }
-        }
-    }
+    });
     let e_g = (0.5 * g / v).max(1.0e-6);
     let w_g = 1.0 / (e_g * e_g);
     let out = guided[i];

@@ -566,7 +566,7 @@ impl FilterKind for Bmfr {
                 }
             ));
         }
-        if s.guided_scale.is_auto() {
+        if s.guided && s.guided_scale.is_auto() {
             let size = scene.scene_size as f64;
             let scale = if size > 0.0 && size.is_finite() { 1.0 / size } else { 1.0 };
             s.guided_scale = Auto::Set(scale);

@@ -340,13 +340,13 @@ pub const MAX_NLM_RADIUS: u32 = 10;
 /// The largest patch half width (7 × 7 patches; `nlm_patch`).
 pub const MAX_NLM_PATCH: u32 = 3;
 
-fn beauty(f: &FilterVector) -> [f32; 3] {
+pub(super) fn beauty(f: &FilterVector) -> [f32; 3] {
     std::array::from_fn(|c| f.direct[c] + f.indirect[c])
 }
 
 
 /// kernels/filters/bmfr_nlm.cl `bmfr_even`.
-fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
+pub(super) fn even(beauty: [f32; 3], odd: &Float4, spp: f32) -> [f32; 3] {
     let n_even = spp - odd.0[3];
     if n_even >= 1.0 {
         std::array::from_fn(|c| (spp * beauty[c] - odd.0[3] * odd.0[c]) / n_even)
@@ -561,24 +561,10 @@ pub fn residual(
 /// the non-local means). `(scale, floor)`: κ and c (`select_scale`, `select_floor`; module
 /// docs). The kernels skip the floor's second pass where no term lies below the floor (its
 /// sum is then the first pass's R − V, bit for bit); this reference always takes it.
-#[allow(clippy::too_many_arguments)]
-pub fn select(
-    f: &FilterVector,
-    residuals: &[[f32; 4]],
-    (width, height): (u32, u32),
-    (x, y): (i32, i32),
-    radius: i32,
-    (scale, floor): (f32, f32),
-    fit: [f32; 3],
-    nlm: [f32; 3],
-) -> [f32; 3] {
-    select_weighted(f, residuals, (width, height), (x, y), radius, (scale, floor), fit, nlm).0
-}
-
-/// [`select`] and the sum W of the three candidates' weights where it blends all three (0
+/// Also returns the sum W of the three candidates' weights where it blends all three (0
 /// elsewhere): guided.rs adds a fourth candidate to that blend.
 #[allow(clippy::too_many_arguments)]
-pub fn select_weighted(
+pub fn select(
     f: &FilterVector,
     residuals: &[[f32; 4]],
     (width, height): (u32, u32),

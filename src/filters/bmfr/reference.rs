@@ -349,7 +349,7 @@ pub fn reference(frame: &Frame, s: &BmfrSettings) -> Result<RgbImage> {
                 let r = s.select_radius as i32;
                 let trust = (s.select_scale as f32, s.select_floor());
                 let (fit, smooth) = (pixels[i], smooth[i][0]);
-                let blend = nlm::select_weighted(&fv[i], &residuals, (w, h), xy, r, trust, fit, smooth);
+                let blend = nlm::select(&fv[i], &residuals, (w, h), xy, r, trust, fit, smooth);
                 match &fourth {
                     Some(g) => guided::blend(&residuals, g, (w, h), xy, r, blend),
                     None => blend.0,

@@ -123,6 +123,17 @@ pub fn window_for_each<const N: usize>(
     radius: i32,
     mut visit: impl FnMut(&[f32; N]),
 ) {
+    window_indices((width, height), (x, y), radius, |j| visit(&estimates[j]));
+}
+
+/// Calls `visit` with the index of each pixel of the (2 radius + 1)² window around (x, y)
+/// inside the image, row by row.
+pub fn window_indices(
+    (width, height): (u32, u32),
+    (x, y): (i32, i32),
+    radius: i32,
+    mut visit: impl FnMut(usize),
+) {
     for yy in (y - radius)..=(y + radius) {
         if yy < 0 || yy >= height as i32 {
             continue;
@@ -131,7 +142,7 @@ pub fn window_for_each<const N: usize>(
             if xx < 0 || xx >= width as i32 {
                 continue;
             }
-            visit(&estimates[(yy as u32 * width + xx as u32) as usize]);
+            visit((yy as u32 * width + xx as u32) as usize);
         }
     }
 }
