@@ -138,6 +138,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/filters/bmfr_guided.cl"),
     ),
     (
+        "filters/bmfr_guided_packed.cl",
+        include_str!("../kernels/filters/bmfr_guided_packed.cl"),
+    ),
+    (
         "filters/aaf_pass.cl",
         include_str!("../kernels/filters/aaf_pass.cl"),
     ),

@@ -14,7 +14,7 @@ use noisefree::filters::bmfr::emission::{
 use noisefree::filters::bmfr::nlm::{self, LENS_SELECT_FLOOR};
 use noisefree::filters::bmfr::outliers;
 use noisefree::filters::bmfr::{
-    BmfrKernel, BmfrSettings, MAX_NLM_PATCH, MAX_NLM_RADIUS, reference,
+    BmfrKernel, BmfrSettings, MAX_GUIDED_RADIUS, MAX_NLM_PATCH, MAX_NLM_RADIUS, reference,
 };
 use noisefree::imaging::RgbImage;
 use noisefree::layout::outputs::{BufferId, Output, OutputSet};
@@ -146,7 +146,7 @@ fn variants() -> Vec<BmfrSettings> {
             ..d.clone()
         },
         // The guided filter as the selection's fourth candidate (guided.rs), with the packed
-        // and the work-group selection.
+        // kernels (bmfr_guided_packed.cl) and the one-pixel ones.
         BmfrSettings {
             guided: true,
             ..d.clone()
@@ -155,21 +155,16 @@ fn variants() -> Vec<BmfrSettings> {
             guided: true,
             guided_radius: 1,
             ..groups.clone()
+        },
+        // The packed guided filter's row sums reaching furthest into the lines' padding.
+        BmfrSettings {
+            guided: true,
+            guided_radius: MAX_GUIDED_RADIUS,
+            ..d.clone()
         },
         BmfrSettings {
             outlier_ratio: 2.0,
             ..d.clone()
-        },
-        // The guided filter as the selection's fourth candidate (guided.rs), with the packed
-        // and the work-group selection.
-        BmfrSettings {
-            guided: true,
-            ..d.clone()
-        },
-        BmfrSettings {
-            guided: true,
-            guided_radius: 1,
-            ..groups.clone()
         },
         BmfrSettings {
             outlier_ratio: 2.0,

@@ -596,9 +596,10 @@ __kernel void bmfr_albedo_prefilter(__global const FilterVector* fv,
 #include "filters/bmfr_nlm.cl"
 #include "filters/bmfr_outliers.cl"
 #include "filters/bmfr_nlm_packed.cl"
+#if BMFR_GUIDED
+#include "filters/bmfr_guided.cl"
+#include "filters/bmfr_guided_packed.cl"
+#endif
 #include "filters/bmfr_select_packed.cl"
 #include "filters/bmfr_prefilter_packed.cl"
 #include "filters/bmfr_emission.cl"
-#if BMFR_GUIDED
-#include "filters/bmfr_guided.cl"
-#endif

@@ -146,9 +146,30 @@ __kernel void bmfr_guided_average_rows(__global const FilterVector* fv, uint wid
     }
 }
 
-// Per surface pixel: the averaged model evaluated at its guides, modulated back (the frame's
-// light in xyz), and the cross-half error term G in w (guided.rs `guided`); zeros elsewhere.
-// `fitted` holds the fit, `nlm_out` the frame's non-local means (the relative sums' level).
+// A surface pixel's output from its averaged model's value at its guides per target (g,
+// clamped at 0, demodulated): the frame's light modulated back in xyz and the cross-half
+// error term G in w (guided.rs `guided`). `fitted` is the fit's, `smooth` the frame's
+// non-local means' (the relative sums' level).
+inline float4 bmfr_guided_output(__global const FilterVector* f, float4 odd, float spp,
+                                 float* g, float4 fitted, float4 smooth) {
+    float3 al = bmfr_albedo(f);
+    float alc[3] = {al.x, al.y, al.z};
+    for (int k = 0; k < BMFR_GUIDED_TARGETS; ++k) g[k] *= alc[k % 3];
+    float3 b = bmfr_beauty(f), e = bmfr_even(b, odd, spp);
+    float n_odd = odd.w, n_even = spp - odd.w;
+    float3 oe = odd.xyz - e;
+    float3 v_odd = oe * oe * (n_even / spp), v_even = oe * oe * (n_odd / spp);
+    float3 go = (float3)(g[3], g[4], g[5]) - e, ge = (float3)(g[6], g[7], g[8]) - odd.xyz;
+    float3 t = 0.5f * ((go * go - v_even) + (ge * ge - v_odd));
+#if BMFR_SELECT_RELATIVE
+    float3 level = fmax(fitted.xyz, smooth.xyz);
+    t *= 1.0f / (level * level + BMFR_RELATIVE_EPSILON);
+#endif
+    return (float4)(g[0], g[1], g[2], t.x + t.y + t.z);
+}
+
+// Per surface pixel: the averaged model evaluated at its guides (bmfr_guided_output); zeros
+// elsewhere. `fitted` holds the fit, `nlm_out` the frame's non-local means.
 __kernel void bmfr_guided_eval(__global const FilterVector* fv, __global const float4* positions,
                                __global const float4* odd_halves, uint width, uint height,
                                float spp, __global const float4* raw,
@@ -166,59 +187,56 @@ __kernel void bmfr_guided_eval(__global const FilterVector* fv, __global const f
     bmfr_guided_columns(rows, BMFR_GUIDED_MODEL, x, y, width, height, s);
     float xg[BMFR_GUIDES];
     bmfr_guided_guides(f, positions + i, xg);
-    float3 al = bmfr_albedo(f);
-    float alc[3] = {al.x, al.y, al.z};
     float count = s[BMFR_GUIDED_MODEL - 1];
     float g[BMFR_GUIDED_TARGETS];
     for (int k = 0; k < BMFR_GUIDED_TARGETS; ++k) {
         float v = s[BMFR_GUIDED_B + k] / count;
         for (int d = 0; d < BMFR_GUIDES; ++d) v += s[d * BMFR_GUIDED_TARGETS + k] / count * xg[d];
-        g[k] = fmax(v, 0.0f) * alc[k % 3];
+        g[k] = fmax(v, 0.0f);
     }
-    float4 odd = odd_halves[i];
-    float3 b = bmfr_beauty(f), e = bmfr_even(b, odd, spp);
-    float n_odd = odd.w, n_even = spp - odd.w;
-    float3 oe = odd.xyz - e;
-    float3 v_odd = oe * oe * (n_even / spp), v_even = oe * oe * (n_odd / spp);
-    float3 go = (float3)(g[3], g[4], g[5]) - e, ge = (float3)(g[6], g[7], g[8]) - odd.xyz;
-    float3 t = 0.5f * ((go * go - v_even) + (ge * ge - v_odd));
-#if BMFR_SELECT_RELATIVE
-    float3 level = fmax(fitted[i].xyz, nlm_out[3 * i].xyz);
-    t *= 1.0f / (level * level + BMFR_RELATIVE_EPSILON);
-#endif
-    guided[i] = (float4)(g[0], g[1], g[2], t.x + t.y + t.z);
+    guided[i] = bmfr_guided_output(f, odd_halves[i], spp, g, fitted[i], nlm_out[3 * i]);
 }
 
 // After the selection: where it blended the light, the fit and the non-local means with total
 // weight W (kept in the output's w), the guided filter joins the blend with weight 1 / E_g^2,
 // E_g = G / 2 over the window's V, both summed over the window's surface pixels (guided.rs
-// `blend`); the output's w is 0 again.
+// `blend`); the output's w is 0 again. `class` is the pixel's, `v` and `gs` the window's sums.
+// The packed selection (filters/bmfr_select_packed.cl) calls it with the sums it already has.
+inline void bmfr_guided_join(float class, float v, float gs, float4 guided,
+                             __global float4* fitted) {
+    float4 selected = *fitted;
+    float weight = selected.w;
+    if (class != BMFR_NLM_SURFACE || !(weight > 0.0f)) {
+        *fitted = (float4)(selected.xyz, 0.0f);
+        return;
+    }
+    float e_g = fmax(0.5f * gs / v, 1.0e-6f);
+    float w_g = 1.0f / (e_g * e_g);
+    float3 out = (weight * selected.xyz + w_g * guided.xyz) / (weight + w_g);
+    *fitted = (float4)(out, 0.0f);
+}
+
+// bmfr_guided_join after the work-group selection (bmfr_select_nlm), with the window's sums.
 __kernel void bmfr_guided_blend(__global const FilterVector* fv, uint width, uint height,
                                 __global const float4* residuals, __global const float4* guided,
                                 __global float4* fitted) {
     int x = get_global_id(0), y = get_global_id(1);
     if (x >= (int)width || y >= (int)height) return;
     size_t i = (size_t)y * width + x;
-    float4 selected = fitted[i];
-    float weight = selected.w;
-    if (residuals[i].w != BMFR_NLM_SURFACE || !(weight > 0.0f)) {
-        fitted[i] = (float4)(selected.xyz, 0.0f);
-        return;
-    }
+    float class = residuals[i].w;
     float v = 0.0f, gs = 0.0f;
-    for (int yy = y - BMFR_SELECT_RADIUS; yy <= y + BMFR_SELECT_RADIUS; ++yy) {
-        if (yy < 0 || yy >= (int)height) continue;
-        for (int xx = x - BMFR_SELECT_RADIUS; xx <= x + BMFR_SELECT_RADIUS; ++xx) {
-            if (xx < 0 || xx >= (int)width) continue;
-            size_t j = (size_t)yy * width + xx;
-            if (residuals[j].w == BMFR_NLM_SURFACE) {
-                v += residuals[j].x;
-                gs += guided[j].w;
+    if (class == BMFR_NLM_SURFACE) {
+        for (int yy = y - BMFR_SELECT_RADIUS; yy <= y + BMFR_SELECT_RADIUS; ++yy) {
+            if (yy < 0 || yy >= (int)height) continue;
+            for (int xx = x - BMFR_SELECT_RADIUS; xx <= x + BMFR_SELECT_RADIUS; ++xx) {
+                if (xx < 0 || xx >= (int)width) continue;
+                size_t j = (size_t)yy * width + xx;
+                if (residuals[j].w == BMFR_NLM_SURFACE) {
+                    v += residuals[j].x;
+                    gs += guided[j].w;
+                }
             }
         }
     }
-    float e_g = fmax(0.5f * gs / v, 1.0e-6f);
-    float w_g = 1.0f / (e_g * e_g);
-    float3 out = (weight * selected.xyz + w_g * guided[i].xyz) / (weight + w_g);
-    fitted[i] = (float4)(out, 0.0f);
+    bmfr_guided_join(class, v, gs, guided[i], fitted + i);
 }

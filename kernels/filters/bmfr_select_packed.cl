@@ -73,12 +73,28 @@ __attribute__((always_inline)) inline void bmfr_residual_lanes(__global const fl
         }                                                                                        \
     }
 
+// With the guided filter: the window position's G terms (the guided output's w) into sum_g.
+#if BMFR_GUIDED
+#define BMFR_SELECT_GUIDED_TERM                                                                 \
+    {                                                                                            \
+        float16 gx, gy, gz, gw;                                                                  \
+        bmfr_residual_lanes(guided, (size_t)yy * w, x0 + dx, w, &gx, &gy, &gz, &gw);             \
+        sum_g = select(sum_g, sum_g + gw, take);                                                 \
+    }
+#else
+#define BMFR_SELECT_GUIDED_TERM
+#endif
+
 // Global size: ceil(width / 16) x height, work-groups of 1.
 __kernel void bmfr_select_nlm_packed(__global const FilterVector* fv,
                                      uint width, uint height,
                                      __global const float4* residuals,
                                      __global const float4* nlm_out,
-                                     __global float4* fitted) {
+                                     __global float4* fitted
+#if BMFR_GUIDED
+                                     , __global const float4* guided
+#endif
+                                     ) {
     int x0 = get_global_id(0) * BMFR_SELECT_PACK, y = get_global_id(1);
     int w = (int)width, h = (int)height;
     if (x0 >= w || y >= h) return;
@@ -87,7 +103,11 @@ __kernel void bmfr_select_nlm_packed(__global const FilterVector* fv,
     bmfr_residual_lanes(residuals, (size_t)y * w, x0, w, &own_v, &own_r, &own_n, &class);
     float16 sum_v = 0.0f, sum_r = 0.0f, sum_n = 0.0f, count = 0.0f;
     float16 excess_sum = 0.0f, excess_min = INFINITY;
+    // With the guided filter, its error terms' window sum too (bmfr_guided_blend's, whose V
+    // sum is sum_v: the same terms in the same order for a surface pixel).
+    float16 sum_g = 0.0f;
     BMFR_SELECT_PACKED_WINDOW(
+        BMFR_SELECT_GUIDED_TERM
         sum_v = select(sum_v, sum_v + v, take);
         sum_r = select(sum_r, sum_r + r, take);
         sum_n = select(sum_n, sum_n + n, take);
@@ -98,7 +118,8 @@ __kernel void bmfr_select_nlm_packed(__global const FilterVector* fv,
         }
     )
     float lane_v[16], lane_r[16], lane_n[16], lane_count[16], lane_class[16];
-    float lane_excess[16], lane_min[16], lane_floor[16];
+    float lane_excess[16], lane_min[16], lane_floor[16], lane_g[16];
+    vstore16(sum_g, 0, lane_g);
     vstore16(sum_v, 0, lane_v);
     vstore16(sum_r, 0, lane_r);
     vstore16(sum_n, 0, lane_n);
@@ -132,5 +153,8 @@ __kernel void bmfr_select_nlm_packed(__global const FilterVector* fv,
         float3 sum = (float3)(lane_v[i], lane_r[i], lane_n[i]);
         float excess = BMFR_SELECT_FLOOR > 0.0f ? lane_excess[i] : sum.y - sum.x;
         bmfr_select_nlm_blend(fv + p, lane_class[i], sum, excess, nlm_out + 3 * p, fitted + p);
+#if BMFR_GUIDED
+        bmfr_guided_join(lane_class[i], lane_v[i], lane_g[i], guided[p], fitted + p);
+#endif
     }
 }

@@ -20,7 +20,8 @@ use super::guided;
 use super::outliers::{NEIGHBOURS, OUTLIER_RADIUS};
 use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, prefilter_packed_lines};
 use super::{
-    ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, PIVOT_MIN, TARGETS, WORK_GROUP, blocks_per_grid,
+    ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, MAX_GUIDED_RADIUS, PIVOT_MIN, TARGETS, WORK_GROUP,
+    blocks_per_grid,
     grid_blocks, grid_offset,
 };
 use crate::filters::{FilterRun, PreparedFilter};
@@ -130,13 +131,15 @@ const fn nlm_step(patch: u32) -> u32 {
 }
 
 // The packed kernels' reads reach the search window's radius past the lanes, into the padding:
-// left, the radius and (non-local means) the neighbour lanes; right, from the last work-item's
+// left, the radius (the guided filter's window) and (non-local means) the neighbour lanes; right, from the last work-item's
 // first pixel (at most width - 1) its lanes and the radius.
 const _: () = assert!(
     MAX_NLM_RADIUS + MAX_NLM_PATCH <= NLM_PACKED_PAD
         && MAX_ALBEDO_RADIUS < NLM_PACKED_PAD
         && nlm_step(1) + MAX_NLM_RADIUS <= 2 * NLM_PACKED_PAD
         && PACK - 1 + MAX_ALBEDO_RADIUS <= 2 * NLM_PACKED_PAD
+        && MAX_GUIDED_RADIUS <= NLM_PACKED_PAD
+        && PACK - 1 + MAX_GUIDED_RADIUS <= 2 * NLM_PACKED_PAD
 );
 
 /// The regression filter, built once for an image size.
@@ -410,8 +413,10 @@ impl BmfrKernel {
             // Packed on CPU devices (nlm.rs `packed_nlm`): the inputs as lines of floats,
             // padded either side and zeroed once (kernels/filters/bmfr_nlm_packed.cl).
             let packed_nlm = s.packed_nlm.or(gpu.summary.kind == "CPU");
+            let stride = line_stride(width);
+            // The packed kernels' input lines, which the packed guided filter reads too.
+            let mut nlm_lines = None;
             if packed_nlm {
-                let stride = line_stride(width);
                 let lines = gpu.zeroed::<f32>(
                     (NLM_PACKED_LINES * stride) as usize * height as usize,
                     "bmfr nlm input lines",
@@ -429,6 +434,7 @@ impl BmfrKernel {
                 .arg(stride)
                 .arg(&nlm_out);
                 select.push(built(kb, no_positions)?);
+                nlm_lines = Some(lines);
             } else {
                 // bmfr_nlm's local memory: the tile's four inputs and each tap's distance, over
                 // the tile and its patch border (float4s).
@@ -465,23 +471,71 @@ impl BmfrKernel {
             // The guided filter's four passes (guided.rs), before the selection overwrites
             // the fit that its error terms are relative to.
             let guided_out = if s.guided {
-                let planes = |n, what| gpu.zeroed::<f32>(n * pixels, what);
-                // The moments' planes later hold the models' row sums (MODEL ≤ MOMENTS).
-                let moments = planes(guided::MOMENTS, "bmfr guided moments")?;
-                let models = planes(guided::MODEL, "bmfr guided models")?;
                 let guided_out = gpu.zeroed::<Float4>(pixels, "bmfr guided filter")?;
-                let mut kb = per_pixel("bmfr_guided_rows", all);
-                kb.arg(&raw).arg(&moments);
-                select.push(built(kb, all)?);
-                let mut kb = per_pixel("bmfr_guided_solve", none);
-                kb.arg(&moments).arg(&models);
-                select.push(built(kb, none)?);
-                let mut kb = per_pixel("bmfr_guided_average_rows", none);
-                kb.arg(&models).arg(&moments);
-                select.push(built(kb, none)?);
-                let mut kb = per_pixel("bmfr_guided_eval", all);
-                kb.arg(&raw).arg(&moments).arg(&out).arg(&nlm_out).arg(&guided_out);
-                select.push(built(kb, all)?);
+                if let Some(lines) = &nlm_lines {
+                    // 16 pixels per work-item on the packed kernels' lines
+                    // (kernels/filters/bmfr_guided_packed.cl), the same bytes.
+                    let planes = |n: usize, what| {
+                        gpu.zeroed::<f32>(n * stride as usize * height as usize, what)
+                    };
+                    let guides = planes(guided::GUIDES, "bmfr guided guide lines")?;
+                    // The moments' planes later hold the models' row sums (MODEL ≤ MOMENTS).
+                    let moments = planes(guided::MOMENTS, "bmfr guided moments")?;
+                    let models = planes(guided::MODEL, "bmfr guided models")?;
+                    let positions_only = FrameArgs {
+                        odd_halves: false,
+                        spp: false,
+                        ..all
+                    };
+                    let mut kb = per_pixel("bmfr_guided_guide_lines", positions_only);
+                    kb.arg(stride).arg(&guides);
+                    select.push(built(kb, positions_only)?);
+                    let packed = |name, frame| {
+                        let mut kb = per_pixel(name, frame);
+                        kb.global_work_size([width.div_ceil(PACK) as usize, height as usize])
+                            .local_work_size([1, 1]);
+                        kb
+                    };
+                    let mut kb = packed("bmfr_guided_rows_packed", none);
+                    kb.arg(stride).arg(lines).arg(&guides).arg(&moments);
+                    select.push(built(kb, none)?);
+                    let mut kb = packed("bmfr_guided_solve_packed", none);
+                    kb.arg(stride).arg(&moments).arg(&models);
+                    select.push(built(kb, none)?);
+                    let mut kb = packed("bmfr_guided_average_rows_packed", none);
+                    kb.arg(stride).arg(&models).arg(&moments);
+                    select.push(built(kb, none)?);
+                    let frame = FrameArgs {
+                        positions: false,
+                        ..all
+                    };
+                    let mut kb = packed("bmfr_guided_eval_packed", frame);
+                    kb.arg(stride)
+                        .arg(&raw)
+                        .arg(&guides)
+                        .arg(&moments)
+                        .arg(&out)
+                        .arg(&nlm_out)
+                        .arg(&guided_out);
+                    select.push(built(kb, frame)?);
+                } else {
+                    let planes = |n, what| gpu.zeroed::<f32>(n * pixels, what);
+                    // The moments' planes later hold the models' row sums (MODEL ≤ MOMENTS).
+                    let moments = planes(guided::MOMENTS, "bmfr guided moments")?;
+                    let models = planes(guided::MODEL, "bmfr guided models")?;
+                    let mut kb = per_pixel("bmfr_guided_rows", all);
+                    kb.arg(&raw).arg(&moments);
+                    select.push(built(kb, all)?);
+                    let mut kb = per_pixel("bmfr_guided_solve", none);
+                    kb.arg(&moments).arg(&models);
+                    select.push(built(kb, none)?);
+                    let mut kb = per_pixel("bmfr_guided_average_rows", none);
+                    kb.arg(&models).arg(&moments);
+                    select.push(built(kb, none)?);
+                    let mut kb = per_pixel("bmfr_guided_eval", all);
+                    kb.arg(&raw).arg(&moments).arg(&out).arg(&nlm_out).arg(&guided_out);
+                    select.push(built(kb, all)?);
+                }
                 Some(guided_out)
             } else {
                 None
@@ -497,11 +551,19 @@ impl BmfrKernel {
                 per_pixel("bmfr_select_nlm", none)
             };
             kb.arg(&residuals).arg(&nlm_out).arg(&out);
-            select.push(built(kb, none)?);
-            if let Some(guided_out) = &guided_out {
-                let mut kb = per_pixel("bmfr_guided_blend", none);
-                kb.arg(&residuals).arg(guided_out).arg(&out);
-                select.push(built(kb, none)?);
+            match &guided_out {
+                // The packed selection joins the guided filter itself (bmfr_guided_join).
+                Some(guided_out) if packed_nlm => {
+                    kb.arg(guided_out);
+                    select.push(built(kb, none)?);
+                }
+                Some(guided_out) => {
+                    select.push(built(kb, none)?);
+                    let mut kb = per_pixel("bmfr_guided_blend", none);
+                    kb.arg(&residuals).arg(guided_out).arg(&out);
+                    select.push(built(kb, none)?);
+                }
+                None => select.push(built(kb, none)?),
             }
         } else if s.select {
             let residuals = gpu.zeroed::<Float2>(pixels, "bmfr selection residuals")?;
