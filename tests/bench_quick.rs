@@ -252,7 +252,7 @@ fn method_selects_the_compared_methods() {
         .collect();
     assert_eq!(
         methods.into_iter().collect::<Vec<_>>(),
-        ["bmfr", "bmfr-fit", "unfiltered"],
+        ["bmfr", "bmfr-fit", "bmfr-guided", "unfiltered"],
         "{csv}"
     );
     let bad = noisefree()

@@ -53,7 +53,7 @@ pub fn accuracy_time(ctx: &Context, fresh: bool) -> Result<()> {
         let reference = reference_image(ctx, path, &s)?;
         let methods = study.methods()?;
         let mut extra = study.chains()?;
-        extra.push(study.bmfr_fit()?);
+        extra.extend(study.bmfr_variants()?);
         for candidate in Candidate::all(&methods, &extra, oidn.as_ref())
             .into_iter()
             .filter(|c| ctx.wants(&c.label()))

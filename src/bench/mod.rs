@@ -164,8 +164,9 @@ pub struct BenchArgs {
     pub scene: Vec<PathBuf>,
     /// Methods of the quality and accuracy-time studies and kernels of the roofline
     /// (repeatable): a filter's name, or `oidn`; a name also keeps its variants (`ddf` the
-    /// thesis's ddf-holes and ddf-nosky, `bmfr` bmfr-fit, `oidn` every quality; in the roofline
-    /// `atrous` both à-trous kernels); the unfiltered image is always in [default: every method].
+    /// thesis's ddf-holes and ddf-nosky, `bmfr` bmfr-fit and bmfr-guided, `oidn` every
+    /// quality; in the roofline `atrous` both à-trous kernels); the unfiltered image is always
+    /// in [default: every method].
     #[arg(long, value_name = "NAME")]
     pub method: Vec<String>,
     /// The bundled scenes folder (the sweep and filter-speed read their scenes from it too)

@@ -40,12 +40,12 @@ pub fn quality(ctx: &Context, fresh: bool) -> Result<()> {
         )];
         // (candidate, spp) cells: unfiltered at 8, the thesis's filter at 8/16/32, the others
         // at 8: every registered filter, the path-density chains, the thesis's filter with
-        // holes and without the sky case, the regression fit without its selection, and
-        // OIDN's qualities when it is set up.
+        // holes and without the sky case, the regression fit without its selection and with
+        // the guided candidate, and OIDN's qualities when it is set up.
         let methods = study.methods()?;
         let mut variants = study.thesis_variants()?;
         variants.extend(study.chains()?);
-        variants.push(study.bmfr_fit()?);
+        variants.extend(study.bmfr_variants()?);
         let mut cells: Vec<(Candidate, u32)> = Vec::new();
         for c in Candidate::all(&methods, &variants, oidn.as_ref())
             .into_iter()

@@ -140,19 +140,30 @@ impl StudyScene {
         Ok(v)
     }
 
-    /// The regression filter without its per-pixel selection (the fit alone, as the paper's
-    /// single frame): what the selection changes.
-    pub fn bmfr_fit(&self) -> Result<(String, Configured)> {
+    /// The regression filter's variants beside its defaults: without its per-pixel selection
+    /// (`bmfr-fit`, the fit alone, as the paper's single frame: what the selection changes),
+    /// and with the guided filter as the selection's fourth candidate (`bmfr-guided`, off by
+    /// default: what it buys and what it costs). (label, filter).
+    pub fn bmfr_variants(&self) -> Result<Vec<(String, Configured)>> {
         use crate::filters::FilterKind;
         use crate::filters::bmfr::{Bmfr, BmfrSettings};
-        let settings = BmfrSettings {
+        let fit = BmfrSettings {
             select: false,
             ..Default::default()
         };
-        Ok((
-            format!("{}-fit", Bmfr::NAME),
-            Configured::typed::<Bmfr>(settings, &self.info)?,
-        ))
+        let guided = BmfrSettings {
+            guided: true,
+            ..Default::default()
+        };
+        [("fit", fit), ("guided", guided)]
+            .into_iter()
+            .map(|(label, settings)| {
+                Ok((
+                    format!("{}-{label}", Bmfr::NAME),
+                    Configured::typed::<Bmfr>(settings, &self.info)?,
+                ))
+            })
+            .collect()
     }
 
     /// The path-density filter's chains (DeCoro 2009 ch. 5: outlier removal first, then a
