@@ -29,11 +29,16 @@
 //! filter has about half the variance of each half's). The blend of the other three
 //! candidates is Σ w_k c_k / W; adding a fourth is (W · blend + w_g g) / (W + w_g), so the
 //! selection kernels keep the weight W in the output's fourth channel and `bmfr_guided_blend`
-//! adds the guided filter after them.
+//! adds the guided filter after them (the packed selection adds it itself, with the window
+//! sums it already has: `bmfr_guided_join`).
+//!
+//! On CPU devices the packed kernels (kernels/filters/bmfr_guided_packed.cl) take 16 pixels
+//! per work-item on float16 lanes, the same bytes: 12x faster than the one-pixel kernels on
+//! PoCL, 63-79 ms at 512² against about 200 ms for the rest of bmfr on an AVX2 CPU.
 //!
 //! Settings chosen with a double-precision prototype of this reference, then the kernels'
-//! error on 13 scenes and their cost (off by default: about 550 ms on PoCL as one work-item per
-//! pixel, against 71 ms for the rest of bmfr): results/README.md, bmfr, "Stop 57".
+//! error on 13 scenes and their cost (off by default: its error is higher on two of them, and
+//! it adds about 40 % to bmfr's time): results/README.md, bmfr, "Stop 57" and "Stop 58".
 
 // Index loops on purpose: each mirrors a loop of the kernel, whose order fixes the bits.
 #![allow(clippy::needless_range_loop)]
@@ -272,7 +277,7 @@ pub fn guided(
         .collect()
 }
 
-/// kernels/filters/bmfr_guided.cl `bmfr_guided_blend` for pixel (x, y): the selection's blend
+/// kernels/filters/bmfr_guided.cl `bmfr_guided_blend` (`bmfr_guided_join`) for pixel (x, y): the selection's blend
 /// `selected` of weight `weight` (0: the selection made no blend, kept as it is) with the
 /// guided filter, weighted by 1 / E_g² (module docs). `residuals`: nlm.rs `residual`'s (V, R,
 /// N, class); `guided`: [`guided`]'s.
