@@ -68,7 +68,8 @@ __kernel void bmfr_guided_rows_packed(__global const FilterVector* fv,
         for (int k = 0; k < BMFR_GUIDED_TARGETS; ++k) t[k] = load16(u + k * (size_t)stride);
         acc[0] = select(acc[0], acc[0] + 1.0f, take);
         #pragma unroll
-        for (int d = 0; d < BMFR_GUIDES; ++d) acc[1 + d] = select(acc[1 + d], acc[1 + d] + x[d], take);
+        for (int d = 0; d < BMFR_GUIDES; ++d)
+            acc[1 + d] = select(acc[1 + d], acc[1 + d] + x[d], take);
         int n = 1 + BMFR_GUIDES;
         #pragma unroll
         for (int a = 0; a < BMFR_GUIDES; ++a) {

@@ -21,8 +21,7 @@ use super::outliers::{NEIGHBOURS, OUTLIER_RADIUS};
 use super::prefilter::{MAX_ALBEDO_RADIUS, PREFILTER_EPSILON, PREFILTER_K, prefilter_packed_lines};
 use super::{
     ALBEDO_EPSILON, BmfrSettings, INFO_FLOATS, MAX_GUIDED_RADIUS, PIVOT_MIN, TARGETS, WORK_GROUP,
-    blocks_per_grid,
-    grid_blocks, grid_offset,
+    blocks_per_grid, grid_blocks, grid_offset,
 };
 use crate::filters::{FilterRun, PreparedFilter};
 use crate::gpu::{Gpu, enqueue, event_duration, read_rgb};
@@ -131,8 +130,9 @@ const fn nlm_step(patch: u32) -> u32 {
 }
 
 // The packed kernels' reads reach the search window's radius past the lanes, into the padding:
-// left, the radius (the guided filter's window) and (non-local means) the neighbour lanes; right, from the last work-item's
-// first pixel (at most width - 1) its lanes and the radius.
+// left, the radius (the guided filter's: its window's) and (non-local means) the neighbour
+// lanes; right, from the last work-item's first pixel (at most width - 1) its lanes and the
+// radius.
 const _: () = assert!(
     MAX_NLM_RADIUS + MAX_NLM_PATCH <= NLM_PACKED_PAD
         && MAX_ALBEDO_RADIUS < NLM_PACKED_PAD
