@@ -383,8 +383,8 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
             eprintln!("{name} {s:?}: {d:e}");
             if s.guided {
                 // The comparison means something only where the fourth candidate changes the
-                // blend: measured 0.42-0.98 (largest relative change of a pixel) on the three
-                // frames.
+                // blend: measured 0.41-0.98 (largest relative change of a pixel) on the three
+                // frames, radius 1 to 8.
                 let with = reference(frame, &s).unwrap();
                 let plain = BmfrSettings {
                     guided: false,
@@ -393,7 +393,7 @@ fn kernel_matches_the_rust_reference_on_rendered_frames() {
                 let change = max_rel_diff(&with, &reference(frame, &plain).unwrap());
                 eprintln!("{name}: the guided filter changes the image by {change:e}");
                 assert!(
-                    change > 1e-2,
+                    change > 0.2,
                     "{name}: the guided filter changed little ({change:e})"
                 );
             }

@@ -1,7 +1,7 @@
 // The guided filter's passes on CPU devices (`packed_nlm`, src/filters/bmfr/guided.rs): the
 // equations of filters/bmfr_guided.cl (included before this file) with one work-item taking
 // 16 adjacent pixels x0 .. x0 + 15 of a row, lane i for pixel x0 + i, every operation written
-// on float16 vectors.
+// on float16 vectors (lane ids: BMFR_LANE_IDS, filters/bmfr_fit_packed.cl).
 //
 // Why: PoCL ran bmfr_guided's four kernels one pixel per work-item on scalar floats, with the
 // 91 moments, the 6 x 6 Cholesky factor and the nine right-hand sides in private arrays that
@@ -25,7 +25,6 @@
 // against the reference: tests/bmfr.rs.
 
 #define BMFR_GUIDED_PACK 16
-#define BMFR_GUIDED_LANES (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
 #if BMFR_GUIDED_RADIUS > BMFR_NLM_PAD
 #error "noisefree: BMFR_GUIDED_RADIUS must be at most BMFR_NLM_PAD (guided.rs)"
 #endif
@@ -87,7 +86,7 @@ __kernel void bmfr_guided_rows_packed(__global const FilterVector* fv,
                 acc[n] = select(acc[n], acc[n] + x[d] * t[k], take);
         }
     }
-    int16 inside = (int16)(x0) + BMFR_GUIDED_LANES < (int)width;
+    int16 inside = (int16)(x0) + BMFR_LANE_IDS < (int)width;
     __global float* out = planes + bmfr_line_at(x0, y, BMFR_GUIDED_MOMENTS, stride);
     #pragma unroll
     for (int c = 0; c < BMFR_GUIDED_MOMENTS; ++c)
@@ -119,7 +118,7 @@ __kernel void bmfr_guided_solve_packed(__global const FilterVector* fv,
     float16 s[BMFR_GUIDED_MOMENTS];
     bmfr_guided_columns_packed(moments, BMFR_GUIDED_MOMENTS, x0, y, height, stride, s);
     float16 m = s[0];
-    int16 keep = m >= 1.0f && (int16)(x0) + BMFR_GUIDED_LANES < (int)width;
+    int16 keep = m >= 1.0f && (int16)(x0) + BMFR_LANE_IDS < (int)width;
     float16 xm[BMFR_GUIDES], tm[BMFR_GUIDED_TARGETS];
     #pragma unroll
     for (int d = 0; d < BMFR_GUIDES; ++d) xm[d] = s[1 + d] / m;
@@ -187,7 +186,7 @@ __kernel void bmfr_guided_average_rows_packed(__global const FilterVector* fv,
                                               __global float* rows) {
     int x0 = get_global_id(0) * BMFR_GUIDED_PACK, y = get_global_id(1);
     if (x0 >= (int)width || y >= (int)height) return;
-    int16 xs = (int16)(x0) + BMFR_GUIDED_LANES;
+    int16 xs = (int16)(x0) + BMFR_LANE_IDS;
     __global const float* p = models + bmfr_line_at(x0, y, BMFR_GUIDED_MODEL, stride);
     __global float* out = rows + bmfr_line_at(x0, y, BMFR_GUIDED_MODEL, stride);
     for (int c = 0; c < BMFR_GUIDED_MODEL; ++c) {

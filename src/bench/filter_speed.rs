@@ -90,12 +90,7 @@ pub(super) fn filter_input_with(
     h: u32,
     outputs: OutputSet,
 ) -> Result<Frame> {
-    let mut o = RenderOptions::for_scene(scene);
-    (o.frame.width, o.frame.height) = (w, h);
-    o.outputs = outputs;
-    let mut r = Renderer::new(ctx.gpu.clone(), scene, &o)?;
-    r.render_samples(8)?;
-    Ok(r.frame())
+    render_input(ctx, scene, w, h, |o| o.outputs = outputs)
 }
 
 /// [`filter_input`] rendered as `filter` asks (its outputs and how they are gathered, e.g.
@@ -107,10 +102,23 @@ pub(super) fn filter_input_for(
     h: u32,
     filter: &crate::filters::Configured,
 ) -> Result<Frame> {
+    render_input(ctx, scene, w, h, |o| {
+        o.outputs = filter.needs();
+        filter.adjust_render(o);
+    })
+}
+
+/// 8 spp of `scene` at w × h with the scene's render options as `set` changes them.
+fn render_input(
+    ctx: &Context,
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    set: impl FnOnce(&mut RenderOptions),
+) -> Result<Frame> {
     let mut o = RenderOptions::for_scene(scene);
     (o.frame.width, o.frame.height) = (w, h);
-    o.outputs = filter.needs();
-    filter.adjust_render(&mut o);
+    set(&mut o);
     let mut r = Renderer::new(ctx.gpu.clone(), scene, &o)?;
     r.render_samples(8)?;
     Ok(r.frame())

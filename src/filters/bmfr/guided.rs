@@ -177,29 +177,27 @@ fn solve(s: &[f32; MOMENTS], ridge: f32) -> [f32; MODEL] {
 /// Sums of `values` (`N` per pixel) over each pixel's window, rows first (the pixels x − r ..
 /// x + r of its row inside the image, left to right), then columns (the row sums of y − r ..
 /// y + r, top to bottom), as bmfr_guided.cl's row and column passes add them.
-fn box_sums<const N: usize>(values: &[[f32; N]], (w, h): (u32, u32), r: i32) -> Vec<[f32; N]> {
-    let (wi, hi) = (w as i32, h as i32);
-    let rows: Vec<[f32; N]> = (0..values.len())
-        .into_par_iter()
-        .map(|i| {
-            let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
-            let mut acc = [0f32; N];
-            for xx in (x - r).max(0)..=(x + r).min(wi - 1) {
-                let v = &values[(y as u32 * w + xx as u32) as usize];
-                for c in 0..N {
-                    acc[c] += v[c];
-                }
-            }
-            acc
-        })
-        .collect();
+fn box_sums<const N: usize>(values: &[[f32; N]], dims: (u32, u32), r: i32) -> Vec<[f32; N]> {
+    line_sums(&line_sums(values, dims, r, true), dims, r, false)
+}
+
+/// One pass of [`box_sums`]: per pixel, the sum of `values` over the 2 r + 1 pixels of its
+/// row (`along_rows`) or its column centred on it, inside the image, in increasing order.
+fn line_sums<const N: usize>(
+    values: &[[f32; N]],
+    (w, h): (u32, u32),
+    r: i32,
+    along_rows: bool,
+) -> Vec<[f32; N]> {
     (0..values.len())
         .into_par_iter()
         .map(|i| {
             let (x, y) = ((i as u32 % w) as i32, (i as u32 / w) as i32);
+            let (centre, len) = if along_rows { (x, w) } else { (y, h) };
             let mut acc = [0f32; N];
-            for yy in (y - r).max(0)..=(y + r).min(hi - 1) {
-                let v = &rows[(yy as u32 * w + x as u32) as usize];
+            for t in (centre - r).max(0)..=(centre + r).min(len as i32 - 1) {
+                let (xx, yy) = if along_rows { (t, y) } else { (x, t) };
+                let v = &values[(yy as u32 * w + xx as u32) as usize];
                 for c in 0..N {
                     acc[c] += v[c];
                 }

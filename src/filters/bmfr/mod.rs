@@ -246,9 +246,9 @@ crate::filter_settings! {
         /// With `nlm`: a fourth candidate of the selection, a guided filter of the light on the
         /// normal and position over sliding windows, its error estimated by filtering each
         /// half buffer alone (guided.rs). Off by default: relMSE lower on 11 of 13 scenes (by
-        /// up to 12 %) but higher on two (by up to 2.7 %), for about 40 % more of bmfr's time
-        /// on PoCL (results/README.md, bmfr, "Stop 57" and "Stop 58"; `bench` shows it as
-        /// bmfr-guided).
+        /// up to 12 %) but higher on two (by up to 2.7 %), for 35-45 % more of bmfr's time on
+        /// grids on PoCL (results/README.md, bmfr, "Stop 57" and "Stop 58"; `bench` shows it
+        /// as bmfr-guided).
         pub guided: bool = false,
         /// Half width of the guided filter's windows, pixels.
         pub guided_radius: u32 = 3,
