@@ -10,9 +10,9 @@
 // atrous_packed.cl). Here the packing is explicit, and the tap distances are shared without
 // local memory: a tap's distance depends only on the pixel a = p + t and the offset q - p, so
 // for one offset the work-item evaluates each of its rows' distances once (16 lanes), sums each
-// row's taps by shifting the lanes, and slides a window of BMFR_NLM_TAPS such row sums down its
-// rows: (ROWS + 2 PATCH) / ROWS row evaluations per output row and offset, against TAPS^2
-// without sharing. Overlapping the work-items by 2 PATCH pixels costs 16 / STEP of the lanes;
+// row's taps by shifting the lanes, keeps the row sums, and sums BMFR_NLM_TAPS of them for each
+// output row: (ROWS + 2 PATCH) / ROWS row evaluations per output row and offset, against
+// TAPS^2 without sharing. Overlapping the work-items by 2 PATCH pixels costs 16 / STEP of the lanes;
 // with 3 x 3 patches it replaced evaluating the two edge pixels of 16 output lanes on float2s,
 // and measured 2 % faster with the same bytes (Cornell diffuse 512², `noisefree filter
 // --profile`, binaries alternating four times: 109.5-110.8 ms -> 106.8-109.4 ms) and is the
@@ -96,8 +96,10 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
     __global const float* b = lines + bmfr_line_at(xv + dx, by, BMFR_NLM_LINES, stride);
     // The distances of the tap for the frame (d[0]) and the two halves (d[1], d[2]),
     // bmfr_nlm's expressions channel by channel, 0 where the tap is invalid (either pixel
-    // outside the image: d[3]).
-    float16 q[3][3];
+    // outside the image: d[3]). Each channel's terms are added to d[m] as soon as they are
+    // made (the same order, (q0 + q1) + q2): fewer vectors live at once than making all
+    // nine first, which on AVX2 (sixteen 8-float registers, two per float16) spilled.
+    float16 d[4];
     #pragma unroll
     for (int c = 0; c < 3; ++c) {
         float16 va = load16(a + (9 + c) * (size_t)stride);
@@ -111,18 +113,16 @@ __attribute__((always_inline)) inline void bmfr_nlm_row(__global const float* li
             if (m < images) {
                 float16 diff = load16(a + (3 * m + c) * (size_t)stride)
                              - load16(b + (3 * m + c) * (size_t)stride);
-                q[m][c] = m == 0 ? (diff * diff - s) * inv : (0.5f * (diff * diff) - s) * inv;
+                float16 q = m == 0 ? (diff * diff - s) * inv : (0.5f * (diff * diff) - s) * inv;
+                d[m] = c == 0 ? q : d[m] + q;
             }
         }
     }
-    float16 d[4];
-    if (!inside) d[3] = load16(a + 12 * (size_t)stride) * load16(b + 12 * (size_t)stride);
-    #pragma unroll
-    for (int m = 0; m < 3; ++m) {
-        if (m < images) {
-            d[m] = (q[m][0] + q[m][1]) + q[m][2];
-            if (!inside) d[m] = d[3] != 0.0f ? d[m] : (float16)(0.0f);
-        }
+    if (!inside) {
+        d[3] = load16(a + 12 * (size_t)stride) * load16(b + 12 * (size_t)stride);
+        #pragma unroll
+        for (int m = 0; m < 3; ++m)
+            if (m < images) d[m] = d[3] != 0.0f ? d[m] : (float16)(0.0f);
     }
     #pragma unroll
     for (int m = 0; m < 4; ++m) {
@@ -151,58 +151,59 @@ inline bool bmfr_nlm_inside(int xv, int y0, int w, int h, int dx, int dy) {
 
 // One offset (dx, dy) of the search window for every row of the work-item, the weights of
 // `images` of the three images (see bmfr_nlm_row) added to acc and wsum; `inside`:
-// bmfr_nlm_inside holds for it.
+// bmfr_nlm_inside holds for it. Two passes: every row's patch row sums into hs (hs[i]: row
+// y0 - P + i), then each output row's 2 P + 1 of them summed top to bottom and weighed. One
+// pass sliding a window of 2 P + 1 row sums in private variables (as the emission kernel
+// does) is the same float operations in the same order, but its 15-20 float16s do not fit in
+// AVX2's registers and the compiler's spills cost more than this buffer's stores and loads
+// (Cornell diffuse 512², `noisefree filter --profile --repeat 5`, binaries alternating three
+// times: 128.8-131.7 ms -> 111.7-114.9 ms, the same bytes).
 __attribute__((always_inline)) inline void bmfr_nlm_offset(
     __global const float* lines, uint stride, int xv, int y0, int h, int dx, int dy, float k2,
-    const int images, const int inside, float16 acc[BMFR_NLM_ROWS][9],
-    float16 wsum[BMFR_NLM_ROWS][3]) {
-    // The row sums of rows r - 2 P .. r (hs[0] .. hs[2 P]): the patch rows of output row r - P.
-    float16 hs[BMFR_NLM_TAPS][4];
-    const int last = BMFR_NLM_TAPS - 1;
+    const int images, const int inside, float16 hs[BMFR_NLM_ROWS + 2 * BMFR_NLM_PATCH][4],
+    float16 acc[BMFR_NLM_ROWS][9], float16 wsum[BMFR_NLM_ROWS][3]) {
     for (int r = -BMFR_NLM_PATCH; r < BMFR_NLM_ROWS + BMFR_NLM_PATCH; ++r) {
         int ay = y0 + r, by = ay + dy;
+        float16 row[4];
         if (ay >= 0 && ay < h && by >= 0 && by < h) {
-            bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, images, inside, hs[last]);
+            bmfr_nlm_row(lines, stride, xv, ay, by, dx, k2, images, inside, row);
         } else {
             #pragma unroll
-            for (int m = 0; m < 4; ++m) hs[last][m] = (float16)(0.0f);
-        }
-        int row = r - BMFR_NLM_PATCH, py = y0 + row, qy = py + dy;
-        if (row >= 0 && py < h && qy >= 0 && qy < h) {
-            __global const float* q = lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
-            __global const float* p = lines + bmfr_line_at(xv, py, BMFR_NLM_LINES, stride);
-            // q takes part when it is of p's class (and p of one: others pass through).
-            float16 class_q = load16(q + 13 * (size_t)stride);
-            int16 same = class_q == load16(p + 13 * (size_t)stride) && class_q != 0.0f;
-            float16 taps;
-            if (inside) {
-                taps = (float16)(3.0f * (float)(BMFR_NLM_TAPS * BMFR_NLM_TAPS));
-            } else {
-                float16 valid = hs[0][3];
-                #pragma unroll
-                for (int t = 1; t < BMFR_NLM_TAPS; ++t) valid += hs[t][3];
-                taps = 3.0f * valid;
-            }
-            #pragma unroll
-            for (int m = 0; m < 3; ++m) {
-                if (m < images) {
-                    float16 d2 = hs[0][m];
-                    #pragma unroll
-                    for (int t = 1; t < BMFR_NLM_TAPS; ++t) d2 += hs[t][m];
-                    float16 wt = same ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
-                    #pragma unroll
-                    for (int c = 0; c < 3; ++c)
-                        acc[row][3 * m + c] +=
-                            wt * load16(q + (3 * m + c) * (size_t)stride);
-                    wsum[row][m] += wt;
-                }
-            }
+            for (int m = 0; m < 4; ++m) row[m] = (float16)(0.0f);
         }
         #pragma unroll
-        for (int t = 0; t < last; ++t) {
+        for (int m = 0; m < 4; ++m)
+            if (m < images || (m == 3 && !inside)) hs[r + BMFR_NLM_PATCH][m] = row[m];
+    }
+    for (int row = 0; row < BMFR_NLM_ROWS; ++row) {
+        int py = y0 + row, qy = py + dy;
+        if (py >= h || qy < 0 || qy >= h) continue;
+        __global const float* q = lines + bmfr_line_at(xv + dx, qy, BMFR_NLM_LINES, stride);
+        __global const float* p = lines + bmfr_line_at(xv, py, BMFR_NLM_LINES, stride);
+        // q takes part when it is of p's class (and p of one: others pass through).
+        float16 class_q = load16(q + 13 * (size_t)stride);
+        int16 same = class_q == load16(p + 13 * (size_t)stride) && class_q != 0.0f;
+        float16 taps;
+        if (inside) {
+            taps = (float16)(3.0f * (float)(BMFR_NLM_TAPS * BMFR_NLM_TAPS));
+        } else {
+            float16 valid = hs[row][3];
             #pragma unroll
-            for (int m = 0; m < 4; ++m)
-                if (m < images || (m == 3 && !inside)) hs[t][m] = hs[t + 1][m];
+            for (int t = 1; t < BMFR_NLM_TAPS; ++t) valid += hs[row + t][3];
+            taps = 3.0f * valid;
+        }
+        #pragma unroll
+        for (int m = 0; m < 3; ++m) {
+            if (m < images) {
+                float16 d2 = hs[row][m];
+                #pragma unroll
+                for (int t = 1; t < BMFR_NLM_TAPS; ++t) d2 += hs[row + t][m];
+                float16 wt = same ? exp(-fmax(d2 / taps, 0.0f)) : (float16)(0.0f);
+                #pragma unroll
+                for (int c = 0; c < 3; ++c)
+                    acc[row][3 * m + c] += wt * load16(q + (3 * m + c) * (size_t)stride);
+                wsum[row][m] += wt;
+            }
         }
     }
 }
@@ -222,6 +223,7 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
     float k2 = BMFR_NLM_K * BMFR_NLM_K;
     // Per row: the weighted sums of the three images' rgb (3 m + c) and their weights.
     float16 acc[BMFR_NLM_ROWS][9], wsum[BMFR_NLM_ROWS][3];
+    float16 hs[BMFR_NLM_ROWS + 2 * BMFR_NLM_PATCH][4];  // bmfr_nlm_offset's row sums
     for (int row = 0; row < BMFR_NLM_ROWS; ++row) {
         for (int k = 0; k < 9; ++k) acc[row][k] = (float16)(0.0f);
         for (int m = 0; m < 3; ++m) wsum[row][m] = (float16)(0.0f);
@@ -232,13 +234,13 @@ __kernel void bmfr_nlm_packed(__global const FilterVector* fv,
             bool inside = bmfr_nlm_inside(xv, y0, w, h, dx, dy);
             if (BMFR_NLM_ESTIMATING(dx, dy)) {
                 if (inside)
-                    bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, 1, acc, wsum);
+                    bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, 1, hs, acc, wsum);
                 else
-                    bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, 0, acc, wsum);
+                    bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 3, 0, hs, acc, wsum);
             } else if (inside) {
-                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, 1, acc, wsum);
+                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, 1, hs, acc, wsum);
             } else {
-                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, 0, acc, wsum);
+                bmfr_nlm_offset(lines, stride, xv, y0, h, dx, dy, k2, 1, 0, hs, acc, wsum);
             }
         }
     }

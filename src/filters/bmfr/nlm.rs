@@ -210,8 +210,8 @@
 //! summed first, then the rows): `bmfr_nlm` (kernels/filters/bmfr_nlm.cl; 16 × 16
 //! work-groups share each tap's distance through local memory) and, on CPU devices
 //! (`packed_nlm`), `bmfr_nlm_packed` (bmfr_nlm_packed.cl; one work-item per 12 × 32 pixels on
-//! float16 lanes with 5 × 5 patches, the taps shifted between lanes, five row sums slid down
-//! the rows). With 3 × 3 patches (the figures that follow): on PoCL
+//! float16 lanes with 5 × 5 patches, the taps shifted between lanes, each output row's five
+//! row sums added from a buffer of the work-item's rows). With 3 × 3 patches (the figures that follow): on PoCL
 //! (2 cores, Cornell glossy 512², 8 spp, `noisefree filter a.exr --filter bmfr --repeat 5`, medians): bmfr takes
 //! 190 ms with the packed kernel, 839 ms with the work-group one (`--bmfr-packed-nlm=false`)
 //! and 72 ms with `--bmfr-nlm-radius 0` (one offset), so the other 120 offsets cost about
