@@ -259,7 +259,7 @@ void bmfr_emission_nlm(__global const float* lines, uint stride, uint width, uin
 // neighbours a patch row's taps need, computed and never written). Why: PoCL runs the
 // work-group kernel's loops between barriers on scalar floats with a scalar exp. For one
 // offset, each of the work-item's rows is evaluated once (16 lanes), each patch row's five taps
-// summed by shifting the lanes, and a window of five such row sums slid down its rows. A pixel
+// summed by shifting the lanes, and each output row's five such row sums added. A pixel
 // is lit when some q of its window inside the image has a luminance above 0 (the reference's
 // test, gathered over the offsets), and a work-item none of whose pixels' windows holds light
 // returns at once. The same float operations in the same order as the work-group kernel and
@@ -302,14 +302,10 @@ __attribute__((always_inline)) inline float16 bmfr_emission_row(__global const f
     return bmfr_emission_row_sum(t);
 }
 
-// The window of five row sums v0 .. v4 one row down (v4 is then written).
-#define BMFR_EMISSION_SLIDE(v) \
-    do {                           \
-        v##0 = v##1;               \
-        v##1 = v##2;               \
-        v##2 = v##3;               \
-        v##3 = v##4;               \
-    } while (0)
+// The five row sums of output row `row`'s patch, top to bottom: (((hs[row][k] + hs[row + 1][k])
+// + ...) + hs[row + 4][k]).
+#define BMFR_EMISSION_COLUMN(hs, row, k)                                                     \
+    ((((hs[row][k] + hs[row + 1][k]) + hs[row + 2][k]) + hs[row + 3][k]) + hs[row + 4][k])
 
 // Global size: ceil(width / STEP) x ceil(height / ROWS), work-groups of 1.
 __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride, uint width,
@@ -334,6 +330,7 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
     const float k2 = BMFR_EMISSION_K * BMFR_EMISSION_K;
     float16 acc[BMFR_EMISSION_ROWS][3], wsum[BMFR_EMISSION_ROWS];
     int16 lit[BMFR_EMISSION_ROWS];
+    float16 hs[BMFR_EMISSION_ROWS + 2 * BMFR_EMISSION_PATCH][1 + 2 * BMFR_EMISSION_MEAN_ON];
     for (int row = 0; row < BMFR_EMISSION_ROWS; ++row) {
         for (int c = 0; c < 3; ++c) acc[row][c] = (float16)(0.0f);
         wsum[row] = (float16)(0.0f);
@@ -346,35 +343,35 @@ __kernel void bmfr_emission_nlm_packed(__global const float* lines, uint stride,
             int16 lo = max((int16)(-pr), max(-xs, -xs - dx));
             int16 hi = min((int16)(pr), min(w - 1 - xs, w - 1 - xs - dx));
             float16 taps_x = convert_float16(max(hi - lo + 1, (int16)(0)));
-            // The row sums of rows rr - 4 .. rr: the patch rows of output row rr - 2.
-            // hd* and hv*: the same for the taps' differences and variances (the mean test).
-            float16 h0 = 0.0f, h1 = 0.0f, h2 = 0.0f, h3 = 0.0f, h4 = 0.0f;
-            float16 hd0 = 0.0f, hd1 = 0.0f, hd2 = 0.0f, hd3 = 0.0f, hd4 = 0.0f;
-            float16 hv0 = 0.0f, hv1 = 0.0f, hv2 = 0.0f, hv3 = 0.0f, hv4 = 0.0f;
+            // Two passes, as bmfr_nlm_packed's offsets (why there): every row's patch row sums
+            // into hs (hs[i]: row y0 - 2 + i; hs[i][1] and [2] the taps' differences and
+            // variances for the mean test), then each output row's five summed top to bottom.
             for (int rr = -pr; rr < BMFR_EMISSION_ROWS + pr; ++rr) {
                 int ay = y0 + rr, by = ay + dy;
-                BMFR_EMISSION_SLIDE(h);
-                BMFR_EMISSION_SLIDE(hd);
-                BMFR_EMISSION_SLIDE(hv);
-                if (ay >= 0 && ay < h && by >= 0 && by < h) {
-                    h4 = bmfr_emission_row(lines, stride, xv, ay, by, dx, k2, &hd4, &hv4);
-                } else {
-                    h4 = hd4 = hv4 = (float16)(0.0f);
-                }
-                int row = rr - pr, py = y0 + row, qy = py + dy;
-                if (row < 0 || py >= h || qy < 0 || qy >= h) continue;
+                float16 hd = 0.0f, hv = 0.0f, h0 = 0.0f;
+                if (ay >= 0 && ay < h && by >= 0 && by < h)
+                    h0 = bmfr_emission_row(lines, stride, xv, ay, by, dx, k2, &hd, &hv);
+                hs[rr + pr][0] = h0;
+#if BMFR_EMISSION_MEAN_ON
+                hs[rr + pr][1] = hd;
+                hs[rr + pr][2] = hv;
+#endif
+            }
+            for (int row = 0; row < BMFR_EMISSION_ROWS; ++row) {
+                int py = y0 + row, qy = py + dy;
+                if (py >= h || qy < 0 || qy >= h) continue;
                 __global const float* p = lines + bmfr_line_at(xv, py, BMFR_EMISSION_LINES, stride);
                 __global const float* q =
                     lines + bmfr_line_at(xv + dx, qy, BMFR_EMISSION_LINES, stride);
                 int16 valid = load16(p + 5 * (size_t)stride) != 0.0f
                               && load16(q + 5 * (size_t)stride) != 0.0f;
                 lit[row] |= valid && load16(q + 3 * (size_t)stride) > 0.0f;
-                float16 d = (((h0 + h1) + h2) + h3) + h4;
+                float16 d = BMFR_EMISSION_COLUMN(hs, row, 0);
                 float16 n = taps_x * (float)bmfr_emission_taps(py, dy, h);
                 float16 distance = d / n;
 #if BMFR_EMISSION_MEAN_ON
-                float16 d_diff = (((hd0 + hd1) + hd2) + hd3) + hd4;
-                float16 d_var = (((hv0 + hv1) + hv2) + hv3) + hv4;
+                float16 d_diff = BMFR_EMISSION_COLUMN(hs, row, 1);
+                float16 d_var = BMFR_EMISSION_COLUMN(hs, row, 2);
                 distance = fmax(distance, BMFR_EMISSION_MEAN_TEST(d_diff, d_var, k2));
 #endif
                 float16 wt = valid ? exp(-fmax(distance, 0.0f)) : (float16)(0.0f);
