@@ -115,3 +115,57 @@ fn the_kernel_split_adds_up_to_every_device_filters_kernel_time() {
         assert!(profiled.contains(filter), "{filter} was not profiled");
     }
 }
+
+/// scripts/filter-ab.sh reads `filter --profile`'s table (a kernel's name first, its
+/// milliseconds third) and the filter's median line: run with this binary as both builds on a
+/// small AOV file, it must find the filter's and a kernel's times and the same bytes.
+#[test]
+fn filter_ab_script_reads_the_profile_table() {
+    let dir = tempdir("filter-ab");
+    let aovs = dir.join("a.aov.exr");
+    let status = noisefree()
+        .args([
+            "render",
+            "scenes/cornell_glossy.toml",
+            "--spp",
+            "4",
+            "--width",
+            "32",
+        ])
+        .args(["--height", "24", "--aovs", aovs.to_str().unwrap()])
+        .arg("--out")
+        .arg(dir.join("a.png"))
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let bin = env!("CARGO_BIN_EXE_noisefree");
+    let out = std::process::Command::new("bash")
+        .arg("scripts/filter-ab.sh")
+        .args([bin, bin, aovs.to_str().unwrap()])
+        .env("FILTER", "atrous")
+        .env("KERNELS", "atrous_pass_packed")
+        .env("ROUNDS", "1")
+        .env("REPEAT", "1")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 3, "{stdout}");
+    assert!(lines[0].contains("old atrous_pass_packed"), "{stdout}");
+    // | file | old ms | new ms | ratio | old kernel | new kernel | ratio | same bytes |
+    let cells: Vec<&str> = lines[2].split('|').map(str::trim).collect();
+    assert_eq!(cells[1], "a.aov.exr", "{stdout}");
+    for i in [2, 3, 5, 6] {
+        let ms: f64 = cells[i]
+            .parse()
+            .unwrap_or_else(|_| panic!("cell {i}: {stdout}"));
+        assert!(ms > 0.0, "cell {i}: {stdout}");
+    }
+    assert_eq!(cells[8], "yes", "{stdout}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
