@@ -14,19 +14,13 @@
 # filtered EXR images are the same bytes. Render-ab.sh does the same through `render`, one
 # run per render; this one repeats the filter and reads the OpenCL profiling events per kernel.
 set -euo pipefail
-if [ $# -lt 3 ]; then
-    sed -n 2,14p "$0" >&2
-    exit 2
-fi
+root=$(cd "$(dirname "$0")/.." && pwd)
+# shellcheck source=scripts/ab-common.sh
+. "$root/scripts/ab-common.sh"
+ab_binaries 2,15 3 "$@"
 old=$1
 new=$2
 shift 2
-for b in "$old" "$new"; do
-    if [ ! -x "$b" ]; then
-        echo "filter-ab: $b is not an executable noisefree binary" >&2
-        exit 2
-    fi
-done
 filter=${FILTER:-bmfr}
 repeat=${REPEAT:-5}
 rounds=${ROUNDS:-3}
@@ -35,8 +29,6 @@ read -r -a kernels <<<"${KERNELS:-}"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
-ratio() { awk -v a="$1" -v b="$2" 'BEGIN {if (a > 0) printf "%.3f", b / a; else printf "—"}'; }
 
 # One filter run of binary $1 on file $2 into $work/$3.exr; appends the whole filter's median
 # to $work/$3.total and each kernel's time to $work/$3.<kernel>.

@@ -18,20 +18,13 @@
 # Build the old binary from the old commit first, e.g.
 #   git worktree add /tmp/old OLD_COMMIT && (cd /tmp/old && cargo build --release)
 set -euo pipefail
-if [ $# -lt 2 ]; then
-    sed -n 2,17p "$0" >&2
-    exit 2
-fi
+root=$(cd "$(dirname "$0")/.." && pwd)
+# shellcheck source=scripts/ab-common.sh
+. "$root/scripts/ab-common.sh"
+ab_binaries 2,17 2 "$@"
 old=$1
 new=$2
 shift 2
-root=$(cd "$(dirname "$0")/.." && pwd)
-for b in "$old" "$new"; do
-    if [ ! -x "$b" ]; then
-        echo "render-ab: $b is not an executable noisefree binary" >&2
-        exit 2
-    fi
-done
 filter=${FILTER:-}
 read -r -a filter_args <<<"${FILTER_ARGS:-}"
 # RPF runs for tens of seconds, a device filter for milliseconds.
@@ -50,7 +43,6 @@ rounds=${ROUNDS:-3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
 # One render with binary $1 into $work/$2.{png,exr}; prints the measured figure.
 measure() {
@@ -95,5 +87,5 @@ for scene in "${scenes[@]}"; do
     n=$(median <"$work/new.txt")
     same=no
     cmp -s "$work/old.exr" "$work/new.exr" && same=yes
-    echo "| $scene | $spp | $o | $n | $(awk -v a="$o" -v b="$n" 'BEGIN {if (a > 0) printf "%.3f", b / a; else printf "—"}') | $same |"
+    echo "| $scene | $spp | $o | $n | $(ratio "$o" "$n") | $same |"
 done
