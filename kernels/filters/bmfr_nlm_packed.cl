@@ -12,8 +12,8 @@
 // for one offset the work-item evaluates each of its rows' distances once (16 lanes), sums each
 // row's taps by shifting the lanes, keeps the row sums, and sums BMFR_NLM_TAPS of them for each
 // output row: (ROWS + 2 PATCH) / ROWS row evaluations per output row and offset, against
-// TAPS^2 without sharing. Overlapping the work-items by 2 PATCH pixels costs 16 / STEP of the lanes;
-// with 3 x 3 patches it replaced evaluating the two edge pixels of 16 output lanes on float2s,
+// TAPS^2 without sharing. Overlapping the work-items by 2 PATCH pixels costs 16 / STEP of the
+// lanes; with 3 x 3 patches it replaced evaluating the two edge pixels of 16 output lanes on float2s,
 // and measured 2 % faster with the same bytes (Cornell diffuse 512², `noisefree filter
 // --profile`, binaries alternating four times: 109.5-110.8 ms -> 106.8-109.4 ms) and is the
 // simpler code. Offsets outside the halves' window (BMFR_NLM_ESTIMATE_RADIUS) evaluate and
@@ -156,8 +156,9 @@ inline bool bmfr_nlm_inside(int xv, int y0, int w, int h, int dx, int dy) {
 // pass sliding a window of 2 P + 1 row sums in private variables (as the emission kernel
 // does) is the same float operations in the same order, but its 15-20 float16s do not fit in
 // AVX2's registers and the compiler's spills cost more than this buffer's stores and loads
-// (Cornell diffuse 512², `noisefree filter --profile --repeat 5`, binaries alternating three
-// times: 128.8-131.7 ms -> 111.7-114.9 ms, the same bytes).
+// (`scripts/filter-ab.sh` on six scenes' 512² AOVs on an AVX2 CPU: 0.86-0.91x of the sliding
+// window's time, Cornell diffuse 130.6 -> 112.7 ms, the same bytes; results/README.md, bmfr,
+// "Stop 59").
 __attribute__((always_inline)) inline void bmfr_nlm_offset(
     __global const float* lines, uint stride, int xv, int y0, int h, int dx, int dy, float k2,
     const int images, const int inside, float16 hs[BMFR_NLM_ROWS + 2 * BMFR_NLM_PATCH][4],

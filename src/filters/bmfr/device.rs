@@ -116,12 +116,9 @@ fn line_stride(width: u32) -> u32 {
     NLM_PACKED_PAD + width.next_multiple_of(PACK) + 2 * NLM_PACKED_PAD
 }
 
-/// Lanes of the packed kernels (bmfr_nlm_packed.cl BMFR_NLM_PACK).
+/// Lanes of the packed kernels (bmfr_nlm_packed.cl BMFR_NLM_PACK; the pixels whose windows one
+/// work-item of the packed selection sums, bmfr_select_packed.cl BMFR_SELECT_PACK).
 const PACK: u32 = 16;
-
-/// Pixels whose windows one work-item of the packed selection sums (bmfr_select_packed.cl
-/// BMFR_SELECT_PACK).
-const SELECT_PACK: u32 = PACK;
 
 /// Pixels filtered per work-item of the packed non-local means with patches of half width
 /// `patch`: its lanes less the left and right neighbours (bmfr_nlm_packed.cl BMFR_NLM_STEP).
@@ -181,6 +178,9 @@ impl BmfrKernel {
                 gpu.summary.name
             );
         }
+        // The non-local means, the albedo prefilter, the emission's filter and the selection
+        // packed on CPU devices (nlm.rs `packed_nlm`): 16 pixels of a row per work-item.
+        let packed_nlm = s.packed_nlm.or(gpu.summary.kind == "CPU");
         let k = s.features();
         // bmfr_fit's local memory: the block's matrix (unless in global memory) and each
         // work-item's partial dot products.
@@ -412,7 +412,6 @@ impl BmfrKernel {
             select.push(built(kb, all)?);
             // Packed on CPU devices (nlm.rs `packed_nlm`): the inputs as lines of floats,
             // padded either side and zeroed once (kernels/filters/bmfr_nlm_packed.cl).
-            let packed_nlm = s.packed_nlm.or(gpu.summary.kind == "CPU");
             let stride = line_stride(width);
             // The packed kernels' input lines, which the packed guided filter reads too.
             let mut nlm_lines = None;
@@ -468,6 +467,13 @@ impl BmfrKernel {
             let mut kb = per_pixel("bmfr_residuals_nlm", no_positions);
             kb.arg(&raw).arg(&out).arg(&nlm_out).arg(&residuals);
             select.push(built(kb, no_positions)?);
+            // A packed kernel's launch: one work-item per PACK pixels of a row.
+            let row_packed = |name, frame| {
+                let mut kb = per_pixel(name, frame);
+                kb.global_work_size([width.div_ceil(PACK) as usize, height as usize])
+                    .local_work_size([1, 1]);
+                kb
+            };
             // The guided filter's four passes (guided.rs), before the selection overwrites
             // the fit that its error terms are relative to.
             let guided_out = if s.guided {
@@ -490,26 +496,20 @@ impl BmfrKernel {
                     let mut kb = per_pixel("bmfr_guided_guide_lines", positions_only);
                     kb.arg(stride).arg(&guides);
                     select.push(built(kb, positions_only)?);
-                    let packed = |name, frame| {
-                        let mut kb = per_pixel(name, frame);
-                        kb.global_work_size([width.div_ceil(PACK) as usize, height as usize])
-                            .local_work_size([1, 1]);
-                        kb
-                    };
-                    let mut kb = packed("bmfr_guided_rows_packed", none);
+                    let mut kb = row_packed("bmfr_guided_rows_packed", none);
                     kb.arg(stride).arg(lines).arg(&guides).arg(&moments);
                     select.push(built(kb, none)?);
-                    let mut kb = packed("bmfr_guided_solve_packed", none);
+                    let mut kb = row_packed("bmfr_guided_solve_packed", none);
                     kb.arg(stride).arg(&moments).arg(&models);
                     select.push(built(kb, none)?);
-                    let mut kb = packed("bmfr_guided_average_rows_packed", none);
+                    let mut kb = row_packed("bmfr_guided_average_rows_packed", none);
                     kb.arg(stride).arg(&models).arg(&moments);
                     select.push(built(kb, none)?);
                     let frame = FrameArgs {
                         positions: false,
                         ..all
                     };
-                    let mut kb = packed("bmfr_guided_eval_packed", frame);
+                    let mut kb = row_packed("bmfr_guided_eval_packed", frame);
                     kb.arg(stride)
                         .arg(&raw)
                         .arg(&guides)
@@ -543,10 +543,7 @@ impl BmfrKernel {
             // Packed on CPU devices too (kernels/filters/bmfr_select_packed.cl): 16 pixels'
             // windows per work-item, the same bytes.
             let mut kb = if packed_nlm {
-                let mut kb = per_pixel("bmfr_select_nlm_packed", none);
-                kb.global_work_size([width.div_ceil(SELECT_PACK) as usize, height as usize])
-                    .local_work_size([1, 1]);
-                kb
+                row_packed("bmfr_select_nlm_packed", none)
             } else {
                 per_pixel("bmfr_select_nlm", none)
             };
@@ -585,9 +582,8 @@ impl BmfrKernel {
             )?;
             // On CPU devices the packed kernel (bmfr_prefilter_packed.cl) over its inputs as
             // lines; elsewhere one work-item per pixel.
-            let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
             let stride = line_stride(width);
-            let lines = if packed {
+            let lines = if packed_nlm {
                 Some(gpu.zeroed::<f32>(
                     (prefilter_packed_lines(s.prefilter_geometry) * stride) as usize
                         * height as usize,
@@ -694,10 +690,9 @@ impl BmfrKernel {
             let prep = kb.build().context("creating the bmfr emission kernel")?;
             // Packed on CPU devices (`packed_nlm`, bmfr_emission_nlm_packed), else work-groups
             // of a tile.
-            let packed = s.packed_nlm.or(gpu.summary.kind == "CPU");
             let mut kb = Kernel::builder();
             kb.program(&program).queue(gpu.queue.clone());
-            if packed {
+            if packed_nlm {
                 kb.name("bmfr_emission_nlm_packed")
                     .global_work_size([
                         width.div_ceil(EMISSION_PACKED_STEP) as usize,

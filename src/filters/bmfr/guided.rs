@@ -38,7 +38,7 @@
 //!
 //! Settings chosen with a double-precision prototype of this reference, then the kernels'
 //! error on 13 scenes and their cost (off by default: its error is higher on two of them, and
-//! it adds about 40 % to bmfr's time): results/README.md, bmfr, "Stop 57" and "Stop 58".
+//! it adds 35-45 % to bmfr's time on grids): results/README.md, bmfr, "Stop 57" and "Stop 58".
 
 // Index loops on purpose: each mirrors a loop of the kernel, whose order fixes the bits.
 #![allow(clippy::needless_range_loop)]
@@ -275,10 +275,10 @@ pub fn guided(
         .collect()
 }
 
-/// kernels/filters/bmfr_guided.cl `bmfr_guided_blend` (`bmfr_guided_join`) for pixel (x, y): the selection's blend
-/// `selected` of weight `weight` (0: the selection made no blend, kept as it is) with the
-/// guided filter, weighted by 1 / E_g² (module docs). `residuals`: nlm.rs `residual`'s (V, R,
-/// N, class); `guided`: [`guided`]'s.
+/// kernels/filters/bmfr_guided.cl `bmfr_guided_blend` (`bmfr_guided_join`) for pixel (x, y):
+/// the selection's blend `selected` of weight `weight` (0: the selection made no blend, kept
+/// as it is) with the guided filter, weighted by 1 / E_g² (module docs). `residuals`: nlm.rs
+/// `residual`'s (V, R, N, class); `guided`: [`guided`]'s.
 pub fn blend(
     residuals: &[[f32; 4]],
     guided: &[[f32; 4]],

@@ -211,12 +211,13 @@
 //! work-groups share each tap's distance through local memory) and, on CPU devices
 //! (`packed_nlm`), `bmfr_nlm_packed` (bmfr_nlm_packed.cl; one work-item per 12 × 32 pixels on
 //! float16 lanes with 5 × 5 patches, the taps shifted between lanes, each output row's five
-//! row sums added from a buffer of the work-item's rows). With 3 × 3 patches (the figures that follow): on PoCL
-//! (2 cores, Cornell glossy 512², 8 spp, `noisefree filter a.exr --filter bmfr --repeat 5`, medians): bmfr takes
-//! 190 ms with the packed kernel, 839 ms with the work-group one (`--bmfr-packed-nlm=false`)
-//! and 72 ms with `--bmfr-nlm-radius 0` (one offset), so the other 120 offsets cost about
-//! 120 ms packed and 770 ms in work-groups. On variants of the packed kernel not kept in the
-//! repository, shifting the lanes through private memory instead of `shuffle2` cost 50 ms more;
+//! row sums added from a buffer of the work-item's rows). With 3 × 3 patches (the figures
+//! that follow): on PoCL (2 cores, Cornell glossy 512², 8 spp, `noisefree filter a.exr
+//! --filter bmfr --repeat 5`, medians): bmfr takes 190 ms with the packed kernel, 839 ms
+//! with the work-group one (`--bmfr-packed-nlm=false`) and 72 ms with `--bmfr-nlm-radius 0`
+//! (one offset), so the other 120 offsets cost about 120 ms packed and 770 ms in
+//! work-groups. On variants of the packed kernel not kept in the repository, shifting the
+//! lanes through private memory instead of `shuffle2` cost 50 ms more;
 //! 4, 8, 16 or 32 rows per work-item (`NLM_PACKED_ROWS`) were within 5 % (later, after the
 //! kernel's stack traffic was removed: 8 / 16 / 32 / 64 rows 114 / 110 / 106 / 106 ms on
 //! Cornell diffuse, binaries alternating, so 32: its (32 + 2) / 32 row evaluations per output
