@@ -259,6 +259,21 @@ void bmfr_nlm(__global const FilterVector* fv,
 // fit and the frame's non-local means (the non-local means alone for an open pixel), so that
 // the window's sums weigh every pixel's relative error alike (src/filters/bmfr/nlm.rs,
 // "Relative sums").
+// Pixel i's (V, R, N, class) of n pixels: one float4, or with BMFR_RESIDUAL_PLANES (the packed
+// selection, filters/bmfr_select_packed.cl) element c at plane c, c * n + i, so that 16
+// adjacent pixels' V (R, N, class) are one vector load there.
+inline void bmfr_store_residual(__global float4* residuals, uint i, uint n, float4 e) {
+#if BMFR_RESIDUAL_PLANES
+    __global float* planes = (__global float*)residuals;
+    planes[i] = e.x;
+    planes[n + i] = e.y;
+    planes[2 * n + i] = e.z;
+    planes[3 * n + i] = e.w;
+#else
+    residuals[i] = e;
+#endif
+}
+
 __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
                                  __global const float4* odd_halves,
                                  uint width, uint height, float spp,
@@ -273,7 +288,7 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
     float4 odd = odd_halves[i];
     float class = raw[i].w;                  // bmfr_nlm_class_at, from bmfr_nlm_prep
     if (class == 0.0f) {
-        residuals[i] = (float4)(0.0f);
+        bmfr_store_residual(residuals, i, width * height, (float4)(0.0f));
         return;
     }
     float n_odd = odd.w, n_even = spp - odd.w;
@@ -297,7 +312,8 @@ __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
     rr *= weight;
     n *= weight;
 #endif
-    residuals[i] = (float4)(v.x + v.y + v.z, rr.x + rr.y + rr.z, n.x + n.y + n.z, class);
+    bmfr_store_residual(residuals, i, width * height,
+                        (float4)(v.x + v.y + v.z, rr.x + rr.y + rr.z, n.x + n.y + n.z, class));
 }
 
 // bmfr_select_nlm: the window sums V, R, N over the (2 r + 1)^2 pixels around, the three

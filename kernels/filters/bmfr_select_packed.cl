@@ -6,7 +6,11 @@
 // Why: PoCL ran bmfr_select_nlm's 81 window terms per pixel (its unrolled window) on scalar
 // floats: 8 ms of bmfr's 60 at 512², 16 ms with the floor (results/README.md, bmfr "Stop 43").
 // Here each window position is one step for 16 pixels: the residuals of the 16 pixels it
-// reaches are four float16 loads (float4 each: V, R, N, class) taken apart by shuffles.
+// reaches are four float16 loads, one from each of the residuals' planes (V, R, N, class:
+// bmfr_residuals_nlm writes them so under BMFR_RESIDUAL_PLANES, on wherever this kernel runs).
+// Read as float4 per pixel they were four loads taken apart by eight shuffles
+// (results/README.md, bmfr "Stop 60"). The guided filter's terms are still float4 per pixel
+// (bmfr_residual_lanes): only their w enters the window.
 //
 // The same bytes as bmfr_select_nlm: every lane adds its window's terms in the kernel's order
 // (rows top to bottom, each left to right), and a term of another class or outside the image
@@ -57,6 +61,31 @@ __attribute__((always_inline)) inline void bmfr_residual_lanes(__global const fl
     *class = vload16(0, lanes[3]);
 }
 
+// The same from the residuals' four planes (BMFR_RESIDUAL_PLANES, bmfr_residuals_nlm: plane c
+// at c * n floats): four loads, no shuffles.
+__attribute__((always_inline)) inline void bmfr_residual_planes(__global const float* planes, size_t n, size_t row, int x,
+                                 int w, float16* v, float16* r, float16* nn, float16* class) {
+    if (x >= 0 && x + BMFR_SELECT_PACK <= w) {
+        __global const float* p = planes + row + x;
+        *v = load16(p);
+        *r = load16(p + n);
+        *nn = load16(p + 2 * n);
+        *class = load16(p + 3 * n);
+        return;
+    }
+    // A window position past the image's left or right edge: pixel by pixel.
+    float lanes[4][BMFR_SELECT_PACK];
+    for (int i = 0; i < BMFR_SELECT_PACK; ++i) {
+        int xx = x + i;
+        bool in = xx >= 0 && xx < w;
+        for (int c = 0; c < 4; ++c) lanes[c][i] = in ? planes[c * n + row + xx] : 0.0f;
+    }
+    *v = vload16(0, lanes[0]);
+    *r = vload16(0, lanes[1]);
+    *nn = vload16(0, lanes[2]);
+    *class = vload16(0, lanes[3]);
+}
+
 // The window of lane i's pixel: rows y - RADIUS .. y + RADIUS inside the image, and in each the
 // positions dx whose pixel x0 + i + dx lies inside it. `take` is the lane mask of the terms
 // that count (the class test, and inside the image); BODY runs once per position.
@@ -67,7 +96,7 @@ __attribute__((always_inline)) inline void bmfr_residual_lanes(__global const fl
         for (int dx = -BMFR_SELECT_RADIUS; dx <= BMFR_SELECT_RADIUS; ++dx) {                     \
             int16 xx = xs + dx;                                                                  \
             float16 v, r, n, c;                                                                  \
-            bmfr_residual_lanes(residuals, (size_t)yy * w, x0 + dx, w, &v, &r, &n, &c);          \
+            bmfr_residual_planes(planes, pixels, (size_t)yy * w, x0 + dx, w, &v, &r, &n, &c);    \
             int16 take = xx >= 0 && xx < w && c == class;                                        \
             BODY                                                                                 \
         }                                                                                        \
@@ -99,8 +128,11 @@ __kernel void bmfr_select_nlm_packed(__global const FilterVector* fv,
     int w = (int)width, h = (int)height;
     if (x0 >= w || y >= h) return;
     int16 xs = (int16)(x0) + BMFR_SELECT_LANES;
+    // The residuals as planes (BMFR_RESIDUAL_PLANES is on wherever this kernel runs).
+    __global const float* planes = (__global const float*)residuals;
+    size_t pixels = (size_t)w * (size_t)h;
     float16 own_v, own_r, own_n, class;
-    bmfr_residual_lanes(residuals, (size_t)y * w, x0, w, &own_v, &own_r, &own_n, &class);
+    bmfr_residual_planes(planes, pixels, (size_t)y * w, x0, w, &own_v, &own_r, &own_n, &class);
     float16 sum_v = 0.0f, sum_r = 0.0f, sum_n = 0.0f, count = 0.0f;
     float16 excess_sum = 0.0f, excess_min = INFINITY;
     // With the guided filter, its error terms' window sum too (bmfr_guided_blend's, whose V

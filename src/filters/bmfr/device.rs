@@ -260,6 +260,8 @@ impl BmfrKernel {
             ("BMFR_SPLIT_EMISSION", flag(s.splits_emission())),
             ("BMFR_GLOBAL_MATRIX", flag(!packed && !local_matrix)),
             ("BMFR_GUIDED", flag(s.uses_nlm() && s.guided)),
+            // The packed selection reads the residuals as four planes (bmfr_residuals_nlm).
+            ("BMFR_RESIDUAL_PLANES", flag(packed_nlm)),
             ("BMFR_GUIDED_RADIUS", s.guided_radius.to_string()),
             ("BMFR_GUIDED_RIDGE", format!("{:e}f", s.guided_ridge as f32)),
             ("BMFR_GUIDED_SCALE", format!("{:e}f", s.guided_scale() as f32)),
