@@ -49,18 +49,24 @@
     || !defined(BMFR_ALBEDO_EPSILON) || !defined(BMFR_PIVOT_MIN) || !defined(BMFR_SELECT_RADIUS)    \
     || !defined(BMFR_SELECT_SCALE) || !defined(BMFR_SELECT_FLOOR) || !defined(BMFR_PREFILTER_K) || !defined(BMFR_PREFILTER_EPSILON) \
     || !defined(BMFR_PREFILTER_GEOMETRY) || !defined(BMFR_GEOMETRY_K) || !defined(BMFR_PREFILTER_LINES) \
-    || !defined(BMFR_GLOBAL_MATRIX)
+    || !defined(BMFR_GLOBAL_MATRIX) || !defined(BMFR_COLUMN_PAD)
 #error "noisefree: a bmfr filter switch is missing from the build options"
 #endif
 
 #define BMFR_N (BMFR_BLOCK * BMFR_BLOCK)
+// Floats from one column of a block's matrix to the next: its BMFR_N rows and BMFR_COLUMN_PAD
+// unused floats (src/filters/bmfr/device.rs `COLUMN_PAD`: 16 for the packed fit, else 0). With
+// B = 32 a column is 4 KiB, so the same rows of every column fell into one set of a CPU's
+// first-level cache (4 KiB apart), more columns than its ways: the packed fit's sweeps over
+// the columns missed the cache on every access (results/README.md, bmfr "Stop 60").
+#define BMFR_LD (BMFR_N + BMFR_COLUMN_PAD)
 #define BMFR_ROWS (BMFR_N / BMFR_WG)
 #define BMFR_K (10 + BMFR_DEPTH + 3 * BMFR_TEXTURE + 3 * BMFR_TEXTURE2)
 #define BMFR_C (BMFR_K + 6)
 #define BMFR_INFO 9
 // Where bmfr_fit keeps its block's matrix. B = 32 with 10 features and 6 targets is 64 KiB,
 // more than the 48 KiB of local memory NVIDIA's OpenCL gives a work-group; there the matrix
-// lives in global memory, a slice of BMFR_C * BMFR_N floats per block of the launch (as in
+// lives in global memory, a slice of BMFR_C * BMFR_LD floats per block of the launch (as in
 // the paper's own code, whose work-groups read the block from a global buffer), and the
 // barriers that order its accesses fence global memory too. The same operations in the same
 // order: the same bytes.
@@ -195,9 +201,9 @@ inline float bmfr_factor(float dot, float alpha, float a_cj, float vnorm2) {
 inline void bmfr_back_substitute(BMFR_MATRIX const float* a, int t, __global float* o) {
     float w[BMFR_K];
     for (int j = BMFR_K - 1; j >= 0; --j) {
-        float s = a[(BMFR_K + t) * BMFR_N + j];
-        for (int i = j + 1; i < BMFR_K; ++i) s -= a[i * BMFR_N + j] * w[i];
-        float rjj = a[j * BMFR_N + j];
+        float s = a[(BMFR_K + t) * BMFR_LD + j];
+        for (int i = j + 1; i < BMFR_K; ++i) s -= a[i * BMFR_LD + j] * w[i];
+        float rjj = a[j * BMFR_LD + j];
         w[j] = fabs(rjj) > BMFR_PIVOT_MIN ? s / rjj : 0.0f;
         o[j] = w[j];
     }
@@ -211,9 +217,9 @@ void bmfr_fit(__global const FilterVector* fv,
               __global float* info,
               __global float* matrices) {
 #if BMFR_GLOBAL_MATRIX
-    __global float* a = matrices + (size_t)get_group_id(0) * (BMFR_C * BMFR_N);
+    __global float* a = matrices + (size_t)get_group_id(0) * (BMFR_C * BMFR_LD);
 #else
-    __local float a[BMFR_C * BMFR_N];
+    __local float a[BMFR_C * BMFR_LD];
 #endif
     __local float partial[BMFR_WG * BMFR_C];
     __local float dots[BMFR_C];
@@ -237,7 +243,7 @@ void bmfr_fit(__global const FilterVector* fv,
         uint i = valid ? (uint)y * width + (uint)x : 0u;
         valid = valid && !bmfr_kept(fv + i, positions + i, spp);
         if (!valid) {
-            for (int c = 0; c < BMFR_C; ++c) a[c * BMFR_N + r] = 0.0f;
+            for (int c = 0; c < BMFR_C; ++c) a[c * BMFR_LD + r] = 0.0f;
             continue;
         }
         __global const FilterVector* f = fv + i;
@@ -245,19 +251,19 @@ void bmfr_fit(__global const FilterVector* fv,
         lo = fmin(lo, raw);
         hi = fmax(hi, raw);
         count += 1.0f;
-        a[4 * BMFR_N + r] = raw.x;
-        a[5 * BMFR_N + r] = raw.y;
-        a[6 * BMFR_N + r] = raw.z;
-        a[7 * BMFR_N + r] = raw.w;         // parked; its column is rewritten below
+        a[4 * BMFR_LD + r] = raw.x;
+        a[5 * BMFR_LD + r] = raw.y;
+        a[6 * BMFR_LD + r] = raw.z;
+        a[7 * BMFR_LD + r] = raw.w;         // parked; its column is rewritten below
         float3 alb = bmfr_albedo(f);
         float3 d = (float3)(f->direct[0], f->direct[1], f->direct[2]) / alb;
         float3 n = (float3)(f->indirect[0], f->indirect[1], f->indirect[2]) / alb;
-        a[(BMFR_K + 0) * BMFR_N + r] = d.x;
-        a[(BMFR_K + 1) * BMFR_N + r] = d.y;
-        a[(BMFR_K + 2) * BMFR_N + r] = d.z;
-        a[(BMFR_K + 3) * BMFR_N + r] = n.x;
-        a[(BMFR_K + 4) * BMFR_N + r] = n.y;
-        a[(BMFR_K + 5) * BMFR_N + r] = n.z;
+        a[(BMFR_K + 0) * BMFR_LD + r] = d.x;
+        a[(BMFR_K + 1) * BMFR_LD + r] = d.y;
+        a[(BMFR_K + 2) * BMFR_LD + r] = d.z;
+        a[(BMFR_K + 3) * BMFR_LD + r] = n.x;
+        a[(BMFR_K + 4) * BMFR_LD + r] = n.y;
+        a[(BMFR_K + 5) * BMFR_LD + r] = n.z;
     }
     partial[t * BMFR_C + 0] = lo.x;
     partial[t * BMFR_C + 1] = lo.y;
@@ -298,12 +304,12 @@ void bmfr_fit(__global const FilterVector* fv,
         bool valid = x >= 0 && y >= 0 && x < (int)width && y < (int)height;
         uint i = valid ? (uint)y * width + (uint)x : 0u;
         if (!valid || bmfr_kept(fv + i, positions + i, spp)) continue;
-        float4 raw = (float4)(a[4 * BMFR_N + r], a[5 * BMFR_N + r], a[6 * BMFR_N + r],
-                              a[7 * BMFR_N + r]);
+        float4 raw = (float4)(a[4 * BMFR_LD + r], a[5 * BMFR_LD + r], a[6 * BMFR_LD + r],
+                              a[7 * BMFR_LD + r]);
         float feat[BMFR_K];
         bmfr_features(fv + i, raw, blo, bscale, feat);
         a[r] = feat[0];
-        for (int c = 1; c < BMFR_K; ++c) a[c * BMFR_N + r] = feat[c] + bmfr_noise(i, (uint)c);
+        for (int c = 1; c < BMFR_K; ++c) a[c * BMFR_LD + r] = feat[c] + bmfr_noise(i, (uint)c);
     }
     barrier(BMFR_FENCE);
 
@@ -313,7 +319,7 @@ void bmfr_fit(__global const FilterVector* fv,
             float s = 0.0f;
             for (int q = 0; q < BMFR_ROWS; ++q) {
                 int r = t + q * BMFR_WG;
-                if (r >= j) s += a[j * BMFR_N + r] * a[c * BMFR_N + r];
+                if (r >= j) s += a[j * BMFR_LD + r] * a[c * BMFR_LD + r];
             }
             partial[t * BMFR_C + c] = s;
         }
@@ -326,12 +332,12 @@ void bmfr_fit(__global const FilterVector* fv,
         barrier(BMFR_FENCE);
         if (t >= j && t < BMFR_C) {
             float alpha, vj, vnorm2;
-            bmfr_reflection(dots[j], a[j * BMFR_N + j], &alpha, &vj, &vnorm2);
+            bmfr_reflection(dots[j], a[j * BMFR_LD + j], &alpha, &vj, &vnorm2);
             if (t == j) {
                 factor[j] = vj;
                 range[0] = alpha;  // the min/max are no longer needed
             } else {
-                factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_N + j], vnorm2);
+                factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_LD + j], vnorm2);
             }
         }
         barrier(BMFR_FENCE);
@@ -339,9 +345,9 @@ void bmfr_fit(__global const FilterVector* fv,
         for (int q = 0; q < BMFR_ROWS; ++q) {
             int r = t + q * BMFR_WG;
             if (r < j) continue;
-            float v = r == j ? vj : a[j * BMFR_N + r];
-            for (int c = j + 1; c < BMFR_C; ++c) a[c * BMFR_N + r] -= factor[c] * v;
-            if (r == j) a[j * BMFR_N + j] = range[0];
+            float v = r == j ? vj : a[j * BMFR_LD + r];
+            for (int c = j + 1; c < BMFR_C; ++c) a[c * BMFR_LD + r] -= factor[c] * v;
+            if (r == j) a[j * BMFR_LD + j] = range[0];
         }
         barrier(BMFR_FENCE);
     }

@@ -100,7 +100,7 @@ void bmfr_fit_packed(__global const float* rows,
                      uint width, uint height, uint grid, uint stride,
                      __global float* weights,
                      __global float* info) {
-    __local float a[BMFR_C * BMFR_N];
+    __local float a[BMFR_C * BMFR_LD];
     float factor[BMFR_C];
     uint block = (uint)get_group_id(0);
     int2 off = bmfr_grid_offset(grid);
@@ -121,7 +121,7 @@ void bmfr_fit_packed(__global const float* rows,
     for (int r0 = 0; r0 < BMFR_N; r0 += 16) {
         int y = y0 + r0 / BMFR_BLOCK, xs = x0 + r0 % BMFR_BLOCK;
         if (y < 0 || y >= (int)height || xs + 15 < 0 || xs >= (int)width) {
-            for (int c = 0; c < BMFR_C; ++c) store16_local((float16)(0.0f), a + c * BMFR_N + r0);
+            for (int c = 0; c < BMFR_C; ++c) store16_local((float16)(0.0f), a + c * BMFR_LD + r0);
             continue;
         }
         int16 x = (int16)(xs) + BMFR_LANE_IDS;
@@ -130,9 +130,9 @@ void bmfr_fit_packed(__global const float* rows,
         int16 surface = inside && load16(at) != 0.0f;
         for (int c = 0; c < BMFR_C; ++c)
             store16_local(select((float16)(0.0f), load16(at + c * plane), surface),
-                          a + c * BMFR_N + r0);
+                          a + c * BMFR_LD + r0);
         for (int k = 0; k < 4; ++k) {
-            float16 raw = load16_local(a + (4 + k) * BMFR_N + r0);
+            float16 raw = load16_local(a + (4 + k) * BMFR_LD + r0);
             lo16[k] = select(lo16[k], fmin(lo16[k], raw), surface);
             hi16[k] = select(hi16[k], fmax(hi16[k], raw), surface);
         }
@@ -176,12 +176,12 @@ void bmfr_fit_packed(__global const float* rows,
 #define BMFR_NOISE16(c)                                                                        \
     ((convert_float16(hash_u32_16(h ^ (uint)(c)) >> 8) * 0x1.0p-24f - 0.5f) * BMFR_NOISE)
 #define BMFR_PUT(c, v) store16_local(select((float16)(0.0f), (v) + BMFR_NOISE16(c), surface), \
-                                     a + (c) * BMFR_N + r0)
-        float16 sx = (load16_local(a + 4 * BMFR_N + r0) - blo.x) * bscale.x;
-        float16 sy = (load16_local(a + 5 * BMFR_N + r0) - blo.y) * bscale.y;
-        float16 sz = (load16_local(a + 6 * BMFR_N + r0) - blo.z) * bscale.z;
-        float16 sw = (load16_local(a + 7 * BMFR_N + r0) - blo.w) * bscale.w;
-        for (int c = 1; c <= 3; ++c) BMFR_PUT(c, load16_local(a + c * BMFR_N + r0));
+                                     a + (c) * BMFR_LD + r0)
+        float16 sx = (load16_local(a + 4 * BMFR_LD + r0) - blo.x) * bscale.x;
+        float16 sy = (load16_local(a + 5 * BMFR_LD + r0) - blo.y) * bscale.y;
+        float16 sz = (load16_local(a + 6 * BMFR_LD + r0) - blo.z) * bscale.z;
+        float16 sw = (load16_local(a + 7 * BMFR_LD + r0) - blo.w) * bscale.w;
+        for (int c = 1; c <= 3; ++c) BMFR_PUT(c, load16_local(a + c * BMFR_LD + r0));
         BMFR_PUT(4, sx);
         BMFR_PUT(5, sy);
         BMFR_PUT(6, sz);
@@ -193,11 +193,11 @@ void bmfr_fit_packed(__global const float* rows,
 #endif
 #if BMFR_TEXTURE
         for (int c = BMFR_COL_TEXTURE; c < BMFR_COL_TEXTURE + 3; ++c)
-            BMFR_PUT(c, load16_local(a + c * BMFR_N + r0));
+            BMFR_PUT(c, load16_local(a + c * BMFR_LD + r0));
 #endif
 #if BMFR_TEXTURE2
         for (int c = BMFR_COL_TEXTURE2; c < BMFR_COL_TEXTURE2 + 3; ++c)
-            BMFR_PUT(c, load16_local(a + c * BMFR_N + r0));
+            BMFR_PUT(c, load16_local(a + c * BMFR_LD + r0));
 #endif
 #undef BMFR_PUT
 #undef BMFR_NOISE16
@@ -218,12 +218,12 @@ void bmfr_fit_packed(__global const float* rows,
             int r0 = q * BMFR_WG + 16 * m;
             // Column 0 from row 0: every row takes part.
             float16 x = load16_local(a + r0);
-            for (int c = 0; c < BMFR_C; ++c) acc[c] += x * load16_local(a + c * BMFR_N + r0);
+            for (int c = 0; c < BMFR_C; ++c) acc[c] += x * load16_local(a + c * BMFR_LD + r0);
         }
         for (int c = 0; c < BMFR_C; ++c) vstore16(acc[c], 0, partial[c] + 16 * m);
     }
     for (int j = 0; j < BMFR_K; ++j) {
-        __local float* aj = a + j * BMFR_N;
+        __local float* aj = a + j * BMFR_LD;
         float dots[BMFR_C];
         for (int c = j; c < BMFR_C; ++c) {
             float s = 0.0f;
@@ -233,7 +233,7 @@ void bmfr_fit_packed(__global const float* rows,
         float vnorm2;
         bmfr_reflection(dots[j], aj[j], &alpha, &factor[j], &vnorm2);
         for (int t = j + 1; t < BMFR_C; ++t)
-            factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_N + j], vnorm2);
+            factor[t] = bmfr_factor(dots[t], alpha, a[t * BMFR_LD + j], vnorm2);
         float vj = factor[j];
         // Reflection j applied to the columns c > j, and column `next`'s dot products with
         // the updated columns (none after the last feature column).
@@ -248,7 +248,7 @@ void bmfr_fit_packed(__global const float* rows,
                 if (q == 0) v = select(v, (float16)(vj), row == j);
                 float16 x = (float16)(0.0f);
                 for (int c = j + 1; c < BMFR_C; ++c) {
-                    __local float* ac = a + c * BMFR_N + r0;
+                    __local float* ac = a + c * BMFR_LD + r0;
                     float16 old = load16_local(ac);
                     float16 updated = old - factor[c] * v;
                     if (q == 0) updated = select(old, updated, row >= j);

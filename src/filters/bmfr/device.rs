@@ -33,6 +33,11 @@ use crate::render::Frame;
 /// BMFR_PAD).
 const PACKED_PAD: usize = 16;
 
+/// Unused floats after each column of the packed fit's block matrix (kernels/filters/bmfr.cl
+/// BMFR_LD): with B = 32 a column is 4 KiB, and without them the same rows of all the block's
+/// columns share one set of the first-level cache. One cache line.
+const COLUMN_PAD: u32 = 16;
+
 /// Which of the frame's arguments (set per frame) a selection kernel takes.
 #[derive(Clone, Copy)]
 struct FrameArgs {
@@ -184,13 +189,17 @@ impl BmfrKernel {
         let k = s.features();
         // bmfr_fit's local memory: the block's matrix (unless in global memory) and each
         // work-item's partial dot products.
-        let matrix_bytes = (b * b) as usize * (k + TARGETS) * 4;
+        // Its columns are BMFR_LD = B² + pad floats apart (bmfr.cl): COLUMN_PAD for the
+        // packed fit, none for the work-group fit.
+        let matrix_bytes = |pad: u32| (b * b + pad) as usize * (k + TARGETS) * 4;
         let partial_bytes = wg as usize * (k + TARGETS) * 4;
         let have = gpu.summary.local_mem_bytes;
         let fits = |bytes: usize| have == 0 || bytes as u64 <= have;
         // The packed fit (one work-item per block) always holds the matrix in local memory:
         // auto only where it fits; else the work-group fit with the matrix in global memory.
-        let packed = s.packed_fit.or(gpu.summary.kind == "CPU" && fits(matrix_bytes));
+        let packed = s.packed_fit.or(gpu.summary.kind == "CPU" && fits(matrix_bytes(COLUMN_PAD)));
+        let column_pad = if packed { COLUMN_PAD } else { 0 };
+        let matrix_bytes = matrix_bytes(column_pad);
         let local_matrix = s.local_matrix.or(packed || fits(matrix_bytes + partial_bytes));
         if packed && !local_matrix {
             bail!(
@@ -259,6 +268,7 @@ impl BmfrKernel {
             ("BMFR_EMISSION_MEAN_ON", flag(s.emission_mean_test() > 0.0)),
             ("BMFR_SPLIT_EMISSION", flag(s.splits_emission())),
             ("BMFR_GLOBAL_MATRIX", flag(!packed && !local_matrix)),
+            ("BMFR_COLUMN_PAD", column_pad.to_string()),
             ("BMFR_GUIDED", flag(s.uses_nlm() && s.guided)),
             // The packed selection reads the residuals as four planes (bmfr_residuals_nlm).
             ("BMFR_RESIDUAL_PLANES", flag(packed_nlm)),
