@@ -224,12 +224,12 @@ void bmfr_fit_packed(__global const float* rows,
     }
     for (int j = 0; j < BMFR_K; ++j) {
         __local float* aj = a + j * BMFR_LD;
+        // Each column's sum over the work-items in order, the columns side by side: one
+        // chain of dependent adds per column, interleaved (the sums of bmfr_fit's order).
         float dots[BMFR_C];
-        for (int c = j; c < BMFR_C; ++c) {
-            float s = 0.0f;
-            for (int u = 0; u < BMFR_WG; ++u) s += partial[c][u];
-            dots[c] = s;
-        }
+        for (int c = j; c < BMFR_C; ++c) dots[c] = 0.0f;
+        for (int u = 0; u < BMFR_WG; ++u)
+            for (int c = j; c < BMFR_C; ++c) dots[c] += partial[c][u];
         float vnorm2;
         bmfr_reflection(dots[j], aj[j], &alpha, &factor[j], &vnorm2);
         for (int t = j + 1; t < BMFR_C; ++t)
