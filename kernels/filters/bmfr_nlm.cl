@@ -249,16 +249,6 @@ void bmfr_nlm(__global const FilterVector* fv,
     for (int m = 0; m < 3; ++m) nlm_out[3 * i + m] = (float4)(acc[m] / wsum[m] * al, 0.0f);
 }
 
-// bmfr_residuals_nlm: per pixel of a class, summed over the channels, (V, R, N, class): V the
-// variance of the frame's mean (as bmfr_residuals), R = (f - y)^2 the fit's residual (0 for an
-// open pixel, which has no fit), and N the
-// cross-half estimate of the non-local means' squared error at half the samples,
-// ((nlm(o) - e)^2 - v_e + (nlm(e) - o)^2 - v_o) / 2, with v_o = (o - e)^2 n_e / n and
-// v_e = (o - e)^2 n_o / n the variances of the halves' means. With BMFR_SELECT_RELATIVE each
-// channel's three terms are first divided by l^2 + BMFR_RELATIVE_EPSILON, l the larger of the
-// fit and the frame's non-local means (the non-local means alone for an open pixel), so that
-// the window's sums weigh every pixel's relative error alike (src/filters/bmfr/nlm.rs,
-// "Relative sums").
 // Pixel i's (V, R, N, class) of n pixels: one float4, or with BMFR_RESIDUAL_PLANES (the packed
 // selection, filters/bmfr_select_packed.cl) element c at plane c, c * n + i, so that 16
 // adjacent pixels' V (R, N, class) are one vector load there.
@@ -274,6 +264,16 @@ inline void bmfr_store_residual(__global float4* residuals, uint i, uint n, floa
 #endif
 }
 
+// bmfr_residuals_nlm: per pixel of a class, summed over the channels, (V, R, N, class): V the
+// variance of the frame's mean (as bmfr_residuals), R = (f - y)^2 the fit's residual (0 for an
+// open pixel, which has no fit), and N the
+// cross-half estimate of the non-local means' squared error at half the samples,
+// ((nlm(o) - e)^2 - v_e + (nlm(e) - o)^2 - v_o) / 2, with v_o = (o - e)^2 n_e / n and
+// v_e = (o - e)^2 n_o / n the variances of the halves' means. With BMFR_SELECT_RELATIVE each
+// channel's three terms are first divided by l^2 + BMFR_RELATIVE_EPSILON, l the larger of the
+// fit and the frame's non-local means (the non-local means alone for an open pixel), so that
+// the window's sums weigh every pixel's relative error alike (src/filters/bmfr/nlm.rs,
+// "Relative sums").
 __kernel void bmfr_residuals_nlm(__global const FilterVector* fv,
                                  __global const float4* odd_halves,
                                  uint width, uint height, float spp,
