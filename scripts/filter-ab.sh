@@ -29,7 +29,6 @@ read -r -a kernels <<<"${KERNELS:-}"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-
 # One filter run of binary $1 on file $2 into $work/$3.exr; appends the whole filter's median
 # to $work/$3.total and each kernel's time to $work/$3.<kernel>.
 measure() {

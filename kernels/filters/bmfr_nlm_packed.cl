@@ -153,9 +153,10 @@ inline bool bmfr_nlm_inside(int xv, int y0, int w, int h, int dx, int dy) {
 // `images` of the three images (see bmfr_nlm_row) added to acc and wsum; `inside`:
 // bmfr_nlm_inside holds for it. Two passes: every row's patch row sums into hs (hs[i]: row
 // y0 - P + i), then each output row's 2 P + 1 of them summed top to bottom and weighed. One
-// pass sliding a window of 2 P + 1 row sums in private variables (as the emission kernel
-// does) is the same float operations in the same order, but its 15-20 float16s do not fit in
-// AVX2's registers and the compiler's spills cost more than this buffer's stores and loads
+// pass sliding a window of 2 P + 1 row sums in private variables (as this kernel and
+// bmfr_emission_nlm_packed did before stop 59) is the same float operations in the same
+// order, but its 15-20 float16s do not fit in AVX2's registers and the compiler's spills
+// cost more than this buffer's stores and loads
 // (`scripts/filter-ab.sh` on six scenes' 512² AOVs on an AVX2 CPU: 0.86-0.91x of the sliding
 // window's time, Cornell diffuse 130.6 -> 112.7 ms, the same bytes; results/README.md, bmfr,
 // "Stop 59").

@@ -23,9 +23,9 @@
 #define BMFR_SELECT_PACK 16
 #define BMFR_SELECT_LANES (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15)
 
-// V, R, N and the class of the pixels x .. x + 15 of the row starting at pixel `row`; lanes
-// outside [0, w) hold 0 (the caller masks them out). Always inlined: as a call its four
-// vectors went through the stack.
+// The four channels of a float4-per-pixel buffer (the guided filter's terms) for the pixels
+// x .. x + 15 of the row starting at pixel `row`; lanes outside [0, w) hold 0 (the caller
+// masks them out). Always inlined: as a call its four vectors went through the stack.
 __attribute__((always_inline)) inline void bmfr_residual_lanes(__global const float4* residuals, size_t row, int x, int w,
                                 float16* v, float16* r, float16* n, float16* class) {
     if (x >= 0 && x + BMFR_SELECT_PACK <= w) {

@@ -191,15 +191,15 @@ impl BmfrKernel {
         // work-item's partial dot products.
         // Its columns are BMFR_LD = B² + pad floats apart (bmfr.cl): COLUMN_PAD for the
         // packed fit, none for the work-group fit.
-        let matrix_bytes = |pad: u32| (b * b + pad) as usize * (k + TARGETS) * 4;
+        let matrix_bytes_with = |pad: u32| (b * b + pad) as usize * (k + TARGETS) * 4;
         let partial_bytes = wg as usize * (k + TARGETS) * 4;
         let have = gpu.summary.local_mem_bytes;
         let fits = |bytes: usize| have == 0 || bytes as u64 <= have;
         // The packed fit (one work-item per block) always holds the matrix in local memory:
         // auto only where it fits; else the work-group fit with the matrix in global memory.
-        let packed = s.packed_fit.or(gpu.summary.kind == "CPU" && fits(matrix_bytes(COLUMN_PAD)));
+        let packed = s.packed_fit.or(gpu.summary.kind == "CPU" && fits(matrix_bytes_with(COLUMN_PAD)));
         let column_pad = if packed { COLUMN_PAD } else { 0 };
-        let matrix_bytes = matrix_bytes(column_pad);
+        let matrix_bytes = matrix_bytes_with(column_pad);
         let local_matrix = s.local_matrix.or(packed || fits(matrix_bytes + partial_bytes));
         if packed && !local_matrix {
             bail!(
@@ -249,6 +249,8 @@ impl BmfrKernel {
             ("BMFR_NLM_K", format!("{:e}f", s.nlm_k() as f32)),
             ("BMFR_NLM_EPSILON", format!("{NLM_EPSILON:e}f")),
             ("BMFR_SELECT_RELATIVE", flag(s.select_relative)),
+            // The packed selection reads the residuals as four planes (bmfr_residuals_nlm).
+            ("BMFR_RESIDUAL_PLANES", flag(packed_nlm)),
             ("BMFR_OPEN_MARGIN", flag(s.open_margin())),
             ("BMFR_OUTLIER_RATIO", format!("{:e}f", s.outlier_ratio as f32)),
             ("BMFR_OUTLIER_RADIUS", OUTLIER_RADIUS.to_string()),
@@ -270,8 +272,6 @@ impl BmfrKernel {
             ("BMFR_GLOBAL_MATRIX", flag(!packed && !local_matrix)),
             ("BMFR_COLUMN_PAD", column_pad.to_string()),
             ("BMFR_GUIDED", flag(s.uses_nlm() && s.guided)),
-            // The packed selection reads the residuals as four planes (bmfr_residuals_nlm).
-            ("BMFR_RESIDUAL_PLANES", flag(packed_nlm)),
             ("BMFR_GUIDED_RADIUS", s.guided_radius.to_string()),
             ("BMFR_GUIDED_RIDGE", format!("{:e}f", s.guided_ridge as f32)),
             ("BMFR_GUIDED_SCALE", format!("{:e}f", s.guided_scale() as f32)),
